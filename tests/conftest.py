@@ -1,0 +1,37 @@
+"""Shared fixtures: where the real data and the detector weights are, skipping when absent."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+SHARED = Path(os.environ.get("VID2SIM_SHARED", REPO.parent / "shared"))
+DATA = SHARED / "data"
+MODELS = Path(os.environ.get("VID2SIM_MODEL_DIR", SHARED / "models"))
+
+
+def _need(path: Path, what: str) -> Path:
+    if not path.exists():
+        pytest.skip(f"{what} not found at {path} (set VID2SIM_SHARED to the shared folder)")
+    return path
+
+
+@pytest.fixture(scope="session")
+def kitti_raw_dir() -> Path:
+    """../shared/data/kitti_raw_0001: video, OXTS GPS/IMU, calibration."""
+    return _need(DATA / "kitti_raw_0001", "KITTI raw drive 0001")
+
+
+@pytest.fixture(scope="session")
+def kitti_tracking_dir() -> Path:
+    """../shared/data/kitti_tracking: labelled frames of sequences 0001 and 0016."""
+    return _need(DATA / "kitti_tracking", "KITTI tracking labels and frames")
+
+
+@pytest.fixture(scope="session")
+def model_dir() -> Path:
+    """Folder with yolox_nano.onnx and picodet_s_416_coco.onnx (never downloaded in tests)."""
+    return _need(MODELS, "detector weights folder")

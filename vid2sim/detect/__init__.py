@@ -1,0 +1,1 @@
+"""Detection: streamed video frames, ONNX detectors, multi-object tracking, monocular ranging."""

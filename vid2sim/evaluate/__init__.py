@@ -1,0 +1,1 @@
+"""Evaluation: annotation readers, scenario replay at keyframes, IoU metrics and the report."""

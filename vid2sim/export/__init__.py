@@ -1,0 +1,1 @@
+"""Export: scenario assembly, the highway-env gymnasium environment, OpenSCENARIO/OpenDRIVE."""

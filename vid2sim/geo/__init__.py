@@ -1,0 +1,1 @@
+"""Geography: GPS readers, the local ENU frame, the ego trajectory, roads and map matching."""

@@ -1,0 +1,145 @@
+"""Typed records that flow between the pipeline stages (one place for all data classes).
+
+Frames and time bases are part of the names:
+- ``t_utc_s``: seconds since the Unix epoch (UTC), the GPS clock;
+- ``t_s``: seconds from the video's first frame, the scenario clock;
+- ENU: local east-north-up metres about the scenario origin (x east, y north, z up);
+- vehicle frame: x forward, y left, z up, metres, origin on the road below the camera;
+- pixels: x right, y down, origin at the top-left corner of the image.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+# --------------------------------------------------------------------------- GPS
+
+
+@dataclass(frozen=True, slots=True)
+class GpsFix:
+    """One GPS fix as a receiver reported it.
+
+    :param t_utc_s: fix time, seconds since the Unix epoch (UTC)
+    :param lat_deg: WGS-84 latitude [deg]
+    :param lon_deg: WGS-84 longitude [deg]
+    :param alt_m: ellipsoidal or MSL altitude as reported [m], None if absent
+    :param speed_mps: reported ground speed [m/s], None if absent
+    :param course_deg: reported course over ground [deg clockwise from north], None if absent
+    :param accuracy_m: reported horizontal accuracy [m], None if absent
+    """
+
+    t_utc_s: float
+    lat_deg: float
+    lon_deg: float
+    alt_m: float | None = None
+    speed_mps: float | None = None
+    course_deg: float | None = None
+    accuracy_m: float | None = None
+
+
+@dataclass(slots=True)
+class GpsTrace:
+    """Fixes of one file in time order, with what the reader learnt about the file.
+
+    :param video_start_utc_s: the video's first-frame time on the GPS clock where the format
+        records it (BDD ``startTime``, KITTI camera timestamps), else None
+    :param n_skipped: records the reader could not use (bad checksum, no fix, unparsable)
+    """
+
+    fixes: list[GpsFix]
+    format: str
+    path: Path | None = None
+    video_start_utc_s: float | None = None
+    n_skipped: int = 0
+    warnings: list[str] = field(default_factory=list)
+
+
+@dataclass(frozen=True, slots=True)
+class Origin:
+    """Origin of the local ENU frame (WGS-84 degrees, ellipsoidal metres)."""
+
+    lat: float
+    lon: float
+    alt: float = 0.0
+
+
+@dataclass(slots=True)
+class EgoTrack:
+    """The smoothed ego trajectory, uniformly sampled, in the scenario clock and ENU frame.
+
+    Arrays share one length. ``heading_rad`` is counter-clockwise from east.
+    """
+
+    origin: Origin
+    t_s: np.ndarray
+    x_m: np.ndarray
+    y_m: np.ndarray
+    heading_rad: np.ndarray
+    speed_mps: np.ndarray
+    lat_deg: np.ndarray
+    lon_deg: np.ndarray
+    z_m: np.ndarray | None = None
+
+
+# --------------------------------------------------------------------------- detection
+
+
+VEHICLE_CATEGORIES = ("car", "truck", "bus", "motorcycle")
+
+
+@dataclass(frozen=True, slots=True)
+class Detection:
+    """A box found in one frame. ``box_px`` = (x1, y1, x2, y2) in pixels."""
+
+    box_px: tuple[float, float, float, float]
+    score: float
+    category: str
+
+
+@dataclass(frozen=True, slots=True)
+class TrackedBox:
+    """One tracked vehicle in one frame (a row of ``detections.csv``)."""
+
+    frame: int
+    t_s: float
+    track_id: int
+    category: str
+    score: float
+    x1: float
+    y1: float
+    x2: float
+    y2: float
+
+
+@dataclass(frozen=True, slots=True)
+class RangedBox:
+    """A tracked box with its position relative to the camera (a row of ``tracks.csv``).
+
+    :param range_m: longitudinal distance from the camera to the vehicle's rear [m]
+    :param lateral_m: lateral offset of the vehicle's centre, positive to the left [m]
+    :param range_rate_mps: d(range)/dt, negative when closing [m/s]
+    :param range_std_m: one-sigma uncertainty of ``range_m`` [m]
+    :param width_m: estimated vehicle width [m]
+    :param lane: "ego", "left", "right" (or "left2"/"right2"...) lane assignment
+    """
+
+    frame: int
+    t_s: float
+    track_id: int
+    category: str
+    score: float
+    x1: float
+    y1: float
+    x2: float
+    y2: float
+    range_m: float
+    lateral_m: float
+    range_rate_mps: float
+    range_std_m: float
+    is_lead: bool
+    width_m: float = float("nan")
+    lateral_rate_mps: float = float("nan")
+    lane: str = ""

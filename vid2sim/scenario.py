@@ -1,0 +1,368 @@
+"""The scenario model: typed records and the versioned ``scenario.json`` (the project's hub).
+
+Every exporter and evaluator reads this file; the field names are a contract:
+
+- ``schema``: ``"vid2sim.scenario"``, ``version``: 1
+- ``origin``: ``{lat, lon, alt}``, origin of the local ENU frame (x east, y north, z up, m)
+- ``roads``: ``[{id, name, highway, source, osm_way_ids, lanes, lane_width_m, centerline}]``
+  with ``centerline`` a list of ``[x, y]`` ENU points in travel order
+- ``ego``: ``{length_m, width_m, height_m, trajectory}``
+- ``actors``: ``[{id, category, length_m, width_m, height_m, trajectory}]``
+- trajectories: ``[{t, x, y, heading, speed}]`` with ``t`` seconds from the video's first
+  frame, ``x``/``y`` ENU metres, ``heading`` radians counter-clockwise from east, ``speed`` m/s
+- ``camera``: the camera record (see :mod:`vid2sim.camera`)
+- ``source``: input names and sha256, tool version, options, assumptions
+
+Output is canonical: sorted keys, floats rounded to fixed decimals, so the same inputs give
+byte-identical files.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from vid2sim.errors import InputError, ScenarioError
+from vid2sim.fileio import write_text_atomic
+from vid2sim.records import Origin
+
+SCHEMA = "vid2sim.scenario"
+VERSION = 1
+
+# Decimals kept per key when writing: 1e-9 deg is 0.1 mm; 1e-4 m and 1e-4 s are far below
+# what a GPS or a monocular range can resolve, and keep files small and stable.
+_DECIMALS_BY_KEY = {"lat": 9, "lon": 9}
+_DEFAULT_DECIMALS = 4
+_HEADING_DECIMALS = 6
+
+
+@dataclass(slots=True)
+class Trajectory:
+    """Timed poses in ENU: arrays of one length, ``t`` strictly increasing [s]."""
+
+    t: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+    heading: np.ndarray
+    speed: np.ndarray
+
+    def __post_init__(self) -> None:
+        for name in ("t", "x", "y", "heading", "speed"):
+            setattr(self, name, np.asarray(getattr(self, name), dtype=float).reshape(-1))
+
+    def __len__(self) -> int:
+        return int(self.t.size)
+
+    @property
+    def duration_s(self) -> float:
+        return float(self.t[-1] - self.t[0]) if len(self) else 0.0
+
+    def state_at(self, t_s: float | np.ndarray) -> dict[str, np.ndarray]:
+        """Linearly interpolated pose at ``t_s`` (heading unwrapped before interpolating)."""
+        heading = np.unwrap(self.heading)
+        return {
+            "x": np.interp(t_s, self.t, self.x),
+            "y": np.interp(t_s, self.t, self.y),
+            "heading": np.interp(t_s, self.t, heading),
+            "speed": np.interp(t_s, self.t, self.speed),
+        }
+
+    def to_json(self) -> list[dict[str, float]]:
+        return [
+            {"t": t, "x": x, "y": y, "heading": h, "speed": v}
+            for t, x, y, h, v in zip(
+                self.t.tolist(), self.x.tolist(), self.y.tolist(),
+                self.heading.tolist(), self.speed.tolist(), strict=True,
+            )
+        ]
+
+    @classmethod
+    def from_json(cls, points: list[dict[str, float]]) -> Trajectory:
+        cols = {k: [p[k] for p in points] for k in ("t", "x", "y", "heading", "speed")}
+        return cls(**cols)
+
+
+@dataclass(slots=True)
+class Road:
+    """One road of the scenario: a centerline in travel order with its lanes.
+
+    :param source: ``"osm"`` (matched OpenStreetMap ways) or ``"trajectory"`` (derived
+        from the ego path where no map was available)
+    :param centerline: (N, 2) ENU points [m]
+    """
+
+    id: str
+    name: str
+    highway: str
+    source: str
+    osm_way_ids: list[int]
+    lanes: int
+    lane_width_m: float
+    centerline: np.ndarray
+
+    def __post_init__(self) -> None:
+        self.centerline = np.asarray(self.centerline, dtype=float).reshape(-1, 2)
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "id": self.id, "name": self.name, "highway": self.highway, "source": self.source,
+            "osm_way_ids": [int(w) for w in self.osm_way_ids], "lanes": int(self.lanes),
+            "lane_width_m": float(self.lane_width_m), "centerline": self.centerline.tolist(),
+        }
+
+    @classmethod
+    def from_json(cls, d: dict[str, Any]) -> Road:
+        return cls(
+            id=str(d["id"]), name=d["name"], highway=d["highway"], source=d["source"],
+            osm_way_ids=list(d["osm_way_ids"]), lanes=int(d["lanes"]),
+            lane_width_m=float(d["lane_width_m"]), centerline=np.asarray(d["centerline"]),
+        )
+
+
+@dataclass(slots=True)
+class Ego:
+    length_m: float
+    width_m: float
+    height_m: float
+    trajectory: Trajectory
+
+    def to_json(self) -> dict[str, Any]:
+        return {"length_m": self.length_m, "width_m": self.width_m,
+                "height_m": self.height_m, "trajectory": self.trajectory.to_json()}
+
+
+@dataclass(slots=True)
+class Actor:
+    id: str
+    category: str
+    length_m: float
+    width_m: float
+    height_m: float
+    trajectory: Trajectory
+
+    def to_json(self) -> dict[str, Any]:
+        return {"id": self.id, "category": self.category, "length_m": self.length_m,
+                "width_m": self.width_m, "height_m": self.height_m,
+                "trajectory": self.trajectory.to_json()}
+
+
+@dataclass(slots=True)
+class Source:
+    """Provenance: which inputs, which tool version and options, which assumptions."""
+
+    inputs: list[dict[str, str]] = field(default_factory=list)
+    tool_version: str = ""
+    options: dict[str, Any] = field(default_factory=dict)
+    assumptions: list[str] = field(default_factory=list)
+
+    def to_json(self) -> dict[str, Any]:
+        return {"inputs": self.inputs, "tool_version": self.tool_version,
+                "options": self.options, "assumptions": self.assumptions}
+
+
+@dataclass(slots=True)
+class Scenario:
+    origin: Origin
+    roads: list[Road]
+    ego: Ego
+    actors: list[Actor]
+    camera: dict[str, Any]
+    source: Source
+
+    @property
+    def duration_s(self) -> float:
+        return self.ego.trajectory.duration_s
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "schema": SCHEMA,
+            "version": VERSION,
+            "origin": {"lat": self.origin.lat, "lon": self.origin.lon, "alt": self.origin.alt},
+            "roads": [r.to_json() for r in self.roads],
+            "ego": self.ego.to_json(),
+            "actors": [a.to_json() for a in self.actors],
+            "camera": dict(self.camera),
+            "source": self.source.to_json(),
+        }
+
+
+# --------------------------------------------------------------------------- canonical JSON
+
+
+def _canonical(obj: Any, key: str | None = None) -> Any:
+    if isinstance(obj, dict):
+        return {str(k): _canonical(v, str(k)) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_canonical(v, key) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _canonical(obj.tolist(), key)
+    if isinstance(obj, (bool, np.bool_)):
+        return bool(obj)
+    if isinstance(obj, (int, np.integer)):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        value = float(obj)
+        if not math.isfinite(value):
+            return None
+        decimals = _DECIMALS_BY_KEY.get(key or "", _DEFAULT_DECIMALS)
+        if key == "heading":
+            decimals = _HEADING_DECIMALS
+        rounded = round(value, decimals)
+        return 0.0 if rounded == 0 else rounded  # no "-0.0" noise
+    return obj
+
+
+def dumps_canonical(data: dict[str, Any]) -> str:
+    """Deterministic JSON text: sorted keys, fixed decimals, two-space indent, final newline."""
+    return json.dumps(_canonical(data), sort_keys=True, indent=1, ensure_ascii=False) + "\n"
+
+
+# --------------------------------------------------------------------------- validation
+
+
+def _require(d: Any, key: str, kind: type | tuple[type, ...], where: str, path) -> Any:
+    if not isinstance(d, dict) or key not in d:
+        raise ScenarioError(path, f"{where}{key}", "missing")
+    value = d[key]
+    if kind is float:
+        kind = (int, float)
+    if isinstance(value, bool) and kind is not bool:
+        raise ScenarioError(path, f"{where}{key}", f"expected {_kind_name(kind)}, got bool")
+    if not isinstance(value, kind):
+        raise ScenarioError(
+            path, f"{where}{key}", f"expected {_kind_name(kind)}, got {type(value).__name__}")
+    return value
+
+
+def _kind_name(kind) -> str:
+    if isinstance(kind, tuple):
+        return "number" if set(kind) == {int, float} else "/".join(k.__name__ for k in kind)
+    return kind.__name__
+
+
+def _validate_trajectory(points: Any, where: str, path) -> None:
+    if not isinstance(points, list) or not points:
+        raise ScenarioError(path, where, "expected a non-empty list of points")
+    last_t = -math.inf
+    for i, p in enumerate(points):
+        for k in ("t", "x", "y", "heading", "speed"):
+            v = _require(p, k, float, f"{where}[{i}].", path)
+            if not math.isfinite(v):
+                raise ScenarioError(path, f"{where}[{i}].{k}", "not a finite number")
+        if p["t"] <= last_t:
+            raise ScenarioError(path, f"{where}[{i}].t", "times must increase strictly")
+        if p["speed"] < 0:
+            raise ScenarioError(path, f"{where}[{i}].speed", "must be >= 0")
+        last_t = p["t"]
+
+
+def _validate_box(d: dict, where: str, path) -> None:
+    for k in ("length_m", "width_m", "height_m"):
+        v = _require(d, k, float, where, path)
+        if not v > 0:
+            raise ScenarioError(path, f"{where}{k}", "must be > 0")
+
+
+def validate(data: Any, path: str | Path | None = None) -> None:
+    """Check a parsed scenario.json; raise :class:`ScenarioError` naming the offending field."""
+    if not isinstance(data, dict):
+        raise ScenarioError(path, "<root>", "expected a JSON object")
+    if data.get("schema") != SCHEMA:
+        raise ScenarioError(path, "schema", f"expected '{SCHEMA}', got {data.get('schema')!r}")
+    version = _require(data, "version", int, "", path)
+    if version != VERSION:
+        raise ScenarioError(path, "version", f"unsupported version {version} (this tool reads {VERSION})")
+    origin = _require(data, "origin", dict, "", path)
+    for k, lo, hi in (("lat", -90, 90), ("lon", -180, 180), ("alt", -1e4, 1e5)):
+        v = _require(origin, k, float, "origin.", path)
+        if not lo <= v <= hi:
+            raise ScenarioError(path, f"origin.{k}", f"{v} outside [{lo}, {hi}]")
+    roads = _require(data, "roads", list, "", path)
+    for i, road in enumerate(roads):
+        w = f"roads[{i}]."
+        _require(road, "id", (str, int), w, path)
+        _require(road, "name", str, w, path)
+        _require(road, "highway", str, w, path)
+        _require(road, "source", str, w, path)
+        ways = _require(road, "osm_way_ids", list, w, path)
+        if not all(isinstance(x, int) and not isinstance(x, bool) for x in ways):
+            raise ScenarioError(path, f"{w}osm_way_ids", "expected a list of integers")
+        if _require(road, "lanes", int, w, path) < 1:
+            raise ScenarioError(path, f"{w}lanes", "must be >= 1")
+        if not _require(road, "lane_width_m", float, w, path) > 0:
+            raise ScenarioError(path, f"{w}lane_width_m", "must be > 0")
+        line = _require(road, "centerline", list, w, path)
+        if len(line) < 2 or not all(
+            isinstance(p, list) and len(p) == 2 and all(isinstance(c, (int, float)) for c in p)
+            for p in line
+        ):
+            raise ScenarioError(path, f"{w}centerline", "expected at least two [x, y] points")
+    ego = _require(data, "ego", dict, "", path)
+    _validate_box(ego, "ego.", path)
+    _validate_trajectory(_require(ego, "trajectory", list, "ego.", path), "ego.trajectory", path)
+    actors = _require(data, "actors", list, "", path)
+    seen: set[str] = set()
+    for i, actor in enumerate(actors):
+        w = f"actors[{i}]."
+        actor_id = str(_require(actor, "id", (str, int), w, path))
+        if actor_id in seen:
+            raise ScenarioError(path, f"{w}id", f"duplicate actor id {actor_id!r}")
+        seen.add(actor_id)
+        _require(actor, "category", str, w, path)
+        _validate_box(actor, w, path)
+        _validate_trajectory(_require(actor, "trajectory", list, w, path), f"{w}trajectory", path)
+    _require(data, "camera", dict, "", path)
+    _require(data, "source", dict, "", path)
+
+
+# --------------------------------------------------------------------------- load / save
+
+
+def from_json(data: dict[str, Any], path: str | Path | None = None) -> Scenario:
+    validate(data, path)
+    o = data["origin"]
+    ego = data["ego"]
+    src = data["source"]
+    return Scenario(
+        origin=Origin(float(o["lat"]), float(o["lon"]), float(o["alt"])),
+        roads=[Road.from_json(r) for r in data["roads"]],
+        ego=Ego(float(ego["length_m"]), float(ego["width_m"]), float(ego["height_m"]),
+                Trajectory.from_json(ego["trajectory"])),
+        actors=[
+            Actor(str(a["id"]), a["category"], float(a["length_m"]), float(a["width_m"]),
+                  float(a["height_m"]), Trajectory.from_json(a["trajectory"]))
+            for a in data["actors"]
+        ],
+        camera=dict(data["camera"]),
+        source=Source(inputs=list(src.get("inputs", [])), tool_version=str(src.get("tool_version", "")),
+                      options=dict(src.get("options", {})),
+                      assumptions=list(src.get("assumptions", []))),
+    )
+
+
+def load(path: str | Path) -> Scenario:
+    """Read and validate a scenario.json; errors name the file and the field."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise InputError(path, "no such file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(path, f"cannot read: {exc}") from None
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise InputError(path, f"not valid JSON: {exc.msg} at line {exc.lineno}") from None
+    return from_json(data, path)
+
+
+def save(scenario: Scenario, path: str | Path) -> None:
+    """Validate and write canonical JSON atomically."""
+    data = json.loads(dumps_canonical(scenario.to_json()))
+    validate(data, path)
+    write_text_atomic(path, dumps_canonical(data))
