@@ -91,6 +91,31 @@ VEHICLE_CATEGORIES = ("car", "truck", "bus", "motorcycle")
 
 
 @dataclass(frozen=True, slots=True)
+class VideoInfo:
+    """What a video (or an image folder) is: frame size [px], rate [frames/s], frame count."""
+
+    width: int
+    height: int
+    fps: float
+    n_frames: int
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Frame:
+    """One frame of a streamed video.
+
+    :param index: 0-based frame number in the source
+    :param t_s: seconds from the first frame (container timestamps, else index / fps)
+    :param image_bgr: HxWx3 uint8 BGR pixels, or None for a frame skipped undecoded
+        (``iter_frames(every=N)`` decodes only every N-th frame)
+    """
+
+    index: int
+    t_s: float
+    image_bgr: np.ndarray | None
+
+
+@dataclass(frozen=True, slots=True)
 class Detection:
     """A box found in one frame. ``box_px`` = (x1, y1, x2, y2) in pixels."""
 

@@ -1,0 +1,150 @@
+"""Streamed video input: frames one at a time from a video file or a folder of images."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from vid2sim.errors import InputError
+from vid2sim.records import Frame, VideoInfo
+
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
+DEFAULT_FOLDER_FPS = 10.0
+"""Frame rate assumed for an image folder [frames/s] (KITTI records at 10 Hz)."""
+
+
+def _image_files(folder: Path) -> list[Path]:
+    files = sorted(p for p in folder.iterdir()
+                   if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
+    if not files:
+        raise InputError(folder, "folder holds no .png/.jpg images",
+                         "give a video file or a folder of frames named in time order")
+    return files
+
+
+def _open_capture(path: Path) -> cv2.VideoCapture:
+    if not path.exists():
+        raise InputError(path, "no such video file or folder")
+    cap = cv2.VideoCapture(str(path))
+    if not cap.isOpened():
+        cap.release()
+        raise InputError(path, "OpenCV cannot open this video",
+                         "check the file is a complete video (mp4/avi/mov) or convert it with ffmpeg")
+    return cap
+
+
+def video_info(path: Path, fps: float | None = None) -> VideoInfo:
+    """Size, frame rate and frame count of a video file or image folder.
+
+    Parameters
+    ----------
+    path : Path
+        Video file, or folder of images sorted by name.
+    fps : float, optional
+        Frame rate [frames/s] to assume for an image folder (default 10) or to override a
+        video's missing rate.
+
+    Raises
+    ------
+    InputError
+        If the path is missing or unreadable.
+    """
+    path = Path(path)
+    if path.is_dir():
+        files = _image_files(path)
+        first = cv2.imread(str(files[0]), cv2.IMREAD_COLOR)
+        if first is None:
+            raise InputError(files[0], "cannot read this image")
+        return VideoInfo(width=first.shape[1], height=first.shape[0],
+                         fps=float(fps or DEFAULT_FOLDER_FPS), n_frames=len(files))
+    cap = _open_capture(path)
+    try:
+        rate = cap.get(cv2.CAP_PROP_FPS)
+        rate = float(fps) if fps else (rate if rate and np.isfinite(rate) and rate > 0 else 0.0)
+        if rate <= 0:
+            raise InputError(path, "video declares no frame rate", "pass the frame rate explicitly")
+        return VideoInfo(width=int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)),
+                         height=int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT)),
+                         fps=rate, n_frames=int(cap.get(cv2.CAP_PROP_FRAME_COUNT)))
+    finally:
+        cap.release()
+
+
+def iter_frames(path: Path, every: int = 1, fps: float | None = None) -> Iterator[Frame]:
+    """Stream the frames of a video file or image folder, decoding only every N-th one.
+
+    Every frame of the source is yielded in order, so the caller sees the full time base;
+    frames whose index is not a multiple of ``every`` carry ``image_bgr=None`` and are never
+    decoded (``VideoCapture.grab`` without ``retrieve``; images not read), which is what makes
+    ``--detect-every N`` cheap. Only one frame is held in memory at a time.
+
+    Timestamps ``t_s`` come from the container (``CAP_PROP_POS_MSEC``) relative to the first
+    frame, so variable-rate videos keep their true clock; where the container gives no usable
+    time (zero or not increasing) ``index / fps`` is used instead. Image folders are sorted by
+    name and timed at ``fps`` (default 10 frames/s).
+
+    Parameters
+    ----------
+    path : Path
+        Video file or image folder.
+    every : int
+        Decode every N-th frame (1 = all).
+    fps : float, optional
+        Frame rate [frames/s] for image folders or videos without one.
+
+    Raises
+    ------
+    InputError
+        If the path is missing or unreadable, or ``every < 1``.
+    """
+    path = Path(path)
+    if every < 1:
+        raise InputError(None, f"--detect-every must be >= 1, got {every}")
+    info = video_info(path, fps=fps)
+    if path.is_dir():
+        yield from _iter_folder(path, every, info.fps)
+    else:
+        yield from _iter_video(path, every, info.fps)
+
+
+def _iter_folder(folder: Path, every: int, fps: float) -> Iterator[Frame]:
+    for index, file in enumerate(_image_files(folder)):
+        image = None
+        if index % every == 0:
+            image = cv2.imread(str(file), cv2.IMREAD_COLOR)
+            if image is None:
+                raise InputError(file, "cannot read this image", "is the file complete?")
+        yield Frame(index=index, t_s=index / fps, image_bgr=image)
+
+
+def _iter_video(path: Path, every: int, fps: float) -> Iterator[Frame]:
+    cap = _open_capture(path)
+    try:
+        index = 0
+        t0_ms: float | None = None
+        last_t_s = -np.inf
+        while cap.grab():
+            pos_ms = cap.get(cv2.CAP_PROP_POS_MSEC)
+            if t0_ms is None:
+                t0_ms = pos_ms
+            t_s = (pos_ms - t0_ms) / 1000.0
+            # Some containers (raw streams, broken indices) report 0 or repeat a time:
+            # the nominal rate is then the only clock we have.
+            if not np.isfinite(t_s) or (index > 0 and t_s <= last_t_s):
+                t_s = index / fps
+            last_t_s = t_s
+            image = None
+            if index % every == 0:
+                ok, image = cap.retrieve()
+                if not ok:
+                    raise InputError(path, f"cannot decode frame {index}",
+                                     "the video may be truncated; re-encode it with ffmpeg")
+            yield Frame(index=index, t_s=t_s, image_bgr=image)
+            index += 1
+        if index == 0:
+            raise InputError(path, "video has no decodable frames")
+    finally:
+        cap.release()
