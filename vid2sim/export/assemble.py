@@ -1,0 +1,312 @@
+"""Scenario assembly: ego trajectory + roads + ranged tracks -> one :class:`Scenario`.
+
+Each tracked vehicle's world position at time ``t`` is the ego pose at ``t`` composed with its
+position in the ego frame (x forward, y left):
+
+    forward_m = range_m + length_m / 2 + camera_ahead_m     (range is to the vehicle's REAR)
+    left_m    = lateral_m + camera_left_m
+    x_enu = x_ego + cos(h) * forward_m - sin(h) * left_m
+    y_enu = y_ego + sin(h) * forward_m + cos(h) * left_m
+
+so actor positions are box centres. The ego trajectory is the EgoTrack's reference point (the
+GPS/camera position), taken as the ego's box centre by the simulators; ``camera_ahead_m`` /
+``camera_left_m`` of :class:`AssembleConfig` (default 0) say where the camera sits relative to
+that reference point.
+
+Track rows are split where the track is unseen for ``max_gap_s`` or more (separate actors ``ID``,
+``ID-2``, ...), shorter gaps are bridged by the trajectory's linear interpolation, pieces seen
+for less than ``min_seen_s`` are dropped. Positions are smoothed with a Gaussian-weighted local
+linear fit in time (handles irregular sampling and gaps, no lag at the ends); speed is the
+fit's slope, heading the direction of motion, held while slower than ``stationary_speed_mps``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter, defaultdict
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from vid2sim.records import EgoTrack, RangedBox
+from vid2sim.scenario import Actor, Ego, Road, Scenario, Source, Trajectory
+
+if TYPE_CHECKING:
+    from vid2sim.camera import Camera
+
+# Typical dimensions [m] (length, width, height): EU/US passenger-car fleet medians, a rigid
+# delivery truck, a 12 m city bus, a motorcycle with rider.
+CLASS_PRIORS_M: dict[str, tuple[float, float, float]] = {
+    "car": (4.5, 1.8, 1.5),
+    "truck": (8.0, 2.5, 3.2),
+    "bus": (12.0, 2.55, 3.1),
+    "motorcycle": (2.2, 0.8, 1.5),
+}
+
+
+@dataclass(frozen=True)
+class AssembleConfig:
+    """Parameters of :func:`assemble_scenario` (units in the names)."""
+
+    max_gap_s: float = 1.0
+    min_seen_s: float = 0.5
+    smooth_sigma_s: float = 0.3
+    stationary_speed_mps: float = 0.5
+    camera_ahead_m: float = 0.0
+    camera_left_m: float = 0.0
+    ego_length_m: float = 4.5
+    ego_width_m: float = 1.8
+    ego_height_m: float = 1.5
+    width_ratio_bounds: tuple[float, float] = (0.6, 1.4)
+    """Measured widths are clipped to these fractions of the class prior width."""
+    class_priors_m: dict[str, tuple[float, float, float]] = field(
+        default_factory=lambda: dict(CLASS_PRIORS_M))
+    straight_road_lanes: int = 3
+    straight_road_lane_width_m: float = 3.5
+
+
+# --------------------------------------------------------------------------- maths
+
+
+def local_linear_smooth(t_s: np.ndarray, values: np.ndarray, sigma_s: float
+                        ) -> tuple[np.ndarray, np.ndarray]:
+    """Gaussian-weighted local linear regression of ``values`` at each ``t_s``.
+
+    Returns
+    -------
+    smoothed : ndarray
+        Fitted value at each time (same unit as ``values``).
+    slope : ndarray
+        Fitted derivative [unit/s].
+    """
+    t = np.asarray(t_s, float)
+    v = np.asarray(values, float)
+    if t.size == 1:
+        return v.copy(), np.zeros(1)
+    level, slope = np.empty_like(v), np.empty_like(v)
+    block = 256  # rows per block; samples beyond 5 sigma carry no weight (< 4e-6)
+    for i0 in range(0, t.size, block):
+        i1 = min(i0 + block, t.size)
+        j0 = int(np.searchsorted(t, t[i0] - 5 * sigma_s))
+        j1 = int(np.searchsorted(t, t[i1 - 1] + 5 * sigma_s, side="right"))
+        dt = t[None, j0:j1] - t[i0:i1, None]  # row i: offsets of the samples from t_i
+        vv = v[None, j0:j1]
+        w = np.exp(-0.5 * (dt / sigma_s) ** 2)
+        sw, swt, swtt = w.sum(1), (w * dt).sum(1), (w * dt * dt).sum(1)
+        swv, swtv = (w * vv).sum(1), (w * dt * vv).sum(1)
+        det = sw * swtt - swt**2
+        ok = det > 1e-9 * sw * np.maximum(swtt, 1e-300)
+        b = np.where(ok, (sw * swtv - swt * swv) / np.where(ok, det, 1.0), 0.0)
+        slope[i0:i1] = b
+        level[i0:i1] = (swv - b * swt) / sw
+    return level, slope
+
+
+def heading_from_motion(vx_mps: np.ndarray, vy_mps: np.ndarray, fallback_rad: np.ndarray,
+                        stationary_speed_mps: float) -> np.ndarray:
+    """Direction of motion [rad, CCW from east], held through slow stretches.
+
+    Samples slower than ``stationary_speed_mps`` keep the previous moving heading; slow samples
+    before the first moving one take the first moving heading; a never-moving vehicle takes
+    ``fallback_rad`` (e.g. the ego heading: a parked car usually faces along the road).
+    """
+    speed = np.hypot(vx_mps, vy_mps)
+    moving = speed >= stationary_speed_mps
+    if not moving.any():
+        return np.asarray(fallback_rad, float).copy()
+    heading = np.arctan2(vy_mps, vx_mps)
+    idx = np.where(moving, np.arange(speed.size), -1)
+    idx = np.maximum.accumulate(idx)
+    idx[idx < 0] = int(np.argmax(moving))
+    return heading[idx]
+
+
+def _ego_pose_at(ego: EgoTrack, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    h = np.unwrap(np.asarray(ego.heading_rad, float))
+    return (np.interp(t_s, ego.t_s, ego.x_m), np.interp(t_s, ego.t_s, ego.y_m),
+            np.interp(t_s, ego.t_s, h))
+
+
+# --------------------------------------------------------------------------- roads
+
+
+def _ego_xyh(ego) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    if isinstance(ego, EgoTrack):
+        return np.asarray(ego.x_m, float), np.asarray(ego.y_m, float), np.asarray(ego.heading_rad, float)
+    traj = ego.trajectory if isinstance(ego, Ego) else ego
+    return traj.x, traj.y, traj.heading
+
+
+def straight_road_for(ego: EgoTrack | Ego | Trajectory, lanes: int = 3,
+                      lane_width_m: float = 3.5, ahead_m: float = 150.0,
+                      behind_m: float = 50.0) -> Road:
+    """A straight road under the ego for scenarios without a map.
+
+    The road runs along the ego's overall direction of travel (first to last position, or the
+    initial heading when the ego barely moves), from ``behind_m`` before its first position to
+    ``ahead_m`` beyond its last one (vehicles seen ahead of a stopped ego need road), with the
+    ego in the middle lane (for an even count, the lane right of the centre: right-hand
+    traffic).
+    """
+    x, y, h = _ego_xyh(ego)
+    start, end = np.array([x[0], y[0]]), np.array([x[-1], y[-1]])
+    if np.linalg.norm(end - start) > 1.0:
+        d = (end - start) / np.linalg.norm(end - start)
+    else:
+        d = np.array([math.cos(h[0]), math.sin(h[0])])
+    left = np.array([-d[1], d[0]])
+    along = (np.column_stack((x, y)) - start) @ d
+    ego_lane = lanes // 2  # 0 = leftmost
+    ego_left_of_centre_m = ((lanes - 1) / 2.0 - ego_lane) * lane_width_m
+    base = start - ego_left_of_centre_m * left
+    centerline = np.array([base + (along.min() - behind_m) * d, base + (along.max() + ahead_m) * d])
+    return Road(id="straight", name="", highway="unknown", source="assumed", osm_way_ids=[],
+                lanes=int(lanes), lane_width_m=float(lane_width_m), centerline=centerline)
+
+
+# --------------------------------------------------------------------------- tracks
+
+
+def _split_rows(rows: list[RangedBox], max_gap_s: float) -> list[list[RangedBox]]:
+    rows = sorted(rows, key=lambda r: r.t_s)
+    pieces: list[list[RangedBox]] = [[]]
+    for r in rows:
+        if pieces[-1] and r.t_s - pieces[-1][-1].t_s >= max_gap_s:
+            pieces.append([])
+        if pieces[-1] and r.t_s <= pieces[-1][-1].t_s:
+            continue  # one row per time; a duplicate frame adds nothing
+        pieces[-1].append(r)
+    return [p for p in pieces if p]
+
+
+def _dimensions(rows: list[RangedBox], cfg: AssembleConfig, warnings: list[str], label: str
+                ) -> tuple[str, float, float, float]:
+    category = Counter(r.category for r in rows).most_common(1)[0][0]
+    prior = cfg.class_priors_m.get(category)
+    if prior is None:
+        warnings.append(f"track {label}: unknown category {category!r}, car dimensions used")
+        prior = cfg.class_priors_m["car"]
+    length, width, height = prior
+    widths = np.array([r.width_m for r in rows], float)
+    widths = widths[np.isfinite(widths) & (widths > 0)]
+    if widths.size:
+        lo, hi = cfg.width_ratio_bounds
+        width = float(np.clip(np.median(widths), lo * prior[1], hi * prior[1]))
+    return category, float(length), float(width), float(height)
+
+
+def _actor_from_rows(rows: list[RangedBox], actor_id: str, ego: EgoTrack, cfg: AssembleConfig,
+                     warnings: list[str]) -> Actor:
+    category, length, width, height = _dimensions(rows, cfg, warnings, actor_id)
+    t = np.array([r.t_s for r in rows], float)
+    xe, ye, he = _ego_pose_at(ego, t)
+    fwd = np.array([r.range_m for r in rows], float) + length / 2.0 + cfg.camera_ahead_m
+    lft = np.array([r.lateral_m for r in rows], float) + cfg.camera_left_m
+    # rotate the ego-frame offset (x forward, y left) by the ego heading (CCW from east)
+    x = xe + np.cos(he) * fwd - np.sin(he) * lft
+    y = ye + np.sin(he) * fwd + np.cos(he) * lft
+    xs, vx = local_linear_smooth(t, x, cfg.smooth_sigma_s)
+    ys, vy = local_linear_smooth(t, y, cfg.smooth_sigma_s)
+    heading = heading_from_motion(vx, vy, he, cfg.stationary_speed_mps)
+    speed = np.hypot(vx, vy)
+    return Actor(id=actor_id, category=category, length_m=length, width_m=width,
+                 height_m=height, trajectory=Trajectory(t, xs, ys, heading, speed))
+
+
+def actors_from_tracks(tracks: list[RangedBox], ego: EgoTrack,
+                       config: AssembleConfig | None = None) -> tuple[list[Actor], list[str]]:
+    """World trajectories of tracked vehicles (see the module docstring); also warnings."""
+    cfg = config or AssembleConfig()
+    warnings: list[str] = []
+    by_id: dict[int, list[RangedBox]] = defaultdict(list)
+    n_bad = 0
+    for r in tracks:
+        if math.isfinite(r.range_m) and math.isfinite(r.lateral_m) and math.isfinite(r.t_s):
+            by_id[int(r.track_id)].append(r)
+        else:
+            n_bad += 1
+    if n_bad:
+        warnings.append(f"{n_bad} track rows without a finite range/lateral/time were skipped")
+    t_lo, t_hi = float(ego.t_s[0]), float(ego.t_s[-1])
+    actors: list[Actor] = []
+    n_short = 0
+    for track_id in sorted(by_id):
+        pieces = _split_rows(by_id[track_id], cfg.max_gap_s)
+        kept = [p for p in pieces if p[-1].t_s - p[0].t_s >= cfg.min_seen_s - 1e-9]
+        n_short += len(pieces) - len(kept)
+        for k, rows in enumerate(kept):
+            actor_id = str(track_id) if k == 0 else f"{track_id}-{k + 1}"
+            if rows[0].t_s < t_lo - 0.5 or rows[-1].t_s > t_hi + 0.5:
+                warnings.append(f"track {actor_id}: seen outside the ego trajectory's time span "
+                                f"[{t_lo:.1f}, {t_hi:.1f}] s; ego pose held at the ends")
+            actors.append(_actor_from_rows(rows, actor_id, ego, cfg, warnings))
+    if n_short:
+        warnings.append(f"{n_short} track pieces seen for less than {cfg.min_seen_s:g} s dropped")
+    return actors, warnings
+
+
+# --------------------------------------------------------------------------- scenario
+
+
+def ego_from_track(ego: EgoTrack, config: AssembleConfig | None = None) -> Ego:
+    """The scenario's ego record: the EgoTrack's poses and speeds with configured dimensions."""
+    cfg = config or AssembleConfig()
+    traj = Trajectory(ego.t_s, ego.x_m, ego.y_m, ego.heading_rad,
+                      np.maximum(np.asarray(ego.speed_mps, float), 0.0))
+    return Ego(cfg.ego_length_m, cfg.ego_width_m, cfg.ego_height_m, traj)
+
+
+def assemble_scenario(ego: EgoTrack, roads: list[Road], tracks: list[RangedBox] | None,
+                      camera: Camera, *, source: Source,
+                      config: AssembleConfig | None = None) -> tuple[Scenario, list[str]]:
+    """Build the scenario from the pipeline's records.
+
+    Parameters
+    ----------
+    ego : EgoTrack
+        Smoothed ego trajectory (scenario clock, ENU).
+    roads : list of Road
+        Matched roads; empty means no map: a straight road is assumed (and recorded).
+    tracks : list of RangedBox or None
+        Ranged tracked boxes (``tracks.csv`` rows); None or empty gives a scenario without
+        actors.
+    camera : Camera
+        The camera; stored in the scenario (with its assumptions added to ``source``).
+    source : Source
+        Provenance; copied, this function appends its own assumptions.
+
+    Returns
+    -------
+    scenario : Scenario
+    warnings : list of str
+        Human-readable notes (dropped pieces, skipped rows, assumptions).
+    """
+    cfg = config or AssembleConfig()
+    if len(ego.t_s) < 2:
+        from vid2sim.errors import InputError
+
+        raise InputError(None, "the ego trajectory has fewer than two samples",
+                         "check the GPS input and --gps-offset")
+    warnings: list[str] = []
+    assumptions = list(source.assumptions)
+    assumptions.extend(a for a in camera.assumptions if a not in assumptions)
+    roads = list(roads)
+    if not roads:
+        roads = [straight_road_for(ego, cfg.straight_road_lanes, cfg.straight_road_lane_width_m)]
+        note = (f"no road map: straight {cfg.straight_road_lanes}-lane road of "
+                f"{cfg.straight_road_lane_width_m:g} m lanes along the ego's direction of travel")
+        assumptions.append(note)
+        warnings.append(note)
+    actors: list[Actor] = []
+    if tracks:
+        actors, track_warnings = actors_from_tracks(tracks, ego, cfg)
+        warnings.extend(track_warnings)
+        assumptions.append(
+            f"actor dimensions from class priors {sorted(cfg.class_priors_m)} (length, height) "
+            f"and the measured width; camera {cfg.camera_ahead_m:g} m ahead and "
+            f"{cfg.camera_left_m:g} m left of the ego reference point")
+    scenario = Scenario(origin=ego.origin, roads=roads, ego=ego_from_track(ego, cfg),
+                        actors=actors, camera=camera.to_dict(),
+                        source=replace(source, assumptions=assumptions))
+    return scenario, warnings
