@@ -85,6 +85,65 @@ def trace(gps_file: Path, rate_hz: float, gps_offset_s: float | None, out_path: 
     echo(summary)
 
 
+# --------------------------------------------------------------------------- detect
+
+
+@cli.command()
+@click.argument("source", type=EXISTING_PATH)
+@click.option("--detector", "detector_name", default="yolox-nano", show_default=True,
+              help="Registry name (yolox-nano, picodet-s) or path to an .onnx file.")
+@click.option("--model-dir", type=EXISTING_PATH, default=None,
+              help="Folder with detector weights (else $VID2SIM_MODEL_DIR, then the user cache).")
+@click.option("--detections", "detections_path", type=EXISTING_PATH, default=None,
+              help="Import boxes (MOT-challenge CSV or Scalabel/BDD100K JSON) instead of "
+                   "running a detector.")
+@click.option("--detect-every", type=click.IntRange(min=1), default=1, show_default=True,
+              help="Run the detector on every N-th frame; the tracker carries boxes between.")
+@click.option("--score", type=float, default=None,
+              help="Minimum score to start a track [0-1] (default 0.45).")
+@click.option("--no-tiles", is_flag=True,
+              help="Full frame only: faster, but misses more distant cars.")
+@click.option("--out", "out_path", type=EXISTING_PATH, required=True,
+              help="Where to write detections.csv (frame,t_s,track_id,category,score,x1,y1,x2,y2).")
+def detect(source: Path, detector_name: str, model_dir: Path | None,
+           detections_path: Path | None, detect_every: int, score: float | None,
+           no_tiles: bool, out_path: Path) -> None:
+    """Detect and track vehicles in a video or image folder."""
+    from vid2sim.detect.pipeline import detect_video
+
+    summary = detect_video(source, out_path, detector_name=detector_name, model_dir=model_dir,
+                           detections_path=detections_path, detect_every=detect_every,
+                           score=score, small_object_mode=not no_tiles,
+                           progress=show_progress())
+    echo(str(summary))
+
+
+@cli.group()
+def models() -> None:
+    """Detector weights: list the known models, download them."""
+
+
+@models.command("list")
+@click.option("--model-dir", type=EXISTING_PATH, default=None, help="Extra folder to search.")
+def models_list(model_dir: Path | None) -> None:
+    """Known detectors and where their weights were found."""
+    from vid2sim.detect.models import describe_models
+
+    echo(describe_models(model_dir))
+
+
+@models.command("pull")
+@click.argument("name")
+@click.option("--dir", "dest_dir", type=EXISTING_PATH, default=None,
+              help="Download into this folder instead of the user cache.")
+def models_pull(name: str, dest_dir: Path | None) -> None:
+    """Download a detector's weights and verify their sha256."""
+    from vid2sim.detect.models import pull
+
+    path = pull(name, dest_dir, progress=show_progress())
+    echo(f"{name}: verified -> {path}")
+
+
 # --------------------------------------------------------------------------- entry point
 
 

@@ -214,3 +214,16 @@ def pull(name: str, dest_dir: Path | None = None, *, url: str | None = None,
         with contextlib.suppress(FileNotFoundError):
             tmp.unlink()
     return dest
+
+
+def describe_models(model_dir: Path | None = None) -> str:
+    """One line per registry model: name, input size, where its weights are (or 'not found')."""
+    lines = []
+    for spec in MODELS.values():
+        try:
+            where = str(resolve_model(spec.name, model_dir))
+        except InputError:
+            where = f"not found (vid2sim models pull {spec.name})"
+        w, h = spec.input_size_px
+        lines.append(f"{spec.name:12s} {w}x{h}  {spec.description}\n{'':12s} {where}")
+    return "\n".join(lines)
