@@ -84,6 +84,41 @@ class EgoTrack:
     z_m: np.ndarray | None = None
 
 
+@dataclass(slots=True)
+class TraceStats:
+    """What ``smooth_ego`` did to a GPS trace (the ``vid2sim trace`` summary).
+
+    :param n_fixes: fixes read; ``n_rejected`` of them were outliers, ``n_skipped`` records the
+        reader could not use
+    :param duration_s: time from first to last fix [s]
+    :param distance_m: path length of the smoothed trajectory [m]
+    :param gaps: (t_start_s, length_s) of gaps between accepted fixes, scenario clock [s]
+    :param stationary: (t_start_s, t_end_s) of periods detected as stopped (speed exactly 0)
+    :param time_alignment: how the scenario clock was tied to the GPS clock, in words
+    :param t0_utc_s: GPS-clock time of scenario t 0 (the video's first frame) [s since epoch]
+    :param first_fix_t_s: scenario time of the first fix [s]
+    :param noise_m: one-sigma position noise the smoother used (estimated or reported) [m]
+    """
+
+    format: str
+    n_fixes: int
+    n_rejected: int
+    n_skipped: int
+    duration_s: float
+    distance_m: float
+    speed_mean_mps: float
+    speed_max_mps: float
+    gaps: list[tuple[float, float]]
+    stationary: list[tuple[float, float]]
+    warnings: list[str]
+    time_alignment: str
+    t0_utc_s: float
+    first_fix_t_s: float
+    noise_m: float
+    rate_hz: float
+    n_samples: int
+
+
 # --------------------------------------------------------------------------- detection
 
 
