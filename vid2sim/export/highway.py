@@ -53,7 +53,7 @@ from __future__ import annotations
 import math
 import os
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
 from highway_env import utils
@@ -149,7 +149,7 @@ def _resample_polyline(points_m: np.ndarray, step_m: float) -> np.ndarray:
     if len(p) < 2:
         raise ValueError("a centerline needs two distinct points")
     s = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))]
-    n = max(int(math.ceil(s[-1] / step_m)), 1)
+    n = max(math.ceil(s[-1] / step_m), 1)
     s_new = np.linspace(0.0, s[-1], n + 1)
     return np.column_stack((np.interp(s_new, s, p[:, 0]), np.interp(s_new, s, p[:, 1])))
 
@@ -157,7 +157,7 @@ def _resample_polyline(points_m: np.ndarray, step_m: float) -> np.ndarray:
 def _extend_ends(points_m: np.ndarray, extension_m: float, step_m: float) -> np.ndarray:
     """Prolong a polyline straight along its end tangents by ``extension_m`` at both ends."""
     p = points_m
-    n = max(int(math.ceil(extension_m / step_m)), 1)
+    n = max(math.ceil(extension_m / step_m), 1)
     k = np.linspace(extension_m, 0.0, n + 1)[:-1, None]
     t0 = (p[1] - p[0]) / np.linalg.norm(p[1] - p[0])
     t1 = (p[-1] - p[-2]) / np.linalg.norm(p[-1] - p[-2])
@@ -316,7 +316,7 @@ class ReplayEnv(AbstractEnv):
         ``simulation_frequency`` [Hz], ``acceleration_range_mps2``, screen size).
     """
 
-    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10}
+    metadata: ClassVar[dict] = {"render_modes": ["human", "rgb_array"], "render_fps": 10}
 
     def __init__(self, scenario: Scenario | str | Path | None = None, ego_mode: str = "policy",
                  render_mode: str | None = None, config: dict | None = None):
@@ -376,7 +376,7 @@ class ReplayEnv(AbstractEnv):
     def n_steps(self) -> int:
         """Policy steps in one episode: the scenario duration at the policy frequency."""
         duration_s = self._ego_track.t1 - self._ego_track.t0
-        return max(int(math.floor(duration_s * self.config["policy_frequency"] + 1e-9)), 1)
+        return max(math.floor(duration_s * self.config["policy_frequency"] + 1e-9), 1)
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         mode = (options or {}).get("ego_mode", self._default_ego_mode)

@@ -1,0 +1,359 @@
+"""OpenSCENARIO 1.2 (``scenario.xosc``) and OpenDRIVE 1.8 (``road.xodr``) export with
+scenariogeneration.
+
+OpenDRIVE. Each scenario road becomes one road whose reference line is the scenario centerline,
+fitted as a chain of clothoids with curvature continuous and piecewise linear in ``s`` (knots
+every :data:`KNOT_SPACING_M` or closer until the fit is within :data:`FIT_TOLERANCE_M` of the
+centerline), each piece written as a ``line`` (zero curvature), ``arc`` (constant) or
+``spiral`` (linear). The scenario's lanes all run in the travel direction, symmetric about the
+centerline, so they are written as right lanes (ids -1..-n, right-hand traffic) with a
+``laneOffset`` of ``n * width / 2`` that moves the centre lane to the road's left edge. The
+scenario carries no heights, so elevation is one flat record (the origin's altitude is in the
+header). The header's ``geoReference`` is the PROJ string of the scenario's ENU frame, so
+OpenDRIVE x/y are scenario ENU metres.
+
+OpenSCENARIO. The ego (``Ego``) and every actor (``actor_<id>``) are Vehicles whose reference
+point is the centre of the bounding box's footprint (the scenario's positions). Init teleports
+each to its first logged pose with its logged speed; one event per vehicle starts at simulation
+time 0 with a FollowTrajectoryAction along a Polyline of timed WorldPositions (absolute timing,
+``time = t - t0`` where ``t0`` is the ego's first time, so OpenSCENARIO's clock starts with the
+ego log). Actors whose log starts later or ends earlier are made invisible
+(VisibilityAction) outside their span. The storyboard stops at the ego log's end.
+
+scenariogeneration ships the OpenSCENARIO 1.2 schema and OpenDRIVE 1.7 schemas; the road file
+uses only elements common to 1.7 and 1.8 (the ASAM checker validates it against 1.8).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import shutil
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from vid2sim.geo.frames import EnuFrame
+from vid2sim.scenario import Road, Scenario, Trajectory
+
+KNOT_SPACING_M = 20.0
+MIN_KNOT_SPACING_M = 4.0
+FIT_TOLERANCE_M = 0.2
+_SMOOTHING = 0.05  # weight of the curvature-change penalty (dimensionless)
+_FINE_STEP_M = 0.25  # integration step of the curvature model [m]
+_LINE_CURVATURE = 1e-5  # |k| below this (radius > 100 km) is written as a line [1/m]
+_ARC_DCURVATURE = 1e-6  # |k1 - k0| below this is written as an arc [1/m]
+
+XOSC_NAME = "scenario.xosc"
+XODR_NAME = "road.xodr"
+
+
+# --------------------------------------------------------------------------- reference line fit
+
+
+@dataclass(frozen=True)
+class ReferenceLine:
+    """A clothoid chain: start pose, knot arc lengths [m] and curvatures at the knots [1/m]."""
+
+    x0_m: float
+    y0_m: float
+    heading0_rad: float
+    knots_s_m: np.ndarray
+    curvature_per_m: np.ndarray
+
+    @property
+    def length_m(self) -> float:
+        return float(self.knots_s_m[-1])
+
+    def sample(self, s_m: np.ndarray) -> np.ndarray:
+        """(N, 2) points at arc lengths ``s_m`` (numerical integration of the curvature)."""
+        return _integrate(self.x0_m, self.y0_m, self.heading0_rad, self.knots_s_m,
+                          self.curvature_per_m, np.asarray(s_m, float))
+
+    def pieces(self) -> list[tuple[str, float, float, float]]:
+        """``(kind, curvature_start, curvature_end, length_m)``, one per knot interval, with
+        runs of equal lines or arcs merged (repeating them is redundant information that the
+        ASAM checker flags)."""
+        out: list[tuple[str, float, float, float]] = []
+        for i in range(len(self.knots_s_m) - 1):
+            k0, k1 = float(self.curvature_per_m[i]), float(self.curvature_per_m[i + 1])
+            length = float(self.knots_s_m[i + 1] - self.knots_s_m[i])
+            kind = "line" if k0 == 0.0 and k1 == 0.0 else ("arc" if k0 == k1 else "spiral")
+            if out and kind != "spiral" and out[-1][0] == kind and out[-1][1] == k0:
+                out[-1] = (kind, k0, k1, out[-1][3] + length)
+            else:
+                out.append((kind, k0, k1, length))
+        return out
+
+
+def _integrate(x0, y0, h0, knots, kappa, s_query) -> np.ndarray:
+    n = max(math.ceil(knots[-1] / _FINE_STEP_M), 1)
+    s = np.linspace(0.0, knots[-1], n + 1)
+    k = np.interp(s, knots, kappa)
+    ds = np.diff(s)
+    # heading: exact integral of the piecewise-linear curvature (trapezoid is exact here
+    # when the grid contains the knots; off-knot error is O(ds^2 * dk))
+    h = h0 + np.r_[0.0, np.cumsum(0.5 * (k[1:] + k[:-1]) * ds)]
+    # position: midpoint heading per step (second-order accurate)
+    hm = 0.5 * (h[1:] + h[:-1])
+    x = x0 + np.r_[0.0, np.cumsum(np.cos(hm) * ds)]
+    y = y0 + np.r_[0.0, np.cumsum(np.sin(hm) * ds)]
+    return np.column_stack((np.interp(s_query, s, x), np.interp(s_query, s, y)))
+
+
+def _resample(points_m: np.ndarray, step_m: float) -> tuple[np.ndarray, np.ndarray]:
+    p = np.asarray(points_m, float).reshape(-1, 2)
+    keep = np.r_[True, np.linalg.norm(np.diff(p, axis=0), axis=1) > 1e-6]
+    p = p[keep]
+    s = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))]
+    n = max(math.ceil(s[-1] / step_m), 1)
+    s_new = np.linspace(0.0, s[-1], n + 1)
+    return s_new, np.column_stack((np.interp(s_new, s, p[:, 0]), np.interp(s_new, s, p[:, 1])))
+
+
+def fit_reference_line(centerline_m: np.ndarray, tolerance_m: float = FIT_TOLERANCE_M,
+                       knot_spacing_m: float = KNOT_SPACING_M) -> tuple[ReferenceLine, float]:
+    """Fit a continuous-curvature clothoid chain to a polyline.
+
+    The start point is kept; start heading and knot curvatures are fitted by least squares on
+    the positions (1 m samples), so heading errors do not accumulate into drift. Knot spacing is
+    halved until the largest deviation is within ``tolerance_m`` (or the spacing reaches
+    :data:`MIN_KNOT_SPACING_M`). Near-zero and near-constant curvatures are then snapped to
+    lines and arcs if the fit stays within tolerance.
+
+    Returns
+    -------
+    line : ReferenceLine
+    max_error_m : float
+        Largest distance between the fitted line and the 1 m samples of the polyline [m].
+    """
+    s_data, p_data = _resample(centerline_m, 1.0)
+    length = float(s_data[-1])
+    if length < 1e-3:
+        raise ValueError("centerline has no length")
+    x0, y0 = p_data[0]
+    d = np.diff(p_data, axis=0)
+    seg_h = np.unwrap(np.arctan2(d[:, 1], d[:, 0]))
+    spacing = knot_spacing_m
+    best: tuple[ReferenceLine, float] | None = None
+    while True:
+        n_int = max(math.ceil(length / spacing), 1)
+        knots = np.linspace(0.0, length, n_int + 1)
+        # initial guess: curvature from the heading slope between knots
+        h_knots = np.interp(knots, 0.5 * (s_data[1:] + s_data[:-1]), seg_h)
+        k0 = np.gradient(h_knots, knots) if n_int > 1 else np.zeros(2)
+        params0 = np.r_[seg_h[0], k0]
+
+        def residual(params, knots=knots, spacing=length / n_int):
+            pts = _integrate(x0, y0, params[0], knots, params[1:], s_data)
+            # a weak penalty on curvature changes [1/m] * spacing^2 [m^2] -> metres: damps
+            # the oscillation a free fit shows on straights next to curves
+            smooth = _SMOOTHING * np.diff(params[1:]) * spacing**2
+            return np.r_[(pts - p_data).ravel(), smooth]
+
+        sol = least_squares(residual, params0, method="trf", x_scale="jac")
+        line = ReferenceLine(float(x0), float(y0), float(sol.x[0]), knots, sol.x[1:].copy())
+        err = float(np.max(np.linalg.norm(line.sample(s_data) - p_data, axis=1)))
+        if best is None or err < best[1]:
+            best = (line, err)
+        if err <= tolerance_m or spacing / 2 < MIN_KNOT_SPACING_M:
+            break
+        spacing /= 2
+    line, err = best
+    snapped = _snap(line)
+    snapped_err = float(np.max(np.linalg.norm(snapped.sample(s_data) - p_data, axis=1)))
+    if snapped_err <= max(tolerance_m, err):
+        return snapped, snapped_err
+    return line, err
+
+
+def _snap(line: ReferenceLine) -> ReferenceLine:
+    k = line.curvature_per_m.copy()
+    k[np.abs(k) < _LINE_CURVATURE] = 0.0
+    for i in range(len(k) - 1):
+        if k[i] != 0.0 and abs(k[i + 1] - k[i]) < _ARC_DCURVATURE:
+            k[i + 1] = k[i]
+    return ReferenceLine(line.x0_m, line.y0_m, line.heading0_rad, line.knots_s_m, k)
+
+
+# --------------------------------------------------------------------------- OpenDRIVE
+
+
+def _xodr_road(road: Road, road_id: int):
+    from scenariogeneration import xodr
+
+    line, _ = fit_reference_line(road.centerline)
+    planview = xodr.PlanView(line.x0_m, line.y0_m, line.heading0_rad)
+    for kind, k0, k1, length in line.pieces():
+        if kind == "line":
+            planview.add_geometry(xodr.Line(length))
+        elif kind == "arc":
+            planview.add_geometry(xodr.Arc(k0, length=length))
+        else:
+            planview.add_geometry(xodr.Spiral(k0, k1, length=length))
+
+    centre = xodr.Lane(a=0)
+    centre.add_roadmark(xodr.RoadMark(xodr.RoadMarkType.solid, 0.15))
+    section = xodr.LaneSection(0, centre)
+    for k in range(road.lanes):
+        lane = xodr.Lane(a=road.lane_width_m)
+        outer = k == road.lanes - 1
+        mark = (xodr.RoadMark(xodr.RoadMarkType.solid, 0.15) if outer
+                else xodr.RoadMark(xodr.RoadMarkType.broken, 0.12, length=3.0, space=9.0))
+        lane.add_roadmark(mark)
+        section.add_right_lane(lane)
+    lanes = xodr.Lanes()
+    lanes.add_lanesection(section)
+    # all lanes in the travel direction: move the centre lane to the left edge
+    lanes.add_laneoffset(xodr.LaneOffset(0, road.lanes * road.lane_width_m / 2.0))
+    xroad = xodr.Road(road_id, planview, lanes, name=road.name or None)
+    xroad.add_elevation(0, 0, 0, 0, 0)
+    return xroad
+
+
+def build_opendrive(scenario: Scenario, name: str = "vid2sim"):
+    """The scenario's roads as a scenariogeneration ``OpenDrive`` (revision 1.8)."""
+    from scenariogeneration import xodr
+
+    from vid2sim.export.assemble import straight_road_for
+
+    roads = scenario.roads or [straight_road_for(scenario.ego)]
+    odr = xodr.OpenDrive(name, revMajor="1", revMinor="8",
+                         geo_reference=EnuFrame(scenario.origin).proj_string())
+    for i, road in enumerate(roads, start=1):
+        odr.add_road(_xodr_road(road, i))
+    odr.adjust_roads_and_lanes()
+    return odr
+
+
+# --------------------------------------------------------------------------- OpenSCENARIO
+
+
+def _vehicle(name: str, category: str, length_m: float, width_m: float, height_m: float):
+    from scenariogeneration import xosc
+
+    kind = {"truck": xosc.VehicleCategory.truck, "bus": xosc.VehicleCategory.bus,
+            "motorcycle": xosc.VehicleCategory.motorbike}.get(category, xosc.VehicleCategory.car)
+    # reference point = centre of the footprint; the box centre is half the height above it
+    bbox = xosc.BoundingBox(width_m, length_m, height_m, 0.0, 0.0, height_m / 2.0)
+    wheel_m = 0.3 * min(height_m, 2.0)
+    axle_x = 0.3 * length_m
+    front = xosc.Axle(0.5, wheel_m, width_m * 0.85, axle_x, wheel_m / 2)
+    rear = xosc.Axle(0.0, wheel_m, width_m * 0.85, -axle_x, wheel_m / 2)
+    return xosc.Vehicle(name, kind, bbox, front, rear, max_speed=70.0,
+                        max_acceleration=10.0, max_deceleration=10.0)
+
+
+def _polyline(traj: Trajectory, t0_s: float):
+    from scenariogeneration import xosc
+
+    heading = np.unwrap(traj.heading)
+    times = [float(round(t - t0_s, 4)) for t in traj.t]
+    positions = [xosc.WorldPosition(float(x), float(y), 0.0, float(h), 0.0, 0.0)
+                 for x, y, h in zip(traj.x, traj.y, heading, strict=True)]
+    return xosc.Polyline(times, positions)
+
+
+def _sim_time_trigger(name: str, t_s: float):
+    from scenariogeneration import xosc
+
+    return xosc.ValueTrigger(name, 0, xosc.ConditionEdge.rising,
+                             xosc.SimulationTimeCondition(max(t_s, 0.0), xosc.Rule.greaterThan))
+
+
+def build_openscenario(scenario: Scenario, road_file: str = XODR_NAME):
+    """The scenario as a scenariogeneration ``Scenario`` (OpenSCENARIO 1.2)."""
+    from scenariogeneration import xosc
+
+    t0 = float(scenario.ego.trajectory.t[0])
+    t_end = float(scenario.ego.trajectory.t[-1]) - t0
+    entities = xosc.Entities()
+    init = xosc.Init()
+    story = xosc.Story("replay")
+    act = xosc.Act("replay_act", _sim_time_trigger("act_start", 0.0))
+
+    vehicles = [("Ego", "car", scenario.ego.length_m, scenario.ego.width_m,
+                 scenario.ego.height_m, scenario.ego.trajectory)]
+    vehicles += [(f"actor_{a.id}", a.category, a.length_m, a.width_m, a.height_m, a.trajectory)
+                 for a in scenario.actors]
+    for name, category, length, width, height, traj in vehicles:
+        entities.add_scenario_object(name, _vehicle(name, category, length, width, height))
+        init.add_init_action(name, xosc.TeleportAction(xosc.WorldPosition(
+            float(traj.x[0]), float(traj.y[0]), 0.0, float(traj.heading[0]), 0.0, 0.0)))
+        init.add_init_action(name, xosc.AbsoluteSpeedAction(
+            float(traj.speed[0]),
+            xosc.TransitionDynamics(xosc.DynamicsShapes.step, xosc.DynamicsDimension.time, 0)))
+
+        trajectory = xosc.Trajectory(f"{name}_log", False)
+        trajectory.add_shape(_polyline(traj, t0))
+        follow = xosc.FollowTrajectoryAction(
+            trajectory, xosc.FollowingMode.position, xosc.ReferenceContext.absolute, 1, 0)
+        maneuver = xosc.Maneuver(f"{name}_maneuver")
+        event = xosc.Event(f"{name}_follow_log", xosc.Priority.override)
+        event.add_action(f"{name}_follow_action", follow)
+        event.add_trigger(_sim_time_trigger(f"{name}_follow_start", 0.0))
+        maneuver.add_event(event)
+
+        t_first, t_last = float(traj.t[0]) - t0, float(traj.t[-1]) - t0
+        if name != "Ego" and t_first > 1e-6:
+            # not yet seen: hidden from the start, shown when its log begins
+            init.add_init_action(name, xosc.VisibilityAction(False, False, False))
+            show = xosc.Event(f"{name}_appear", xosc.Priority.parallel)
+            show.add_action(f"{name}_show", xosc.VisibilityAction(True, True, True))
+            show.add_trigger(_sim_time_trigger(f"{name}_appear_time", t_first))
+            maneuver.add_event(show)
+        if name != "Ego" and t_last < t_end - 1e-6:
+            hide = xosc.Event(f"{name}_disappear", xosc.Priority.parallel)
+            hide.add_action(f"{name}_hide", xosc.VisibilityAction(False, False, False))
+            hide.add_trigger(_sim_time_trigger(f"{name}_disappear_time", t_last))
+            maneuver.add_event(hide)
+
+        group = xosc.ManeuverGroup(f"{name}_group")
+        group.add_actor(name)
+        group.add_maneuver(maneuver)
+        act.add_maneuver_group(group)
+
+    story.add_act(act)
+    storyboard = xosc.StoryBoard(init, _stop_trigger(t_end))
+    storyboard.add_story(story)
+    return xosc.Scenario(
+        "vid2sim replay", "vid2sim", xosc.ParameterDeclarations(), entities, storyboard,
+        xosc.RoadNetwork(roadfile=road_file), xosc.Catalog(), osc_minor_version=2)
+
+
+def _stop_trigger(t_end_s: float):
+    from scenariogeneration import xosc
+
+    return xosc.ValueTrigger("scenario_end", 0, xosc.ConditionEdge.rising,
+                             xosc.SimulationTimeCondition(t_end_s, xosc.Rule.greaterThan),
+                             "stop")
+
+
+# --------------------------------------------------------------------------- writing
+
+
+def write_openscenario(scenario: Scenario, out_dir: Path) -> tuple[Path, Path]:
+    """Write ``out_dir/scenario.xosc`` (OpenSCENARIO 1.2) and ``out_dir/road.xodr``
+    (OpenDRIVE 1.8), both atomically (written in a temporary folder, then renamed).
+
+    Returns
+    -------
+    xosc_path, xodr_path : Path
+    """
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    odr = build_opendrive(scenario)
+    osc = build_openscenario(scenario, road_file=XODR_NAME)
+    tmp = Path(tempfile.mkdtemp(prefix=".vid2sim-export-", dir=out_dir))
+    try:
+        odr.write_xml(str(tmp / XODR_NAME))
+        osc.write_xml(str(tmp / XOSC_NAME))
+        xodr_path, xosc_path = out_dir / XODR_NAME, out_dir / XOSC_NAME
+        os.replace(tmp / XODR_NAME, xodr_path)
+        os.replace(tmp / XOSC_NAME, xosc_path)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return xosc_path, xodr_path
