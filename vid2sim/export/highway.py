@@ -74,6 +74,8 @@ ROAD_EXTENSION_M = 50.0
 LANE_SAMPLE_M = 1.0
 """Resampling step of lane polylines [m] (highway-env samples its curves at 1 m too)."""
 EGO_MODES = ("policy", "log")
+_EGO_COLOR = (50, 200, 0)  # RGB, highway-env's ego green
+_ACTOR_COLOR = (100, 200, 255)  # RGB, highway-env's traffic blue
 
 
 # --------------------------------------------------------------------------- frames
@@ -337,7 +339,7 @@ class ReplayEnv(AbstractEnv):
         self.t_s = self._ego_track.t0
         self.actors: list[ReplayVehicle] = []
         if render_mode == "rgb_array":
-            os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
+            os.environ.setdefault("SDL_VIDEODRIVER", "offscreen")
         super().__init__(config=config, render_mode=render_mode)
 
     @classmethod
@@ -400,12 +402,15 @@ class ReplayEnv(AbstractEnv):
             ego.height_m = ego_rec.height_m
             ego.vehicle_id = "ego"
             _set_box(ego, ego_rec.length_m, ego_rec.width_m)
+        ego.color = _EGO_COLOR
         self.vehicle = ego
         self.road.vehicles = [ego]
         self.actors = [
             ReplayVehicle(self.road, a.id, track, a.length_m, a.width_m, a.height_m, self.t_s)
             for a, track in self._actor_tracks
         ]
+        for v in self.actors:
+            v.color = _ACTOR_COLOR
         self._place_actors(self.t_s)
         self._v_ref = max(float(np.max(self.scenario.ego.trajectory.speed)), 5.0)
 
