@@ -29,6 +29,8 @@ COCO_VEHICLES: dict[int, str] = {2: "car", 3: "motorcycle", 5: "bus", 7: "truck"
 """COCO class id (0-based) -> vehicle category; train (6) is left out on purpose (trams)."""
 
 DEFAULT_DETECTOR = "yolox-nano"
+CROSS_CLASS_IOU = 0.7
+"""IoU above which boxes of different vehicle classes are taken for one vehicle."""
 
 
 @runtime_checkable
@@ -64,13 +66,13 @@ def letterbox(image_bgr: np.ndarray, size_px: tuple[int, int] = (416, 416),
 def tile_windows(width_px: int, height_px: int, overlap: float = 0.1
                  ) -> list[tuple[int, int, int, int]]:
     """Windows (x1, y1, x2, y2) [px] the detector runs on: the full frame, plus for a frame
-    wider than 4:3 a left and a right tile, each as wide as the larger of the frame height
-    and half the width plus ``overlap`` (fraction of the width), so that together they
-    cover the frame with an overlapping middle strip."""
+    wider than 4:3 a left and a right tile: the two halves, each widened by ``overlap``
+    (fraction of the half width) into the other, and at least as wide as the frame is high,
+    so a car up to ``overlap`` half-widths wide in the middle is whole in one tile."""
     windows = [(0, 0, width_px, height_px)]
     if width_px <= 1.34 * height_px:
         return windows
-    tile_w = int(min(width_px, max(height_px, round(width_px * (0.5 + overlap)))))
+    tile_w = int(min(width_px, max(height_px, round(width_px / 2 * (1.0 + overlap)))))
     windows.append((0, 0, tile_w, height_px))
     windows.append((width_px - tile_w, 0, width_px, height_px))
     return windows
@@ -93,6 +95,35 @@ def nms(boxes_px: np.ndarray, scores: np.ndarray, iou_threshold: float,
                                        float(iou_threshold))
     keep = np.asarray(keep, dtype=np.int64).reshape(-1)
     return keep[np.argsort(-scores[keep], kind="stable")]
+
+
+def suppress_fragments(boxes_px: np.ndarray, scores: np.ndarray, inside: float = 0.7,
+                       min_height_ratio: float = 0.6) -> np.ndarray:
+    """Indices of boxes that are not fragments of a stronger box, best score first.
+
+    A box with at least ``inside`` of its area within a higher-scoring box and at least
+    ``min_height_ratio`` of that box's height is taken for a part of the same vehicle (a
+    wheel arch, a bonnet cut by a tile or by an occluder): NMS keeps it because the IoU of a
+    part with the whole is low. A smaller box inside a big one (a far car seen through the
+    gap) keeps its place since its height differs. Cost: a car almost hidden behind another
+    at the same range is dropped, which the tracker bridges.
+    """
+    order = np.argsort(-scores, kind="stable")
+    kept: list[int] = []
+    for i in order:
+        x1, y1, x2, y2 = boxes_px[i]
+        area = max((x2 - x1) * (y2 - y1), 1e-9)
+        fragment = False
+        for j in kept:
+            a1, b1, a2, b2 = boxes_px[j]
+            iw = max(0.0, min(x2, a2) - max(x1, a1))
+            ih = max(0.0, min(y2, b2) - max(y1, b1))
+            if iw * ih / area >= inside and (y2 - y1) >= min_height_ratio * (b2 - b1):
+                fragment = True
+                break
+        if not fragment:
+            kept.append(int(i))
+    return np.asarray(kept, dtype=np.int64)
 
 
 # --------------------------------------------------------------------------- decoders
@@ -245,6 +276,10 @@ class OnnxDetector:
         h, w = image_bgr.shape[:2]
         boxes = np.clip(boxes, 0, [w, h, w, h])
         keep = nms(boxes, scores, self.nms_iou, ids)
+        boxes, scores, ids = boxes[keep], scores[keep], ids[keep]
+        # Class-aware NMS leaves a car and a truck box on one vehicle (near-identical boxes,
+        # the net unsure of the class): one vehicle must give one box.
+        keep = nms(boxes, scores, CROSS_CLASS_IOU)
         return boxes[keep], scores[keep], ids[keep]
 
     def detect(self, image_bgr: np.ndarray) -> list[Detection]:
@@ -276,7 +311,7 @@ class OnnxDetector:
             # other: merge without regard to class.
             keep = nms(boxes, scores, self.nms_iou)
             boxes, scores, ids = boxes[keep], scores[keep], ids[keep]
-        order = np.argsort(-scores, kind="stable")
+        order = suppress_fragments(boxes, scores)
         return [Detection(box_px=tuple(float(v) for v in boxes[i]), score=float(scores[i]),
                           category=COCO_VEHICLES[int(ids[i])]) for i in order]
 
