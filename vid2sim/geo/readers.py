@@ -184,10 +184,10 @@ def read_gpx(path: Path) -> GpsTrace:
             n_no_time += 1
             continue
         t = p.time if p.time.tzinfo is not None else p.time.replace(tzinfo=UTC)
-        hdop = _opt(p.horizontal_dilution, 0.0, 1e3)
+        hdop = _opt(getattr(p, "horizontal_dilution", None), 0.0, 1e3)
         fixes.append(GpsFix(
             t_utc_s=t.timestamp(), lat_deg=float(p.latitude), lon_deg=float(p.longitude),
-            alt_m=_opt(p.elevation), speed_mps=_opt(p.speed, 0.0, 1e3),
+            alt_m=_opt(p.elevation), speed_mps=_opt(getattr(p, "speed", None), 0.0, 1e3),
             course_deg=_opt(getattr(p, "course", None), 0.0, 360.0),
             accuracy_m=None if hdop is None else hdop * UERE_M))
     warnings = []

@@ -54,7 +54,7 @@ class TraceParams:
     """
 
     v_max_mps: float = 70.0
-    jerk_psd: float = 0.3
+    jerk_psd: float = 0.1
     gate_sigma: float = 4.5
     gate_floor_m: float = 0.5
     speed_sigma_mps: float = 0.3
@@ -173,7 +173,7 @@ def smooth_ego(trace: GpsTrace, rate_hz: float = 10.0, gps_offset_s: float | Non
     # ---- 4. smooth, drop fixes far from the smoothed track, smooth again
     stops_fix = _doppler_stops(t, spd, keep, p)
     used = keep.copy()
-    for _ in range(2):
+    for _ in range(4):
         xs = _smooth(t, xy, sig, spd, vel_meas, crs_ok, used, stops_fix, p)
         resid = np.hypot(*(xy - xs[:, :2]).T)
         far = resid > np.maximum(p.gate_sigma * sig, p.gate_floor_m)
@@ -188,7 +188,8 @@ def smooth_ego(trace: GpsTrace, rate_hz: float = 10.0, gps_offset_s: float | Non
     # ---- 5. stops from positions; final smoothing with zero-velocity updates
     stops_fix = stops_fix | _position_stops(t, xy, sig, spd, used, p)
     xs = _smooth(t, xy, sig, spd, vel_meas, crs_ok, used, stops_fix, p)
-    stop_spans = _spans(t, stops_fix & used, p.stop_min_s)
+    # Spans over the used fixes only: a rejected fix inside a stop must not split it.
+    stop_spans = _spans(t[used], stops_fix[used], p.stop_min_s)
 
     # ---- 6. resample
     tu, xu = t[used], xs[used]
@@ -210,6 +211,8 @@ def smooth_ego(trace: GpsTrace, rate_hz: float = 10.0, gps_offset_s: float | Non
     if heading is None:
         heading = np.zeros(len(tg))
         warnings.append("the vehicle never moves: heading set to 0 (east)")
+    else:
+        _stop_headings(heading, pos, stopped)
 
     z = np.interp(tg, tu, _median3(enu[used, 2]))
     lat_g, lon_g, _ = frame.to_geodetic(np.column_stack((pos, z)))
@@ -356,8 +359,11 @@ def _consistent_chain(t: np.ndarray, xy: np.ndarray, sig: np.ndarray, v_max_mps:
         ok = d <= tol
         if ok.any():
             cand = np.where(ok, best[j0:i], 0)
-            # Among equally long chains prefer the most recent predecessor.
-            j = j0 + (len(cand) - 1 - int(np.argmax(cand[::-1])))
+            # Among equally long chains prefer the predecessor implying the lowest speed: a
+            # burst of outliers reachable at 70 m/s must not win a tie against true fixes.
+            top = cand == cand.max()
+            implied = np.where(top, d / (t[i] - t[j0:i]), np.inf)
+            j = j0 + int(np.argmin(implied))
             best[i] = best[j] + 1
             prev[i] = j
     keep = np.zeros(n, bool)
@@ -509,7 +515,7 @@ def _position_stops(t, xy, sig, spd, used, p: TraceParams) -> np.ndarray:
             if not np.isnan(vv[j]) and vv[j] > 2.0 * p.stop_doppler_mps:
                 break
             tj = tt[j] - tt[i]
-            if n >= 1 and np.hypot(*(pp[j] - sx / n)) > 4.0 * ss[j] + 0.5:
+            if n >= 1 and np.hypot(*(pp[j] - sx / n)) > 4.0 * ss[j] * math.sqrt(1 + 1 / n) + 0.5:
                 break
             n += 1
             st += tj
@@ -530,11 +536,80 @@ def _position_stops(t, xy, sig, spd, used, p: TraceParams) -> np.ndarray:
                 break
             last_ok = j
         if last_ok >= 0 and tt[last_ok] - tt[i] >= p.stop_min_s:
-            out[idx[i:last_ok + 1]] = True
-            i = last_ok + 1
+            a, b = _refine_stop(tt, pp, i, last_ok)
+            if tt[b] - tt[a] >= p.stop_min_s:
+                out[idx[a:b + 1]] = True
+            if last_ok == m - 1:
+                break
+            # A window that began in the braking before a stop can fail before the stop ends;
+            # windows starting later get their own chance (stepping by a quarter keeps long
+            # stops at 10 Hz affordable).
+            i += max(1, (last_ok - i) // 4)
         else:
             i += 1
+    return _merge_stops(tt, pp, ss, idx, out)
+
+
+def _merge_stops(tt, pp, ss, idx, out) -> np.ndarray:
+    """Join two stops separated by at most 10 s when their mean positions agree within
+    noise and every fix between lies near them: one noisy fix must not split a stop into two
+    with invented motion in between."""
+    runs = _run_bounds(out[idx])
+    k = 0
+    while k + 1 < len(runs):
+        (a1, b1), (a2, b2) = runs[k], runs[k + 1]
+        p1, p2 = pp[a1:b1].mean(axis=0), pp[a2:b2].mean(axis=0)
+        s = float(np.median(ss[a1:b2]))
+        merged = pp[a1:b2].mean(axis=0)
+        between = pp[b1:a2]
+        if (tt[a2] - tt[b1 - 1] <= 10.0
+                and np.hypot(*(p1 - p2)) <= max(1.0, 3.0 * s * math.sqrt(1 / (b1 - a1) + 1 / (b2 - a2)))
+                and np.all(np.hypot(*(between - merged).T) <= 4.0 * s + 0.5)):
+            out[idx[a1:b2]] = True
+            runs[k:k + 2] = [(a1, b2)]
+        else:
+            k += 1
     return out
+
+
+def _refine_stop(tt: np.ndarray, pp: np.ndarray, a: int, b: int,
+                 k_in: int = 8, k_out: int = 6) -> tuple[int, int]:
+    """Move the ends of the stop ``a..b`` (fix indices) to the best change points.
+
+    The slope test accepts a little of the braking before and the pulling away after a stop
+    (slow motion is within its noise). Near each end, fixes are modelled as standing at the
+    stop's mean position up to fix k and, beyond it, as starting (or ending) a constant
+    acceleration from rest, x = P + c (t - t_k)^2 per axis; the k with the smallest squared
+    residual over the same window wins.
+    """
+    m = len(tt)
+    core = pp[a:b + 1].mean(axis=0)
+
+    def ssr(k: int, lo: int, hi: int, leaving: bool) -> float:
+        stay = slice(lo, k + 1) if leaving else slice(k, hi + 1)
+        move = slice(k + 1, hi + 1) if leaving else slice(lo, k)
+        rs = pp[stay] - pp[stay].mean(axis=0)
+        total = float(np.sum(rs * rs))
+        if move.stop > move.start:
+            w = (tt[move] - tt[k]) ** 2
+            d = pp[move] - pp[stay].mean(axis=0)
+            c = (w @ d) / float(w @ w)
+            r = d - np.outer(w, c)
+            total += float(np.sum(r * r))
+        return total
+
+    del core
+    if b < m - 1:
+        lo, hi = max(a, b - k_in), min(m - 1, b + k_out)
+        ks = range(max(a + 2, lo), b + 1)
+        if len(ks):
+            b = min(ks, key=lambda k: ssr(k, max(a, lo - k_in), hi, True))
+    if a > 0:
+        lo, hi = max(0, a - k_out), min(b, a + k_in)
+        ks = range(a, min(b - 2, hi) + 1)
+        if len(ks):
+            a = min(ks, key=lambda k: ssr(k, lo, min(b, hi + k_in), False))
+    return a, b
 
 
 def _run_bounds(mask: np.ndarray) -> list[tuple[int, int]]:
@@ -573,6 +648,29 @@ def _held_heading(vel, speed, stopped, min_speed, tg, t, spd, crs) -> np.ndarray
     first = int(np.argmax(moving))
     idx[idx < 0] = first
     return heading[idx]
+
+
+def _stop_headings(heading: np.ndarray, pos: np.ndarray, stopped: np.ndarray,
+                   baseline_m: float = 10.0) -> None:
+    """Give each stop the direction of the last ``baseline_m`` metres driven into it (or, for
+    a stop at the start, the first metres driven out of it), in place.
+
+    Near a stop the velocity is small and its direction noisy; a chord over 10 m of smoothed
+    path is a far steadier estimate of where the car points while it stands.
+    """
+    s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(pos, axis=0).T))))
+    for a, b in _run_bounds(stopped):
+        before = np.flatnonzero(s[:a] <= s[a] - baseline_m)
+        after = np.flatnonzero(s[b:] >= s[b - 1] + baseline_m)
+        if len(before):
+            k = before[-1]
+            d = pos[a] - pos[k]
+        elif len(after):
+            k = b + after[0]
+            d = pos[k] - pos[b - 1]
+        else:
+            continue
+        heading[a:b] = math.atan2(d[1], d[0])
 
 
 def _course_to_enu(course_deg: float) -> tuple[float, float]:
