@@ -1,0 +1,148 @@
+"""Scenario assembly from an ego track and ranged tracked boxes (known answers)."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from vid2sim.camera import Camera
+from vid2sim.export.assemble import (
+    AssembleConfig,
+    assemble_scenario,
+    heading_from_motion,
+    local_linear_smooth,
+    straight_road_for,
+)
+from vid2sim.records import EgoTrack, Origin, RangedBox
+from vid2sim.scenario import Source, dumps_canonical, from_json
+
+ORIGIN = Origin(60.17, 24.94, 12.0)
+CAMERA = Camera.default_for(1280, 720)
+
+
+def ego_track(heading_rad: float = 0.0, speed_mps: float = 10.0, duration_s: float = 10.0,
+              dt_s: float = 0.1) -> EgoTrack:
+    t = np.round(np.arange(0.0, duration_s + 1e-9, dt_s), 6)
+    x = speed_mps * t * math.cos(heading_rad)
+    y = speed_mps * t * math.sin(heading_rad)
+    n = t.size
+    return EgoTrack(ORIGIN, t, x, y, np.full(n, heading_rad), np.full(n, speed_mps),
+                    np.full(n, ORIGIN.lat), np.full(n, ORIGIN.lon))
+
+
+def box(t_s: float, track_id: int, range_m: float, lateral_m: float, category: str = "car",
+        width_m: float = float("nan")) -> RangedBox:
+    return RangedBox(frame=round(t_s * 10), t_s=t_s, track_id=track_id, category=category,
+                     score=0.9, x1=0, y1=0, x2=1, y2=1, range_m=range_m, lateral_m=lateral_m,
+                     range_rate_mps=0.0, range_std_m=0.5, is_lead=False, width_m=width_m)
+
+
+def test_vehicle_position_composes_ego_pose_range_half_length_and_lateral():
+    # ego heading north at 10 m/s; a car 20 m ahead (rear), 3 m to the LEFT, same speed
+    ego = ego_track(heading_rad=math.pi / 2)
+    rows = [box(t, 1, 20.0, 3.0) for t in np.arange(0.0, 5.0, 0.1)]
+    sc, warnings = assemble_scenario(ego, [], rows, CAMERA, source=Source())
+    a = sc.actors[0]
+    assert (a.length_m, a.width_m, a.height_m) == (4.5, 1.8, 1.5)  # car prior, no width
+    st = a.trajectory.state_at(2.0)
+    # left of a north-heading car is WEST (negative x); centre = rear + 2.25 m
+    assert float(st["x"]) == pytest.approx(-3.0, abs=1e-6)
+    assert float(st["y"]) == pytest.approx(20.0 + 20.0 + 2.25, abs=1e-6)
+    assert float(st["heading"]) == pytest.approx(math.pi / 2, abs=1e-6)
+    assert float(st["speed"]) == pytest.approx(10.0, abs=1e-6)
+    assert any("no road map" in w for w in warnings)
+    assert sc.roads[0].source == "assumed"
+
+
+def test_gaps_bridged_or_split_and_short_pieces_dropped():
+    ego = ego_track()
+    t1 = [*np.arange(0.0, 2.0, 0.1), *np.arange(2.6, 4.0, 0.1)]  # 0.6 s gap: bridged
+    t2 = [*np.arange(0.0, 2.0, 0.1), *np.arange(3.5, 5.0, 0.1)]  # 1.5 s gap: split
+    t3 = list(np.arange(6.0, 6.3, 0.1))  # 0.2 s: dropped
+    rows = ([box(t, 1, 15.0, 0.0) for t in t1] + [box(t, 2, 25.0, -3.5) for t in t2]
+            + [box(t, 3, 30.0, 3.5) for t in t3])
+    sc, warnings = assemble_scenario(ego, [], rows, CAMERA, source=Source())
+    assert [a.id for a in sc.actors] == ["1", "2", "2-2"]
+    assert sc.actors[0].trajectory.t[0] == pytest.approx(0.0)
+    assert sc.actors[0].trajectory.t[-1] == pytest.approx(3.9)
+    assert any("dropped" in w for w in warnings)
+
+
+def test_dimensions_from_class_prior_and_clipped_width():
+    ego = ego_track()
+    rows = [box(t, 4, 30.0, 0.0, "truck", width_m=2.4 + 0.01 * (i % 3))
+            for i, t in enumerate(np.arange(0.0, 2.0, 0.1))]
+    rows += [box(t, 5, 30.0, 3.5, "car", width_m=5.0) for t in np.arange(0.0, 2.0, 0.1)]
+    sc, _ = assemble_scenario(ego, [], rows, CAMERA, source=Source())
+    truck, car = sc.actors
+    assert (truck.category, truck.length_m, truck.height_m) == ("truck", 8.0, 3.2)
+    assert truck.width_m == pytest.approx(2.41)
+    assert car.width_m == pytest.approx(1.4 * 1.8)  # an implausible width is clipped
+
+
+def test_stationary_vehicle_keeps_a_heading_and_zero_speed():
+    ego = ego_track(heading_rad=0.3, speed_mps=5.0)
+    # parked car: range shrinks as the ego drives past it
+    rows = [box(t, 8, 40.0 - 5.0 * t, 4.0) for t in np.arange(0.0, 4.0, 0.1)]
+    sc, _ = assemble_scenario(ego, [], rows, CAMERA, source=Source())
+    traj = sc.actors[0].trajectory
+    assert np.max(traj.speed) < 1e-6
+    np.testing.assert_allclose(traj.heading, 0.3)  # the ego's heading: facing along the road
+
+
+def test_noisy_track_is_smoothed():
+    rng = np.random.default_rng(1)
+    ego = ego_track()
+    t = np.arange(0.0, 8.0, 1 / 30)
+    rows = [box(ti, 1, 20.0 + rng.normal(0, 0.5), rng.normal(0, 0.2)) for ti in t]
+    sc, _ = assemble_scenario(ego, [], rows, CAMERA, source=Source())
+    traj = sc.actors[0].trajectory
+    inner = (traj.t > 1) & (traj.t < 7)
+    assert np.sqrt(np.mean((traj.speed[inner] - 10.0) ** 2)) < 1.0
+    assert np.max(np.abs(np.unwrap(traj.heading[inner]))) < 0.15
+
+
+def test_scenario_round_trips_canonical_json_with_source_and_camera():
+    ego = ego_track()
+    rows = [box(t, 1, 20.0, 0.0) for t in np.arange(0.0, 3.0, 0.1)]
+    src = Source(inputs=[{"name": "v.mp4", "sha256": "ab"}], tool_version="0.1.0")
+    sc, _ = assemble_scenario(ego, [], rows, CAMERA, source=src)
+    data = json.loads(dumps_canonical(sc.to_json()))
+    again = from_json(data)
+    assert again.camera["fx"] == pytest.approx(CAMERA.fx, abs=1e-4)
+    assert again.source.inputs == src.inputs
+    assert any("no camera file" in a for a in again.source.assumptions)
+    assert src.assumptions == []  # the caller's record is not modified
+    assert dumps_canonical(again.to_json()) == dumps_canonical(data)
+
+
+def test_straight_road_puts_the_ego_in_the_middle_lane():
+    ego = ego_track(heading_rad=math.pi)  # driving west
+    road = straight_road_for(ego, lanes=2, lane_width_m=3.5)
+    # two lanes: the ego is in the right one, so the centerline is 1.75 m to its left, and
+    # the left of a west-heading car is south (negative y)
+    assert road.centerline[0, 1] == pytest.approx(-1.75)
+    assert road.centerline[0, 0] > 0 > road.centerline[-1, 0]
+    road3 = straight_road_for(ego, lanes=3)
+    assert road3.centerline[0, 1] == pytest.approx(0.0)
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.floats(-5.0, 5.0), st.floats(-3.0, 3.0), st.floats(0.1, 1.0))
+def test_local_linear_smooth_is_exact_on_lines(slope, intercept, sigma_s):
+    t = np.sort(np.random.default_rng(0).uniform(0, 10, 80))
+    level, d = local_linear_smooth(t, intercept + slope * t, sigma_s)
+    np.testing.assert_allclose(level, intercept + slope * t, atol=1e-6)
+    np.testing.assert_allclose(d, slope, atol=1e-6)
+
+
+def test_heading_held_while_slow():
+    vx = np.array([0.0, 0.1, 5.0, 5.0, 0.1, 0.0])
+    vy = np.array([0.0, 0.0, 5.0, 0.0, 0.0, 0.0])
+    h = heading_from_motion(vx, vy, np.full(6, 2.0), AssembleConfig().stationary_speed_mps)
+    np.testing.assert_allclose(h, [math.pi / 4, math.pi / 4, math.pi / 4, 0.0, 0.0, 0.0])
