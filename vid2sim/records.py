@@ -203,3 +203,23 @@ class RangedBox:
     width_m: float = float("nan")
     lateral_rate_mps: float = float("nan")
     lane: str = ""
+
+
+@dataclass(slots=True)
+class RangingResult:
+    """What ``vid2sim.detect.ranging.range_tracks`` found for all tracks of one video.
+
+    :param boxes: one ranged box per input box, in the input order
+    :param pitch_deg_estimated: camera pitch that puts the horizon at ``horizon_y_px`` [deg,
+        positive looks down]
+    :param horizon_y_px: image row of the road's vanishing line used for ranging [px]
+    :param horizon_source: "lane markings", "vehicle consistency" or "camera file"
+    :param width_m_by_track: estimated width of each track's vehicle [m]
+    """
+
+    boxes: list[RangedBox]
+    pitch_deg_estimated: float
+    horizon_y_px: float
+    horizon_source: str
+    width_m_by_track: dict[int, float] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)

@@ -1,0 +1,120 @@
+"""Lane assignment of ranged vehicles and lead-vehicle selection with hysteresis.
+
+The ego corridor is the lane the camera sits in: +-lane_width/2 about the camera's optical
+axis projected on the road (the camera's yaw is already removed by the camera model). Lanes
+to the left are 1, 2, ... and to the right -1, -2, ..., named "ego", "left", "right",
+"left2", "right2", ...
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from vid2sim.records import TrackedBox
+
+if TYPE_CHECKING:  # pragma: no cover
+    from vid2sim.detect.ranging import RangingConfig
+
+# A rival must be nearer than the current lead by this much to count as nearer at all
+# [m]: two cars in one lane are a car length apart, so this only ignores range noise.
+LEAD_SWITCH_MARGIN_M = 0.5
+
+
+def lane_name(index: int) -> str:
+    """0 -> "ego", 1 -> "left", -1 -> "right", 2 -> "left2", -3 -> "right3"."""
+    if index == 0:
+        return "ego"
+    side = "left" if index > 0 else "right"
+    return side if abs(index) == 1 else f"{side}{abs(index)}"
+
+
+def lane_indices(lateral_m: np.ndarray, lane_width_m: float, hysteresis_m: float) -> np.ndarray:
+    """Lane index over one track's time-ordered lateral offsets, with hysteresis.
+
+    A vehicle keeps its lane until its centre is ``hysteresis_m`` past the lane boundary, so
+    one drifting along a boundary does not flip between lanes every frame.
+    """
+    out = np.zeros(len(lateral_m), dtype=int)
+    current: int | None = None
+    for k, y in enumerate(lateral_m):
+        if not np.isfinite(y):
+            out[k] = current if current is not None else 0
+            continue
+        nearest = int(np.round(y / lane_width_m))
+        if current is None or abs(y - current * lane_width_m) > lane_width_m / 2 + hysteresis_m:
+            current = nearest
+        out[k] = current
+    return out
+
+
+def assign_lanes_and_lead(boxes: list[TrackedBox], range_m: np.ndarray, lateral_m: np.ndarray,
+                          config: RangingConfig) -> tuple[list[str], np.ndarray]:
+    """Lane of every box and whether it is the lead vehicle in its frame.
+
+    The lead is the nearest vehicle in the ego lane. A different ego-lane vehicle takes over
+    only after it has been nearer for ``config.lead_switch_frames`` consecutive frames, or at
+    once when the current lead leaves the ego lane or is lost (a cut-out), so the lead does
+    not flicker between two similar candidates while a cut-in still switches within a few
+    frames of the vehicle entering the lane.
+
+    Parameters
+    ----------
+    boxes : list of TrackedBox
+        The boxes (any order).
+    range_m, lateral_m : ndarray
+        Range to the rear and lateral offset of each box [m] (smoothed).
+    config : RangingConfig
+        Lane width, hysteresis, switch delay, maximum range.
+
+    Returns
+    -------
+    (lane names, is_lead mask), both in the order of ``boxes``
+    """
+    n = len(boxes)
+    lane_idx = np.zeros(n, dtype=int)
+    by_track: dict[int, list[int]] = defaultdict(list)
+    for i, b in enumerate(boxes):
+        by_track[b.track_id].append(i)
+    for members in by_track.values():
+        members.sort(key=lambda i: (boxes[i].t_s, boxes[i].frame))
+        idx = np.array(members)
+        lane_idx[idx] = lane_indices(lateral_m[idx], config.lane_width_m,
+                                     config.lane_hysteresis_m)
+    lanes = [lane_name(int(k)) for k in lane_idx]
+
+    is_lead = np.zeros(n, dtype=bool)
+    by_frame: dict[int, list[int]] = defaultdict(list)
+    for i, b in enumerate(boxes):
+        by_frame[b.frame].append(i)
+    lead_track: int | None = None
+    challenger: int | None = None
+    challenge_frames = 0
+    for frame in sorted(by_frame):
+        cands = [i for i in by_frame[frame] if lane_idx[i] == 0 and np.isfinite(range_m[i])
+                 and 0 < range_m[i] <= config.max_range_m]
+        if not cands:
+            lead_track, challenger, challenge_frames = None, None, 0
+            continue
+        nearest = min(cands, key=lambda i: range_m[i])
+        current = next((i for i in cands if boxes[i].track_id == lead_track), None)
+        if current is None:
+            chosen = nearest
+            challenger, challenge_frames = None, 0
+        elif (boxes[nearest].track_id != lead_track
+              and range_m[nearest] < range_m[current] - LEAD_SWITCH_MARGIN_M):
+            tid = boxes[nearest].track_id
+            challenge_frames = challenge_frames + 1 if tid == challenger else 1
+            challenger = tid
+            if challenge_frames >= config.lead_switch_frames:
+                chosen, challenger, challenge_frames = nearest, None, 0
+            else:
+                chosen = current
+        else:
+            chosen = current
+            challenger, challenge_frames = None, 0
+        is_lead[chosen] = True
+        lead_track = boxes[chosen].track_id
+    return lanes, is_lead

@@ -1,0 +1,828 @@
+"""Monocular range, lateral offset and range rate of tracked vehicles (boxes -> metres).
+
+Per box, three cues are fused by weighted least squares in one measurement model: the box's
+bottom edge on the flat road (ground cue, needs the horizon), its pixel width against the
+vehicle's width (width cue, a per-class prior refined per track) and, weakly, its pixel height
+against a height prior. Each cue is a residual of the projected 3D vehicle box, so a pitched
+camera, lens distortion, the side of a laterally offset car that widens its box, and boxes cut
+by the image border (whose cut edge simply drops out) need no special cases. Per track, a
+Kalman filter with a Rauch-Tung-Striebel smoother turns the per-frame positions into smoothed
+range, lateral offset and their rates. The horizon is estimated from lane markings and from the
+agreement of ground and width cues across vehicles rather than taken from the camera file.
+
+Frames: vehicle frame x forward, y left, z up, origin on the road below the camera; range_m is
+the x of the vehicle's rear, lateral_m the y of its centre.
+"""
+
+from __future__ import annotations
+
+import csv
+import logging
+import math
+from collections import defaultdict
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from vid2sim.camera import Camera
+from vid2sim.errors import InputError
+from vid2sim.fileio import atomic_open
+from vid2sim.records import RangedBox, RangingResult, TrackedBox
+
+log = logging.getLogger(__name__)
+
+TRACKS_CSV_COLUMNS = ("frame", "t_s", "track_id", "category", "score", "x1", "y1", "x2", "y2",
+                      "range_m", "lateral_m", "range_rate_mps", "range_std_m", "is_lead")
+
+
+# --------------------------------------------------------------------------- configuration
+
+
+@dataclass(frozen=True)
+class VehiclePrior:
+    """Size of a vehicle class seen from behind [m]: mean and one-sigma spread."""
+
+    width_m: float
+    width_std_m: float
+    length_m: float
+    height_m: float
+    height_std_m: float
+
+
+# Why these numbers: European passenger cars are 1.70-1.85 m wide without mirrors and a
+# detector's box usually takes in the mirrors as well when they are visible, so 1.80 +- 0.12 m
+# covers the fleet (ISO 612 body width; Euro NCAP car dimensions). Vans (Transit/Sprinter
+# class) are about 2.0 m, trucks and buses are legally at most 2.55 m wide (EU 96/53/EC) and
+# mostly near that limit; motorcycles with rider about 0.8 m. Heights: cars 1.45-1.65 m,
+# vans about 2 m, trucks/buses 3-4 m. Lengths only matter for the side of a laterally offset
+# vehicle that shows in its box.
+DEFAULT_PRIORS: dict[str, VehiclePrior] = {
+    "car": VehiclePrior(1.80, 0.12, 4.4, 1.50, 0.12),
+    "van": VehiclePrior(2.00, 0.12, 5.2, 2.10, 0.30),
+    "truck": VehiclePrior(2.45, 0.12, 8.0, 3.20, 0.60),
+    "bus": VehiclePrior(2.55, 0.06, 12.0, 3.10, 0.30),
+    "motorcycle": VehiclePrior(0.80, 0.15, 2.1, 1.40, 0.20),
+}
+
+
+@dataclass(frozen=True)
+class RangingConfig:
+    """Everything ``range_tracks`` assumes, in one explicit object.
+
+    Parameters
+    ----------
+    priors : dict
+        Per-class :class:`VehiclePrior`; unknown classes use ``priors["car"]``.
+    edge_noise_px, edge_noise_frac : float
+        One-sigma error of a box edge from a detector: a constant plus a fraction of the box
+        size (edges of big boxes wander more in absolute pixels).
+    road_height_std_m : float
+        One-sigma height of the road under a vehicle relative to the plane through the ego
+        wheels [m]: cross-fall (2.5 % over a lane is 0.09 m), crests, sags and kerbs. It
+        caps the ground cue's accuracy at about road_height_std_m / camera height in
+        relative range at any distance.
+    horizon_jitter_deg : float
+        One-sigma frame-to-frame pitch of the ego body on its suspension [deg]; it moves the
+        horizon and so adds to the noise of the ground cue (about 0.15 deg on normal roads).
+    camera_pitch_std_deg : float
+        Trust in the camera file's pitch [deg]; a dash-cam mounting is rarely known better
+        than about a degree. Lower it for a calibrated rig.
+    lane_horizon_std_px : float
+        One-sigma error of a lane-marking horizon estimate from one frame [px].
+    border_margin_px : float
+        An edge this close to the image border counts as cut by it.
+    min_ground_margin_px : float
+        The ground cue needs the bottom edge at least this far below the horizon.
+    width_learning_max_range_m : float
+        The track's own width is learnt only from frames nearer than this, where the ground
+        cue is sharp.
+    accel_noise_grid_mps2 : tuple
+        Candidate spectral densities of the longitudinal relative acceleration (white-noise
+        acceleration model) [m^2/s^3]; each track takes the most likely one.
+    lateral_accel_noise_mps2 : float
+        The same for the lateral motion [m^2/s^3].
+    initial_range_rate_std_mps : float
+        Prior spread of a new track's range rate [m/s].
+    lane_width_m : float
+        Width of a lane [m]; the ego corridor is +-lane_width_m/2 about the camera.
+    lane_hysteresis_m : float
+        A vehicle changes lane only once its centre is this far past the boundary.
+    lead_switch_frames : int
+        Frames another ego-lane vehicle must be nearer before it takes over as lead.
+    max_range_m : float
+        Positions beyond this are not trusted (reported, but never a lead).
+    """
+
+    priors: dict[str, VehiclePrior] = field(default_factory=lambda: dict(DEFAULT_PRIORS))
+    edge_noise_px: float = 1.0
+    edge_noise_frac: float = 0.02
+    road_height_std_m: float = 0.10
+    horizon_jitter_deg: float = 0.15
+    camera_pitch_std_deg: float = 1.0
+    lane_horizon_std_px: float = 4.0
+    border_margin_px: float = 2.0
+    min_ground_margin_px: float = 3.0
+    width_learning_max_range_m: float = 40.0
+    accel_noise_grid_mps2: tuple[float, ...] = (0.05, 0.3, 1.5, 6.0)
+    lateral_accel_noise_mps2: float = 0.3
+    initial_range_rate_std_mps: float = 8.0
+    lane_width_m: float = 3.6
+    lane_hysteresis_m: float = 0.3
+    lead_switch_frames: int = 3
+    max_range_m: float = 150.0
+
+    def prior_for(self, category: str) -> VehiclePrior:
+        return self.priors.get(category, self.priors["car"])
+
+
+# --------------------------------------------------------------------------- box geometry
+
+
+@dataclass
+class BoxArrays:
+    """Boxes as columns (pixels) with the cut flags of each edge."""
+
+    x1: np.ndarray
+    y1: np.ndarray
+    x2: np.ndarray
+    y2: np.ndarray
+    cut_left: np.ndarray
+    cut_right: np.ndarray
+    cut_top: np.ndarray
+    cut_bottom: np.ndarray
+
+    @classmethod
+    def from_boxes(cls, boxes: list[TrackedBox], camera: Camera, margin_px: float) -> BoxArrays:
+        a = np.array([(b.x1, b.y1, b.x2, b.y2) for b in boxes], dtype=float).reshape(-1, 4)
+        w, h = camera.image_width - 1, camera.image_height - 1
+        return cls(a[:, 0], a[:, 1], a[:, 2], a[:, 3], a[:, 0] <= margin_px,
+                   a[:, 2] >= w - margin_px, a[:, 1] <= margin_px, a[:, 3] >= h - margin_px)
+
+
+def _predict_edges(camera: Camera, x_m: np.ndarray, y_m: np.ndarray, w_m: np.ndarray,
+                   h_m: np.ndarray, l_m: np.ndarray) -> np.ndarray:
+    """(N, 4) pixel box (u1, v1, u2, v2) of vehicles whose rear is at range ``x_m``, centre
+    at lateral ``y_m``, aligned with the ego axis and standing on the road."""
+    sx = np.array([0, 0, 0, 0, 1, 1, 1, 1], dtype=float)
+    sy = np.array([-0.5, 0.5, -0.5, 0.5, -0.5, 0.5, -0.5, 0.5])
+    sz = np.array([0, 0, 1, 1, 0, 0, 1, 1], dtype=float)
+    px = x_m[:, None] + sx[None, :] * l_m[:, None]
+    py = y_m[:, None] + sy[None, :] * w_m[:, None]
+    pz = sz[None, :] * h_m[:, None]
+    pts = np.stack([px, py, pz], axis=-1).reshape(-1, 3)
+    uv, _ = camera.project(pts)
+    uv = uv.reshape(-1, 8, 2)
+    with np.errstate(invalid="ignore"):
+        return np.stack([uv[..., 0].min(1), uv[..., 1].min(1), uv[..., 0].max(1),
+                         uv[..., 1].max(1)], axis=1)
+
+
+@dataclass
+class BoxFit:
+    """Single-frame position of each box: estimates and their covariance."""
+
+    range_m: np.ndarray
+    lateral_m: np.ndarray
+    width_m: np.ndarray
+    cov: np.ndarray  # (N, 4, 4) over (log range, lateral, width, height)
+    ground_ok: np.ndarray
+    width_ok: np.ndarray
+    valid: np.ndarray
+
+    @property
+    def range_var_m2(self) -> np.ndarray:
+        return self.cov[:, 0, 0] * self.range_m ** 2
+
+    @property
+    def lateral_var_m2(self) -> np.ndarray:
+        return self.cov[:, 1, 1]
+
+    @property
+    def width_var_m2(self) -> np.ndarray:
+        return self.cov[:, 2, 2]
+
+    @property
+    def range_lateral_cov_m2(self) -> np.ndarray:
+        return self.cov[:, 0, 1] * self.range_m
+
+
+def fit_boxes(camera: Camera, ba: BoxArrays, width_m: np.ndarray, width_std_m: np.ndarray,
+              prior_h: np.ndarray, prior_h_std: np.ndarray, length_m: np.ndarray,
+              config: RangingConfig, *, use_ground: bool = True, use_height: bool = True,
+              iterations: int = 12) -> BoxFit:
+    """Fuse the cues of each box into a position by weighted least squares.
+
+    The unknowns per box are (log range, lateral, width, height); the residuals are the
+    observed minus the predicted box edges, each divided by its pixel noise, plus the size
+    priors. Minimising them is the inverse-variance fusion of the ground cue (bottom edge vs
+    horizon: Z = f H / (y_bottom - y_horizon) for a level camera), the width cue
+    (Z = f W / w_px) and the height cue, with the noise of each propagated from pixels to
+    metres by the Jacobian, so the ground cue's range error grows as Z^2 / (f H) per pixel
+    (Hartley & Zisserman, Multiple View Geometry, 2nd ed., ch. 5 on first-order error
+    propagation). Log range keeps the range positive and the model nearly linear (edges scale
+    as 1/Z).
+
+    Parameters
+    ----------
+    camera : Camera
+        The camera with the pitch to use.
+    ba : BoxArrays
+        Boxes and their cut flags.
+    width_m, width_std_m, prior_h, prior_h_std, length_m : ndarray
+        Size prior of each box's vehicle [m].
+    config : RangingConfig
+        Noise settings.
+    use_ground, use_height : bool
+        Switch the ground and height cues off (for the horizon estimate from widths).
+
+    Returns
+    -------
+    BoxFit
+        ``valid`` is False where the cues left the range unobservable.
+    """
+    n = len(ba.x1)
+    bw = np.maximum(ba.x2 - ba.x1, 1.0)
+    bh = np.maximum(ba.y2 - ba.y1, 1.0)
+    horizon = camera.horizon_y_px()
+    jitter_px = camera.fy * math.tan(math.radians(config.horizon_jitter_deg))
+    sig_u = config.edge_noise_px + config.edge_noise_frac * bw
+    sig_v = np.hypot(config.edge_noise_px + config.edge_noise_frac * bh, jitter_px)
+    # A road dz higher than the plane moves a vehicle's bottom edge by f dz / Z pixels; Z is
+    # only known after the fit, so take it from the width cue (good to ~10 %, plenty here).
+    z_guess = np.maximum(camera.fx * width_m / bw, 1.0)
+    sig_bottom = np.hypot(sig_v, camera.fy * config.road_height_std_m / z_guess)
+    ground_ok = (~ba.cut_bottom) & (ba.y2 > horizon + config.min_ground_margin_px)
+    if not use_ground:
+        ground_ok = np.zeros(n, dtype=bool)
+    width_ok = ~(ba.cut_left | ba.cut_right)
+    height_ok = (~(ba.cut_top | ba.cut_bottom)) & use_height
+    obs = np.stack([ba.x1, ba.y1, ba.x2, ba.y2], axis=1)
+    sig = np.stack([sig_u, sig_v, sig_u, sig_bottom], axis=1)
+    # The top edge is a (weak) cue only with the bottom edge beside it: box height against
+    # the height prior. A car's roof sits near the camera's own height, i.e. near the
+    # horizon, so alone it would say little about range.
+    use = np.stack([~ba.cut_left, height_ok, ~ba.cut_right, ground_ok], axis=1)
+
+    # Initial guess: ground cue where usable, else width cue; lateral from the centre column.
+    f = camera.fx
+    rng0 = f * width_m / bw
+    if ground_ok.any():
+        pts, ok = camera.pixel_to_ground(np.column_stack(((ba.x1 + ba.x2) / 2, ba.y2)))
+        g = ground_ok & ok & np.isfinite(pts[:, 0]) & (pts[:, 0] > 0.5)
+        rng0 = np.where(g, pts[:, 0], rng0)
+    rng0 = np.clip(rng0, 1.0, 3 * config.max_range_m)
+    rays = camera.pixel_rays_veh(np.column_stack(((ba.x1 + ba.x2) / 2, np.full(n, horizon))))
+    lat0 = rays[:, 1] / np.maximum(rays[:, 0], 1e-6) * (rng0 + length_m / 2)
+    theta = np.column_stack((np.log(rng0), lat0, width_m, prior_h))
+    prior_mean = np.column_stack((width_m, prior_h))
+    prior_std = np.column_stack((width_std_m, prior_h_std))
+    steps = np.array([1e-3, 1e-3, 1e-3, 1e-3])
+
+    def residuals(th: np.ndarray) -> np.ndarray:
+        pred = _predict_edges(camera, np.exp(th[:, 0]), th[:, 1], th[:, 2], th[:, 3], length_m)
+        r_edges = np.where(use, (obs - pred) / sig, 0.0)
+        r_prior = (prior_mean - th[:, 2:4]) / prior_std
+        return np.nan_to_num(np.concatenate([r_edges, r_prior], axis=1), nan=0.0)
+
+    jac = np.zeros((n, 6, 4))
+    for _ in range(iterations):
+        r0 = residuals(theta)
+        for k in range(4):
+            th = theta.copy()
+            th[:, k] += steps[k]
+            jac[:, :, k] = -(residuals(th) - r0) / steps[k]
+        jtj = np.einsum("nik,nil->nkl", jac, jac) + 1e-9 * np.eye(4)
+        jtr = np.einsum("nik,ni->nk", jac, r0)
+        delta = np.linalg.solve(jtj, jtr[..., None])[..., 0]
+        delta[:, 0] = np.clip(delta[:, 0], -0.5, 0.5)
+        theta = theta + delta
+        theta[:, 0] = np.clip(theta[:, 0], 0.0, math.log(3 * config.max_range_m))
+        theta[:, 2:4] = np.maximum(theta[:, 2:4], 0.2)
+        if np.abs(delta[:, 0]).max(initial=0.0) < 1e-5:
+            break
+    jtj = np.einsum("nik,nil->nkl", jac, jac) + 1e-9 * np.eye(4)
+    cov = np.linalg.inv(jtj)
+    rng = np.exp(theta[:, 0])
+    # Unobservable range: the log-range spread stays near what the priors alone allow.
+    valid = (np.sqrt(np.maximum(cov[:, 0, 0], 0)) < 0.5) & np.isfinite(rng)
+    return BoxFit(rng, theta[:, 1], theta[:, 2], cov, ground_ok, width_ok, valid)
+
+
+# --------------------------------------------------------------------------- horizon
+
+
+def pitch_for_horizon(camera: Camera, horizon_y_px: float) -> float:
+    """Camera pitch [deg] that puts the horizon at row ``horizon_y_px`` (other angles kept)."""
+    pitch = camera.pitch_deg + math.degrees(
+        math.atan((camera.horizon_y_px() - horizon_y_px) / camera.fy))
+    for _ in range(3):  # Newton on the exact horizon (roll and distortion make it non-linear)
+        h0 = camera.with_pitch(pitch).horizon_y_px()
+        h1 = camera.with_pitch(pitch + 1e-3).horizon_y_px()
+        if not (np.isfinite(h0) and np.isfinite(h1)) or h1 == h0:
+            break
+        pitch += (horizon_y_px - h0) * 1e-3 / (h1 - h0)
+    return float(pitch)
+
+
+def horizon_from_vehicles(boxes: list[TrackedBox], camera: Camera, config: RangingConfig,
+                          ba: BoxArrays | None = None) -> tuple[float | None, float, int]:
+    """Horizon row that makes ground-cue ranges agree with width-cue ranges.
+
+    For each well-seen car (box not cut, at least 20 px high, width cue range 5-60 m) the
+    width cue alone gives its range; the row where that range meets the road, compared with
+    the observed bottom edge, says how far the true horizon lies from the assumed one (a pitch
+    change shifts all rows near the image centre alike). The median over tracks of each
+    track's median offset is robust to a few odd boxes and gives every vehicle one vote.
+
+    Returns
+    -------
+    (horizon_y_px or None, one-sigma [px], number of tracks used)
+    """
+    ba = ba or BoxArrays.from_boxes(boxes, camera, config.border_margin_px)
+    cat = np.array([b.category for b in boxes])
+    sel = ((cat == "car") & ~(ba.cut_left | ba.cut_right | ba.cut_top | ba.cut_bottom)
+           & (ba.y2 - ba.y1 >= 20) & (ba.x2 - ba.x1 >= 12))
+    if sel.sum() == 0:
+        return None, math.inf, 0
+    idx = np.flatnonzero(sel)
+    sub = BoxArrays(*(getattr(ba, k)[idx] for k in ba.__dataclass_fields__))
+    p = config.prior_for("car")
+    ones = np.ones(len(idx))
+    fit = fit_boxes(camera, sub, p.width_m * ones, p.width_std_m * ones, p.height_m * ones,
+                    p.height_std_m * ones, p.length_m * ones, config, use_ground=False,
+                    use_height=False)
+    pred = _predict_edges(camera, fit.range_m, fit.lateral_m, fit.width_m, p.height_m * ones,
+                          p.length_m * ones)
+    offset = sub.y2 - pred[:, 3]
+    keep = fit.valid & (fit.range_m > 5) & (fit.range_m < 60) & np.isfinite(offset)
+    by_track: dict[int, list[float]] = defaultdict(list)
+    for i, off in zip(idx[keep], offset[keep], strict=True):
+        by_track[boxes[i].track_id].append(float(off))
+    if not by_track:
+        return None, math.inf, 0
+    per_track = np.array([np.median(v) for v in by_track.values()])
+    med = float(np.median(per_track))
+    n = len(per_track)
+    # Spread: robust scatter over tracks, plus the floor that a width prior 1-sigma off for
+    # all cars at once would shift the answer by (f H / Z * sigma_W / W at a typical 20 m).
+    mad = 1.4826 * float(np.median(np.abs(per_track - med))) if n > 2 else 10.0
+    floor = camera.fy * camera.height_m / 20.0 * p.width_std_m / p.width_m / 2
+    std = math.hypot(mad / math.sqrt(n), floor)
+    return camera.horizon_y_px() + med, std, n
+
+
+def choose_horizon(boxes: list[TrackedBox], camera: Camera, config: RangingConfig,
+                   horizon_hints_px: list[float] | None) -> tuple[float, str, list[str]]:
+    """Fuse the horizon estimates by inverse variance: camera file, lane markings, vehicles.
+
+    Returns the row [px], the source with the largest weight, and notes for the summary.
+    """
+    notes: list[str] = []
+    h_cam = camera.horizon_y_px()
+    std_cam = camera.fy * math.tan(math.radians(config.camera_pitch_std_deg))
+    estimates = [(h_cam, std_cam, "camera file")]
+    hints = np.array([h for h in (horizon_hints_px or []) if h is not None and np.isfinite(h)])
+    if hints.size >= 3:
+        h_lane = float(np.median(hints))
+        mad = 1.4826 * float(np.median(np.abs(hints - h_lane)))
+        std_lane = max(mad, config.lane_horizon_std_px) / math.sqrt(hints.size) + 1.0
+        estimates.append((h_lane, std_lane, "lane markings"))
+        notes.append(f"lane markings: horizon {h_lane:.1f} px from {hints.size} frames")
+    h_veh, std_veh, n_veh = horizon_from_vehicles(boxes, camera, config)
+    if h_veh is not None and n_veh >= 3:
+        # One iteration at the new pitch: the width cue itself depends slightly on pitch.
+        cam2 = camera.with_pitch(pitch_for_horizon(camera, h_veh))
+        h2, std2, n2 = horizon_from_vehicles(boxes, cam2, config)
+        if h2 is not None:
+            h_veh, std_veh, n_veh = h2, std2, n2
+        estimates.append((h_veh, std_veh, "vehicle consistency"))
+        notes.append(f"vehicle consistency: horizon {h_veh:.1f} px from {n_veh} vehicles")
+    if len(estimates) > 2 and abs(estimates[1][0] - estimates[2][0]) > 3 * math.hypot(
+            estimates[1][1], estimates[2][1]):
+        # Lane markings are pure geometry; the vehicle estimate leans on size priors and on
+        # parked cars standing level with the road. When they disagree, keep the markings.
+        notes.append(f"lane-marking and vehicle horizons disagree ({estimates[1][0]:.1f} vs "
+                     f"{estimates[2][0]:.1f} px): kept the lane markings (a slope, kerb "
+                     "parking or unusual vehicle sizes?)")
+        estimates.pop(2)
+    w = np.array([1.0 / s ** 2 for _, s, _ in estimates])
+    h = float(np.sum(w * np.array([e[0] for e in estimates])) / w.sum())
+    source = estimates[int(np.argmax(w))][2]
+    return h, source, notes
+
+
+# --------------------------------------------------------------------------- Kalman + RTS
+
+
+@dataclass
+class SmoothedTrack:
+    """Smoothed states of one track at its measurement times."""
+
+    range_m: np.ndarray
+    range_rate_mps: np.ndarray
+    lateral_m: np.ndarray
+    lateral_rate_mps: np.ndarray
+    range_std_m: np.ndarray
+    accel_noise_mps2: float
+    log_likelihood: float
+
+
+def _cv_blocks(dt: float, q: float) -> tuple[np.ndarray, np.ndarray]:
+    f = np.array([[1.0, dt], [0.0, 1.0]])
+    # Discretised continuous white-noise acceleration (Bar-Shalom, Li & Kirubarajan,
+    # Estimation with Applications to Tracking and Navigation, 2001, sec. 6.2.2).
+    qm = q * np.array([[dt ** 3 / 3, dt ** 2 / 2], [dt ** 2 / 2, dt]])
+    return f, qm
+
+
+def smooth_track(t_s: np.ndarray, z: np.ndarray, r: np.ndarray, valid: np.ndarray,
+                 q_long: float, q_lat: float, v0_std: float) -> SmoothedTrack:
+    """Constant-velocity Kalman filter and RTS smoother for one track.
+
+    State (range, range rate, lateral, lateral rate); measurements (range, lateral) with a
+    2x2 covariance per frame; irregular time steps and frames without a valid measurement
+    (only predicted) are handled. Innovations beyond 4 sigma are down-weighted (their
+    covariance inflated) so one bad box does not throw the track.
+
+    Parameters
+    ----------
+    t_s : (N,) times [s], increasing
+    z : (N, 2) measured range and lateral [m]
+    r : (N, 2, 2) measurement covariances [m^2]
+    valid : (N,) whether each measurement exists
+    q_long, q_lat : white-noise acceleration spectral densities [m^2/s^3]
+    v0_std : prior spread of the rates [m/s]
+    """
+    n = len(t_s)
+    hm = np.array([[1.0, 0, 0, 0], [0, 0, 1.0, 0]])
+    xs_f = np.zeros((n, 4))
+    ps_f = np.zeros((n, 4, 4))
+    xs_p = np.zeros((n, 4))
+    ps_p = np.zeros((n, 4, 4))
+    fs = np.zeros((n, 4, 4))
+    first = int(np.argmax(valid)) if valid.any() else 0
+    x = np.array([z[first, 0], 0.0, z[first, 1], 0.0])
+    p = np.diag([r[first, 0, 0] * 1e4 + 1e4, v0_std ** 2, r[first, 1, 1] * 1e4 + 1e4,
+                 (v0_std / 4) ** 2])
+    loglik = 0.0
+    for k in range(n):
+        dt = float(t_s[k] - t_s[k - 1]) if k > 0 else 0.0
+        fl, ql = _cv_blocks(dt, q_long)
+        fa, qa = _cv_blocks(dt, q_lat)
+        fk = np.zeros((4, 4))
+        fk[:2, :2], fk[2:, 2:] = fl, fa
+        qk = np.zeros((4, 4))
+        qk[:2, :2], qk[2:, 2:] = ql, qa
+        x = fk @ x
+        p = fk @ p @ fk.T + qk
+        fs[k], xs_p[k], ps_p[k] = fk, x, p
+        if valid[k]:
+            innov = z[k] - hm @ x
+            s = hm @ p @ hm.T + r[k]
+            nis = float(innov @ np.linalg.solve(s, innov))
+            if nis > 16.0 and k > first:
+                s = s + (nis / 16.0 - 1.0) * r[k]  # robust: inflate R for an outlier
+                nis = float(innov @ np.linalg.solve(s, innov))
+            elif k > first:
+                loglik -= 0.5 * (nis + math.log(np.linalg.det(s)))
+            gain = p @ hm.T @ np.linalg.inv(s)
+            x = x + gain @ innov
+            p = (np.eye(4) - gain @ hm) @ p
+            p = (p + p.T) / 2
+        xs_f[k], ps_f[k] = x, p
+    # Rauch-Tung-Striebel backward pass (Rauch, Tung & Striebel, AIAA J. 3(8), 1965).
+    xs, ps = xs_f.copy(), ps_f.copy()
+    for k in range(n - 2, -1, -1):
+        c = ps_f[k] @ fs[k + 1].T @ np.linalg.inv(ps_p[k + 1])
+        xs[k] = xs_f[k] + c @ (xs[k + 1] - xs_p[k + 1])
+        ps[k] = ps_f[k] + c @ (ps[k + 1] - ps_p[k + 1]) @ c.T
+    return SmoothedTrack(xs[:, 0], xs[:, 1], xs[:, 2], xs[:, 3],
+                         np.sqrt(np.maximum(ps[:, 0, 0], 0)), q_long, loglik)
+
+
+def smooth_track_adaptive(t_s: np.ndarray, z: np.ndarray, r: np.ndarray, valid: np.ndarray,
+                          config: RangingConfig) -> SmoothedTrack:
+    """Run :func:`smooth_track` for each candidate acceleration noise and keep the one whose
+    innovations are the most likely (a calm follower and a hard braker need different ones)."""
+    best: SmoothedTrack | None = None
+    for q in config.accel_noise_grid_mps2:
+        res = smooth_track(t_s, z, r, valid, q, config.lateral_accel_noise_mps2,
+                           config.initial_range_rate_std_mps)
+        if best is None or res.log_likelihood > best.log_likelihood + 1e-9:
+            best = res
+    assert best is not None
+    return best
+
+
+# --------------------------------------------------------------------------- main entry
+
+
+def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
+                 horizon_hints_px: list[float] | None = None,
+                 config: RangingConfig | None = None) -> RangingResult:
+    """Range, lateral offset and range rate of every tracked box.
+
+    Parameters
+    ----------
+    boxes : list of TrackedBox
+        Tracker output (any order); a track with one box is ranged from that frame alone.
+    camera : Camera
+        The camera; its pitch is only a prior for the horizon estimate.
+    horizon_hints_px : list of float, optional
+        Per-frame horizon rows from lane markings (:class:`vid2sim.detect.lanes.HorizonEstimator`).
+    config : RangingConfig, optional
+        Priors and noise settings.
+
+    Returns
+    -------
+    RangingResult
+        One :class:`RangedBox` per input box in the input order; lead and lane assigned.
+    """
+    from vid2sim.detect.lead import assign_lanes_and_lead
+
+    config = config or RangingConfig()
+    warnings: list[str] = []
+    if not boxes:
+        h = camera.horizon_y_px()
+        return RangingResult([], camera.pitch_deg, h, "camera file", {}, ["no boxes to range"])
+    unknown = sorted({b.category for b in boxes} - set(config.priors))
+    if unknown:
+        warnings.append(f"no size prior for {', '.join(unknown)}: used the car prior")
+
+    horizon, source, notes = choose_horizon(boxes, camera, config, horizon_hints_px)
+    warnings.extend(n for n in notes if "disagree" in n)
+    pitch = pitch_for_horizon(camera, horizon)
+    cam = camera.with_pitch(pitch)
+    ba = BoxArrays.from_boxes(boxes, cam, config.border_margin_px)
+    priors = [config.prior_for(b.category) for b in boxes]
+    w0 = np.array([p.width_m for p in priors])
+    w0_std = np.array([p.width_std_m for p in priors])
+    h0 = np.array([p.height_m for p in priors])
+    h0_std = np.array([p.height_std_m for p in priors])
+    l0 = np.array([p.length_m for p in priors])
+    track_ids = np.array([b.track_id for b in boxes])
+
+    # 1) Each track's own width: fit with a loose width prior on frames where the ground cue
+    # is sharp and no side is cut, then combine with the class prior (Gaussian product).
+    loose = fit_boxes(cam, ba, w0, np.full(len(boxes), 1.0), h0, h0_std, l0, config)
+    learn = (loose.valid & loose.ground_ok & loose.width_ok
+             & (loose.range_m < config.width_learning_max_range_m))
+    w_track = w0.copy()
+    w_track_std = w0_std.copy()
+    width_by_track: dict[int, float] = {}
+    order = np.argsort(track_ids, kind="stable")
+    splits = np.flatnonzero(np.diff(track_ids[order])) + 1
+    for members in np.split(order, splits):
+        tid = int(track_ids[members[0]])
+        m = members[learn[members]]
+        prior_w, prior_sd = w0[members[0]], w0_std[members[0]]
+        info, mean_info = 1.0 / prior_sd ** 2, prior_w / prior_sd ** 2
+        if m.size:
+            var = np.maximum(loose.width_var_m2[m], 1e-4)
+            # Frames of one track share the horizon error: count at most ~10 independent
+            # looks, or the width would claim more certainty than the geometry holds.
+            scale = max(1.0, m.size / 10.0)
+            info += float(np.sum(1.0 / (var * scale)))
+            mean_info += float(np.sum(loose.width_m[m] / (var * scale)))
+        w_est, w_sd = mean_info / info, math.sqrt(1.0 / info)
+        w_track[members], w_track_std[members] = w_est, w_sd
+        width_by_track[tid] = round(w_est, 3)
+
+    # 2) Final per-frame fit with the track's width.
+    fit = fit_boxes(cam, ba, w_track, w_track_std, h0, h0_std, l0, config)
+    if (~fit.valid).any():
+        warnings.append(f"{int((~fit.valid).sum())} boxes gave no usable range cue (cut by the "
+                        "border on too many sides); their range comes from the track filter")
+
+    # 3) Per-track Kalman filter + RTS smoother.
+    n = len(boxes)
+    out_range = np.full(n, np.nan)
+    out_rate = np.full(n, np.nan)
+    out_lat = np.full(n, np.nan)
+    out_lat_rate = np.full(n, np.nan)
+    out_std = np.full(n, np.nan)
+    t_all = np.array([b.t_s for b in boxes], dtype=float)
+    for members in np.split(order, splits):
+        members = members[np.lexsort((np.array([boxes[i].frame for i in members]),
+                                      t_all[members]))]
+        if not fit.valid[members].any():
+            # Nothing but weak cues (e.g. a car alongside, cut at the bottom and a side):
+            # report the single-frame fit with its large spread rather than nothing.
+            out_range[members] = fit.range_m[members]
+            out_lat[members] = fit.lateral_m[members]
+            out_std[members] = np.sqrt(np.maximum(fit.range_var_m2[members], 0))
+            continue
+        z = np.column_stack((fit.range_m[members], fit.lateral_m[members]))
+        r = np.zeros((len(members), 2, 2))
+        r[:, 0, 0] = fit.range_var_m2[members]
+        r[:, 1, 1] = fit.lateral_var_m2[members]
+        r[:, 0, 1] = r[:, 1, 0] = fit.range_lateral_cov_m2[members]
+        sm = smooth_track_adaptive(t_all[members], z, r, fit.valid[members], config)
+        out_range[members] = sm.range_m
+        out_lat[members] = sm.lateral_m
+        out_std[members] = sm.range_std_m
+        if len(members) > 1:
+            out_rate[members] = sm.range_rate_mps
+            out_lat_rate[members] = sm.lateral_rate_mps
+
+    lanes, is_lead = assign_lanes_and_lead(boxes, out_range, out_lat, config)
+    ranged = [
+        RangedBox(frame=b.frame, t_s=b.t_s, track_id=b.track_id, category=b.category,
+                  score=b.score, x1=b.x1, y1=b.y1, x2=b.x2, y2=b.y2,
+                  range_m=float(out_range[i]), lateral_m=float(out_lat[i]),
+                  range_rate_mps=float(out_rate[i]), range_std_m=float(out_std[i]),
+                  is_lead=bool(is_lead[i]), width_m=float(w_track[i]),
+                  lateral_rate_mps=float(out_lat_rate[i]), lane=lanes[i])
+        for i, b in enumerate(boxes)]
+    return RangingResult(ranged, pitch, horizon, source, width_by_track, warnings + [
+        n for n in notes if "disagree" not in n])
+
+
+# --------------------------------------------------------------------------- tracks.csv
+
+
+def _fmt(v: float, digits: int) -> str:
+    return "nan" if not np.isfinite(v) else f"{v:.{digits}f}"
+
+
+def write_tracks_csv(boxes: list[RangedBox], path: str | Path) -> None:
+    """Write ``tracks.csv`` atomically, one row per tracked vehicle per processed frame.
+
+    Columns ``frame,t_s,track_id,category,score,x1,y1,x2,y2,range_m,lateral_m,range_rate_mps,
+    range_std_m,is_lead``; ``is_lead`` is 1 on the lead vehicle's row, else 0; unknown values
+    (the range rate of a one-frame track) are ``nan``.
+    """
+    with atomic_open(path, "w", encoding="utf-8", newline="") as fh:
+        wr = csv.writer(fh, lineterminator="\n")
+        wr.writerow(TRACKS_CSV_COLUMNS)
+        for b in sorted(boxes, key=lambda b: (b.frame, b.track_id)):
+            wr.writerow([b.frame, f"{b.t_s:.4f}", b.track_id, b.category, f"{b.score:.3f}",
+                         f"{b.x1:.1f}", f"{b.y1:.1f}", f"{b.x2:.1f}", f"{b.y2:.1f}",
+                         _fmt(b.range_m, 2), _fmt(b.lateral_m, 2), _fmt(b.range_rate_mps, 2),
+                         _fmt(b.range_std_m, 2), int(b.is_lead)])
+
+
+def read_tracks_csv(path: str | Path) -> list[RangedBox]:
+    """Read a ``tracks.csv`` written by :func:`write_tracks_csv` (or by hand).
+
+    Raises
+    ------
+    InputError
+        If the file is missing, lacks a column, or holds a value that is not a number.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(path, "no such file")
+    out: list[RangedBox] = []
+    try:
+        with open(path, encoding="utf-8", newline="") as fh:
+            reader = csv.DictReader(fh)
+            missing = [c for c in TRACKS_CSV_COLUMNS if c not in (reader.fieldnames or [])]
+            if missing:
+                raise InputError(path, f"not a tracks.csv: lacks column(s) {', '.join(missing)}",
+                                 "write it with `vid2sim track`")
+            for line, row in enumerate(reader, start=2):
+                try:
+                    out.append(_row_to_box(row))
+                except (TypeError, ValueError, KeyError) as exc:
+                    raise InputError(path, f"line {line}: {exc}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(path, f"cannot read: {exc}") from None
+    return out
+
+
+def _row_to_box(row: dict[str, str]) -> RangedBox:
+    return RangedBox(
+        frame=int(row["frame"]), t_s=float(row["t_s"]), track_id=int(row["track_id"]),
+        category=row["category"], score=float(row["score"]), x1=float(row["x1"]),
+        y1=float(row["y1"]), x2=float(row["x2"]), y2=float(row["y2"]),
+        range_m=float(row["range_m"]), lateral_m=float(row["lateral_m"]),
+        range_rate_mps=float(row["range_rate_mps"]), range_std_m=float(row["range_std_m"]),
+        is_lead=row["is_lead"].strip() in ("1", "true", "True"))
+
+
+# --------------------------------------------------------------------------- vid2sim track
+
+
+def _camera_for_video(camera_path: Path | None, width: int, height: int
+                      ) -> tuple[Camera, list[str]]:
+    """The camera file's camera at the video's size, or the default camera, with notes."""
+    from vid2sim.camera import load_camera
+
+    if camera_path is None:
+        cam = Camera.default_for(width, height)
+        return cam, [f"no --camera: {cam.assumptions[0]}"]
+    cam = load_camera(camera_path)
+    if (cam.image_width, cam.image_height) == (width, height):
+        return cam, []
+    if abs(cam.image_width - width) <= 8 and abs(cam.image_height - height) <= 8:
+        # A codec dropped a few rows/columns (macroblock alignment): same pixels, cropped.
+        return replace(cam, image_width=width, image_height=height), [
+            (f"camera file is for {cam.image_width}x{cam.image_height}, video is "
+             f"{width}x{height}: taken as cropped at the bottom/right")]
+    if abs(cam.image_width / cam.image_height - width / height) < 0.01 * width / height:
+        # A resized copy of the calibrated video: same aspect ratio, scaled intrinsics.
+        return cam.scaled_to(width, height), [
+            (f"camera file is for {cam.image_width}x{cam.image_height}, video is "
+             f"{width}x{height}: intrinsics rescaled")]
+    raise InputError(camera_path, f"camera is for {cam.image_width}x{cam.image_height} images "
+                     f"but the video is {width}x{height}",
+                     "give the camera file of this video, or none for a default camera")
+
+
+def summarize(result: RangingResult, n_frames: int) -> dict[str, float]:
+    """Figures for the summary: tracks, lead presence share, lead range min/median/max [m]."""
+    lead = [b for b in result.boxes if b.is_lead and np.isfinite(b.range_m)]
+    rng = np.array([b.range_m for b in lead])
+    lead_frames = {b.frame for b in lead}
+    return {
+        "tracks": len({b.track_id for b in result.boxes}),
+        "lead_share": len(lead_frames) / n_frames if n_frames else float("nan"),
+        "lead_tracks": len({b.track_id for b in lead}),
+        "lead_range_min_m": float(rng.min()) if rng.size else float("nan"),
+        "lead_range_median_m": float(np.median(rng)) if rng.size else float("nan"),
+        "lead_range_max_m": float(rng.max()) if rng.size else float("nan"),
+    }
+
+
+def run_track(video: str | Path, camera_path: str | Path | None, *, detector_name: str,
+              model_dir: str | Path | None, detections_path: str | Path | None,
+              detect_every: int, out_path: str | Path, plot_dir: str | Path | None = None,
+              progress: bool = True, config: RangingConfig | None = None) -> str:
+    """``vid2sim track``: detect and track vehicles, range them, write ``tracks.csv``.
+
+    Parameters
+    ----------
+    video : path
+        Video file or image folder.
+    camera_path : path, optional
+        Camera YAML or KITTI calibration; None uses a default camera for the frame size.
+    detector_name, model_dir : str, path
+        Detector registry name or .onnx path, and a folder searched first for weights.
+    detections_path : path, optional
+        Imported boxes (MOT CSV, Scalabel JSON) used instead of a detector.
+    detect_every : int
+        Run the detector on every N-th frame.
+    out_path : path
+        ``tracks.csv`` to write (atomically).
+    plot_dir : path, optional
+        Folder for ``lead.png`` and ``topdown.png``.
+    progress : bool
+        Progress bar on stderr.
+
+    Returns
+    -------
+    str
+        A few lines of summary: tracks, frames, lead presence, horizon and its source, lead
+        range figures.
+    """
+    from vid2sim.detect.detector import load_detector
+    from vid2sim.detect.external import read_detections
+    from vid2sim.detect.lanes import HorizonEstimator
+    from vid2sim.detect.pipeline import run_detect
+    from vid2sim.detect.tracker import TrackerConfig
+    from vid2sim.detect.video import video_info
+
+    video = Path(video)
+    info = video_info(video)
+    camera, notes = _camera_for_video(Path(camera_path) if camera_path else None,
+                                      info.width, info.height)
+    detector, imported = None, None
+    if detections_path is not None:
+        imported = read_detections(Path(detections_path))
+        source = f"imported boxes ({Path(detections_path).name})"
+    else:
+        detector = load_detector(detector_name, Path(model_dir) if model_dir else None,
+                                 score_threshold=TrackerConfig().low_score)
+        source = str(detector_name)
+    horizon_est = HorizonEstimator(camera)
+    boxes = run_detect(video, detector=detector, detections=imported,
+                       detect_every=detect_every, progress=progress,
+                       on_frame=lambda frame: horizon_est.add_frame(frame.image_bgr))
+    result = range_tracks(boxes, camera, horizon_hints_px=horizon_est.rows_px, config=config)
+    write_tracks_csv(result.boxes, out_path)
+    lines = [f"{video}: {info.n_frames} frames, boxes from {source}"]
+    lines += notes
+    s = summarize(result, info.n_frames)
+    lines.append(f"{s['tracks']} tracks, {len(result.boxes)} rows -> {out_path}")
+    lines.append(f"horizon {result.horizon_y_px:.1f} px (pitch {result.pitch_deg_estimated:+.2f} "
+                 f"deg) from {result.horizon_source}; camera file said "
+                 f"{camera.horizon_y_px():.1f} px (pitch {camera.pitch_deg:+.2f} deg)")
+    if np.isfinite(s["lead_range_median_m"]):
+        lines.append(f"lead present on {100 * s['lead_share']:.0f}% of frames "
+                     f"({s['lead_tracks']} lead vehicles); lead range min/median/max "
+                     f"{s['lead_range_min_m']:.1f}/{s['lead_range_median_m']:.1f}/"
+                     f"{s['lead_range_max_m']:.1f} m")
+    else:
+        lines.append("no lead vehicle in the ego lane")
+    if plot_dir is not None:
+        from vid2sim.detect.plots import plot_lead, plot_topdown
+
+        plot_dir = Path(plot_dir)
+        cfg = config or RangingConfig()
+        p1 = plot_lead(result.boxes, plot_dir / "lead.png")
+        p2 = plot_topdown(result.boxes, plot_dir / "topdown.png", cfg.lane_width_m)
+        lines.append(f"plots: {p1}, {p2}")
+    lines += [f"note: {w}" for w in result.warnings]
+    return "\n".join(lines)
