@@ -1,0 +1,121 @@
+"""CLI conventions: --help, --version, exit codes 0/2/1, one-line errors without a traceback,
+no half-written output; the `trace` command end to end."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+from datasets.sample_gps import write_sample_gpx
+from vid2sim import __version__
+from vid2sim.cli import main
+
+
+@pytest.fixture(scope="module")
+def sample_gpx(tmp_path_factory):
+    return write_sample_gpx(tmp_path_factory.mktemp("gps") / "sample.gpx")
+
+
+def test_help_lists_trace(capsys):
+    assert main(["--help"]) == 0
+    out = capsys.readouterr().out
+    assert "trace" in out and "Usage" in out
+
+
+def test_version(capsys):
+    assert main(["--version"]) == 0
+    assert __version__ in capsys.readouterr().out
+
+
+def test_console_entry_point_runs():
+    # The real `python -m vid2sim` process: exit code and output through the entry point.
+    r = subprocess.run([sys.executable, "-m", "vid2sim", "--version"], check=False,
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0 and __version__ in r.stdout
+
+
+def test_trace_help(capsys):
+    assert main(["trace", "--help"]) == 0
+    out = capsys.readouterr().out
+    for opt in ("--rate", "--gps-offset", "--out"):
+        assert opt in out
+
+
+def test_trace_success_writes_csv_and_summary(sample_gpx, tmp_path, capsys):
+    out = tmp_path / "ego.csv"
+    assert main(["trace", str(sample_gpx), "--rate", "5", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "format:" in text and "gpx" in text and str(out) in text
+    lines = out.read_text().splitlines()
+    assert lines[0] == "t_s,lat,lon,x_m,y_m,heading_rad,speed_mps"
+    assert lines[2].split(",")[0] == "0.200"  # 5 Hz
+
+
+def test_trace_gps_offset_shifts_time(sample_gpx, tmp_path, capsys):
+    out = tmp_path / "ego.csv"
+    assert main(["trace", str(sample_gpx), "--rate", "1", "--gps-offset", "3", "--out",
+                 str(out)]) == 0
+    assert out.read_text().splitlines()[1].startswith("3.000,")
+    assert "--gps-offset" in capsys.readouterr().out
+
+
+def test_quiet_prints_nothing(sample_gpx, tmp_path, capsys):
+    assert main(["-q", "trace", str(sample_gpx), "--out", str(tmp_path / "e.csv")]) == 0
+    assert capsys.readouterr().out == ""
+
+
+def test_bad_input_is_one_line_exit_2_and_no_output(tmp_path, capsys):
+    bad = tmp_path / "bad.csv"
+    bad.write_text("t,lat,lon\n0,60,24\n1,not-a-number,24\n")
+    out = tmp_path / "ego.csv"
+    assert main(["trace", str(bad), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1
+    assert lines[0].startswith("error: ") and "bad.csv" in lines[0] and "line 3" in lines[0]
+    assert "Traceback" not in err
+    assert not out.exists()
+    assert [p.name for p in tmp_path.iterdir()] == ["bad.csv"]  # no temporary file either
+
+
+def test_failed_run_keeps_previous_output(tmp_path, capsys):
+    out = tmp_path / "ego.csv"
+    out.write_text("previous\n")
+    assert main(["trace", str(tmp_path / "missing.gpx"), "--out", str(out)]) == 2
+    assert "no such file" in capsys.readouterr().err
+    assert out.read_text() == "previous\n"
+
+
+def test_verbose_error_shows_traceback(tmp_path, capsys):
+    empty = tmp_path / "empty.nmea"
+    empty.write_text("")
+    assert main(["-v", "trace", str(empty), "--out", str(tmp_path / "e.csv")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and "empty file" in err and "Traceback" in err
+
+
+@pytest.mark.parametrize("args", [
+    ["trace"],                                   # missing GPS_FILE
+    ["trace", "x.gpx"],                          # missing --out
+    ["trace", "x.gpx", "--out", "o.csv", "--rate", "0"],
+    ["trace", "x.gpx", "--out", "o.csv", "--gps-offset", "soon"],
+    ["no-such-command"],
+])
+def test_usage_errors_exit_2_without_traceback(args, capsys):
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert "Error" in err and "Traceback" not in err
+
+
+def test_internal_error_exit_1(monkeypatch, sample_gpx, tmp_path, capsys):
+    import vid2sim.geo.trace as trace_mod
+
+    def boom(*a, **k):
+        raise RuntimeError("simulated bug")
+
+    monkeypatch.setattr(trace_mod, "run_trace", boom)
+    assert main(["trace", str(sample_gpx), "--out", str(tmp_path / "e.csv")]) == 1
+    err = capsys.readouterr().err
+    assert "internal error" in err and "simulated bug" in err and "Traceback" not in err

@@ -1,0 +1,175 @@
+"""scenario.json: round trip, byte-identical canonical output, validation naming the field."""
+
+from __future__ import annotations
+
+import copy
+import json
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from vid2sim import scenario as sc
+from vid2sim.errors import InputError, ScenarioError
+from vid2sim.records import Origin
+
+
+def make_scenario() -> sc.Scenario:
+    t = np.arange(0.0, 5.01, 0.5)
+    ego = sc.Trajectory(t=t, x=10.0 * t, y=np.zeros_like(t), heading=np.zeros_like(t),
+                        speed=np.full_like(t, 10.0))
+    lead = sc.Trajectory(t=t, x=30.0 + 8.0 * t, y=np.full_like(t, 0.1),
+                         heading=np.full_like(t, -1e-9), speed=np.full_like(t, 8.0))
+    return sc.Scenario(
+        origin=Origin(60.1699, 24.9384, 20.0),
+        roads=[sc.Road(id="r0", name="Mannerheimintie", highway="primary", source="osm",
+                       osm_way_ids=[123, 456], lanes=2, lane_width_m=3.5,
+                       centerline=[[0.0, 0.0], [100.0, 0.0]])],
+        ego=sc.Ego(4.5, 1.8, 1.5, ego),
+        actors=[sc.Actor("1", "car", 4.4, 1.8, 1.5, lead)],
+        camera={"fx": 721.5377, "fy": 721.5377, "image_width": 1242},
+        source=sc.Source(inputs=[{"name": "drive.gpx", "sha256": "ab" * 32}], tool_version="0.1.0",
+                         options={"rate_hz": 10.0}, assumptions=["flat road"]),
+    )
+
+
+def valid_dict() -> dict:
+    return json.loads(sc.dumps_canonical(make_scenario().to_json()))
+
+
+def test_save_load_round_trip_and_byte_identical(tmp_path):
+    a, b = tmp_path / "a.json", tmp_path / "b.json"
+    sc.save(make_scenario(), a)
+    sc.save(make_scenario(), b)
+    assert a.read_bytes() == b.read_bytes()
+    loaded = sc.load(a)
+    assert loaded.origin == Origin(60.1699, 24.9384, 20.0)
+    assert loaded.roads[0].osm_way_ids == [123, 456]
+    assert loaded.ego.trajectory.x == pytest.approx(make_scenario().ego.trajectory.x)
+    assert loaded.actors[0].id == "1" and loaded.duration_s == pytest.approx(5.0)
+    # Saving what was loaded reproduces the file exactly.
+    c = tmp_path / "c.json"
+    sc.save(loaded, c)
+    assert c.read_bytes() == a.read_bytes()
+
+
+def test_canonical_text_contract():
+    text = sc.dumps_canonical(make_scenario().to_json())
+    data = json.loads(text)
+    assert data["schema"] == "vid2sim.scenario" and data["version"] == 1
+    assert list(data) == sorted(data)  # sorted keys
+    assert text.endswith("\n")
+    assert "-0.0" not in text  # the -1e-9 heading is written as 0.0
+    assert set(data["ego"]["trajectory"][0]) == {"t", "x", "y", "heading", "speed"}
+    assert sc.dumps_canonical({"lat": 60.123456789123, "x": 1.234567}) == \
+        '{\n "lat": 60.123456789,\n "x": 1.2346\n}\n'
+
+
+def test_valid_dict_passes():
+    sc.validate(valid_dict())
+
+
+def _mutations():
+    def drop(*keys):
+        def f(d):
+            target = d
+            for k in keys[:-1]:
+                target = target[k]
+            del target[keys[-1]]
+        return f
+
+    def put(value, *keys):
+        def f(d):
+            target = d
+            for k in keys[:-1]:
+                target = target[k]
+            target[keys[-1]] = value
+        return f
+
+    return [
+        (put("other", "schema"), "schema"),
+        (put(2, "version"), "version"),
+        (drop("origin", "lat"), "origin.lat"),
+        (put(91.0, "origin", "lat"), "origin.lat"),
+        (put("60", "origin", "lon"), "origin.lon"),
+        (put(0, "roads", 0, "lanes"), "roads[0].lanes"),
+        (put(-3.5, "roads", 0, "lane_width_m"), "roads[0].lane_width_m"),
+        (put(["123"], "roads", 0, "osm_way_ids"), "roads[0].osm_way_ids"),
+        (put([[0.0, 0.0]], "roads", 0, "centerline"), "roads[0].centerline"),
+        (put(True, "ego", "length_m"), "ego.length_m"),
+        (put(0.0, "ego", "width_m"), "ego.width_m"),
+        (put([], "ego", "trajectory"), "ego.trajectory"),
+        (put(0.0, "ego", "trajectory", 3, "t"), "ego.trajectory[3].t"),
+        (put(-1.0, "ego", "trajectory", 2, "speed"), "ego.trajectory[2].speed"),
+        (drop("ego", "trajectory", 1, "heading"), "ego.trajectory[1].heading"),
+        (put("car", "actors", 0, "trajectory", 0, "x"), "actors[0].trajectory[0].x"),
+        (drop("actors", 0, "category"), "actors[0].category"),
+        (drop("camera"), "camera"),
+        (drop("source"), "source"),
+    ]
+
+
+@pytest.mark.parametrize("mutate,field", _mutations())
+def test_validation_names_the_offending_field(mutate, field):
+    d = valid_dict()
+    mutate(d)
+    with pytest.raises(ScenarioError) as e:
+        sc.validate(d, "s.json")
+    assert e.value.field == field
+    assert str(e.value).startswith("s.json: field '")
+
+
+def test_duplicate_actor_ids_and_nan():
+    d = valid_dict()
+    d["actors"].append(copy.deepcopy(d["actors"][0]))
+    with pytest.raises(ScenarioError, match="duplicate actor id"):
+        sc.validate(d)
+    d = valid_dict()
+    d["ego"]["trajectory"][0]["x"] = float("nan")
+    with pytest.raises(ScenarioError) as e:
+        sc.validate(d)
+    assert e.value.field == "ego.trajectory[0].x"
+
+
+def test_not_an_object():
+    with pytest.raises(ScenarioError, match="<root>"):
+        sc.validate([1, 2, 3])
+
+
+def test_load_errors(tmp_path):
+    with pytest.raises(InputError, match="no such file"):
+        sc.load(tmp_path / "missing.json")
+    f = tmp_path / "broken.json"
+    f.write_text("{not json")
+    with pytest.raises(InputError, match="not valid JSON") as e:
+        sc.load(f)
+    assert "broken.json" in str(e.value)
+
+
+def test_save_refuses_invalid_and_leaves_no_file(tmp_path):
+    s = make_scenario()
+    s.ego.trajectory.speed[2] = -5.0
+    out = tmp_path / "s.json"
+    with pytest.raises(ScenarioError):
+        sc.save(s, out)
+    assert not out.exists() and list(tmp_path.iterdir()) == []
+
+
+def test_state_at_interpolates_heading_across_pi():
+    tr = sc.Trajectory(t=[0.0, 1.0], x=[0.0, 1.0], y=[0.0, 0.0],
+                       heading=[math.pi - 0.1, -math.pi + 0.1], speed=[1.0, 1.0])
+    mid = tr.state_at(0.5)
+    assert abs(math.remainder(float(mid["heading"]) - math.pi, 2 * math.pi)) < 1e-9
+    assert float(mid["x"]) == pytest.approx(0.5)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.floats(-1e4, 1e4, allow_nan=False), min_size=2, max_size=30))
+def test_trajectory_round_trip_property(xs):
+    t = np.arange(len(xs), dtype=float)
+    tr = sc.Trajectory(t=t, x=xs, y=xs[::-1], heading=np.zeros(len(xs)), speed=np.ones(len(xs)))
+    back = sc.Trajectory.from_json(json.loads(sc.dumps_canonical({"p": tr.to_json()}))["p"])
+    assert back.x == pytest.approx(np.round(xs, 4), abs=1e-9)
+    assert np.array_equal(back.t, t)
