@@ -20,8 +20,12 @@ from pathlib import Path
 import cv2
 
 from vid2sim.detect.detector import load_detector
-from vid2sim.detect.external import (MatchCounts, is_kitti_target, read_kitti_tracking_labels,
-                                     score_against_kitti)
+from vid2sim.detect.external import (
+    MatchCounts,
+    is_kitti_target,
+    read_kitti_tracking_labels,
+    score_against_kitti,
+)
 from vid2sim.detect.pipeline import run_detect
 
 MODELS = ("yolox-nano", "picodet-s")
@@ -54,7 +58,7 @@ def accuracy(tracking_dir: Path, model_dir: Path, score: float, threads: int) ->
                                 or lab.box_px[3] - lab.box_px[1] < SMALL_PX]
                 s = score_against_kitti(dets, small_labels)
                 small = small + MatchCounts(s.n_targets, s.n_found, 0, 0)
-            print(f"{name:12s} {str(tiles):5s} {total.recall:7.3f} {total.precision:6.3f} "
+            print(f"{name:12s} {tiles!s:5s} {total.recall:7.3f} {total.precision:6.3f} "
                   f"{total.n_found:6d}/{total.n_targets:<7d} {total.n_false:4d}/{total.n_detections:<5d} "
                   f"{small.recall:6.3f} ({small.n_found}/{small.n_targets})")
 
@@ -75,7 +79,7 @@ def speed(video: Path, model_dir: Path, threads: int, every: int) -> None:
                                on_frame=count)
             elapsed = time.perf_counter() - start
             n = 108
-            print(f"{name:12s} tiles={str(tiles):5s} {n / elapsed:6.1f} frames/s "
+            print(f"{name:12s} tiles={tiles!s:5s} {n / elapsed:6.1f} frames/s "
                   f"({elapsed:.1f} s, {len({b.track_id for b in boxes})} tracks)")
 
 

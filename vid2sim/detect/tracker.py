@@ -79,6 +79,21 @@ def xyah_to_xyxy(state: np.ndarray) -> np.ndarray:
     return np.array([cx - w / 2, cy - h / 2, cx + w / 2, cy + h / 2])
 
 
+def buffered_iou(box_px: np.ndarray, std_px: tuple[float, float], boxes_px: np.ndarray,
+                 n_sigma: float = 2.0) -> np.ndarray:
+    """IoU of one predicted box with many boxes, all grown by the prediction's uncertainty.
+
+    Both sides are widened by ``n_sigma`` standard deviations of the predicted centre in x
+    and y (the "buffered IoU" idea of C-BIoU, Yang et al. WACV 2023, with the buffer taken
+    from the Kalman covariance instead of a fixed ratio). A track predicted over several
+    frames (``--detect-every N``, a short occlusion, a new track with unknown velocity) thus
+    still overlaps the car's new box, while a well-tracked box keeps a tight gate.
+    """
+    bx, by = n_sigma * std_px[0], n_sigma * std_px[1]
+    grow = np.array([-bx, -by, bx, by])
+    return iou_matrix((np.asarray(box_px, float) + grow)[None], np.asarray(boxes_px) + grow)[0]
+
+
 def match(cost: np.ndarray, max_cost: float) -> tuple[list[tuple[int, int]], list[int], list[int]]:
     """Min-cost one-to-one assignment, rejecting pairs costlier than ``max_cost``.
 
@@ -149,7 +164,12 @@ class BoxKalman:
 
     @property
     def box_px(self) -> np.ndarray:
+        """Current box estimate (x1, y1, x2, y2) [px]."""
         return xyah_to_xyxy(self.mean)
+
+    def position_std_px(self) -> tuple[float, float]:
+        """One-sigma uncertainty of the box centre (x, y) [px]."""
+        return float(np.sqrt(self.cov[0, 0])), float(np.sqrt(self.cov[1, 1]))
 
 
 # --------------------------------------------------------------------------- tracks
@@ -287,9 +307,10 @@ class Tracker:
     def _associate(tracks: list[_Track], dets: list[Detection], min_iou: float):
         if not tracks or not dets:
             return [], list(range(len(tracks))), list(range(len(dets)))
-        predicted = np.array([t.kf.box_px for t in tracks])
-        boxes = np.array([d.box_px for d in dets])
-        return match(1.0 - iou_matrix(predicted, boxes), 1.0 - min_iou)
+        boxes = np.array([d.box_px for d in dets], dtype=float)
+        iou = np.vstack([buffered_iou(t.kf.box_px, t.kf.position_std_px(), boxes)
+                         for t in tracks])
+        return match(1.0 - iou, 1.0 - min_iou)
 
     def _start(self, det: Detection, frame: int, t_s: float) -> _Track:
         track = _Track(track_id=self._next_id, kf=BoxKalman(np.asarray(det.box_px)),
