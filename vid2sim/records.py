@@ -223,3 +223,56 @@ class RangingResult:
     horizon_source: str
     width_m_by_track: dict[int, float] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
+
+
+# --------------------------------------------------------------------------- evaluation
+
+
+@dataclass(frozen=True, slots=True)
+class AnnotatedBox:
+    """A human-drawn box on a keyframe.
+
+    :param box_px: (x1, y1, x2, y2) in pixels
+    :param category: normalised vehicle category ("car", "truck", "bus", "motorcycle") or the
+        source's own name for an ignore region
+    :param id: the annotation's track/label id, None where the format has none
+    :param range_m: longitudinal distance from the camera to the vehicle's near face [m]
+        where the annotation carries 3D (KITTI), else None
+    :param ignore: True for regions where a simulated box counts neither way (KITTI
+        DontCare, crowd regions, vehicle classes the scenario does not model)
+    """
+
+    box_px: tuple[float, float, float, float]
+    category: str
+    id: str | None = None
+    range_m: float | None = None
+    ignore: bool = False
+
+
+@dataclass(slots=True)
+class Keyframe:
+    """One annotated video frame.
+
+    :param frame: 0-based frame index in the video (or image folder), None if unknown
+    :param t_s: seconds from the video's first frame (the scenario clock)
+    :param name: the frame's name in the annotation file (image name or frame number)
+    """
+
+    frame: int | None
+    t_s: float
+    name: str
+    boxes: list[AnnotatedBox] = field(default_factory=list)
+
+
+@dataclass(frozen=True, slots=True)
+class ProjectedBox:
+    """A simulated vehicle's 3D box projected into the camera image at one instant.
+
+    :param box_px: (x1, y1, x2, y2) in pixels, clipped to the image
+    :param range_m: longitudinal distance from the camera to the box's nearest point [m]
+    """
+
+    actor_id: str
+    box_px: tuple[float, float, float, float]
+    category: str
+    range_m: float

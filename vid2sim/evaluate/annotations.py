@@ -1,0 +1,452 @@
+"""Read annotated keyframes (Scalabel/BDD100K JSON, KITTI tracking label_02, CVAT for video XML).
+
+Every reader returns :class:`~vid2sim.records.Keyframe` records on the scenario clock
+(seconds from the video's first frame) holding vehicle boxes and ignore regions only.
+
+Time base (where bugs hide, so spelled out):
+
+- a frame number (KITTI ``frame``, Scalabel ``index``/``frameIndex``, CVAT ``frame``) is a
+  0-based index into the video, ``t_s = frame / fps``;
+- a Scalabel ``timestamp`` [ms] is taken relative to the file's first timestamp;
+- with ``frame_names`` (the sorted file names of an image-folder "video"), a frame is matched
+  to the image of the same name, or for KITTI to the image whose name carries its frame
+  number (label frame 10 -> ``000010.png``); its video frame is then the image's POSITION in
+  the folder, ``t_s = position / fps``. The three labelled images of KITTI tracking sequence
+  0001 (frames 10, 15, 20) used as a 2 fps video thus become video frames 0, 1, 2 at
+  0.0, 0.5, 1.0 s. Labelled frames without an image are dropped: there is nothing to replay
+  them against.
+
+Categories: vehicles are normalised to the project's names (car, truck, bus, motorcycle);
+classes a simulated vehicle may legitimately sit on but that the scenario does not model
+(KITTI Tram/Misc, BDD train/trailer/"other vehicle") and KITTI DontCare / crowd regions are
+ignore regions; people and bicycles are dropped (the scenario holds vehicles only).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import re
+import xml.etree.ElementTree as ET
+from collections import defaultdict
+from pathlib import Path
+from typing import Any
+
+from vid2sim.errors import InputError
+from vid2sim.records import AnnotatedBox, Keyframe
+
+log = logging.getLogger(__name__)
+
+KITTI_FPS = 10.0
+"""Frame rate of KITTI's cameras [frames/s], used for label_02 when no ``fps`` is given."""
+
+# Lower-cased source class -> (project category, ignore). Classes not listed are dropped.
+_CATEGORY_MAP: dict[str, tuple[str, bool]] = {
+    # KITTI
+    "car": ("car", False), "van": ("car", False), "truck": ("truck", False),
+    "tram": ("tram", True), "misc": ("misc", True), "dontcare": ("dontcare", True),
+    # BDD100K / Scalabel / COCO-style names
+    "bus": ("bus", False), "motorcycle": ("motorcycle", False), "motor": ("motorcycle", False),
+    "vehicle": ("car", False), "suv": ("car", False), "pickup": ("car", False),
+    "train": ("train", True), "trailer": ("trailer", True),
+    "other vehicle": ("other vehicle", True), "crowd": ("crowd", True),
+}
+
+# Classes dropped without a warning: they are annotated, just not vehicles.
+_NOT_VEHICLES = {
+    "pedestrian", "person", "person_sitting", "cyclist", "rider", "bicycle", "bike",
+    "other person", "traffic light", "traffic sign", "drivable area", "lane",
+}
+
+
+def normalise_category(name: str) -> tuple[str, bool] | None:
+    """Map a source class name to ``(category, ignore)``; None for a non-vehicle class."""
+    key = " ".join(str(name).strip().lower().replace("-", " ").split())
+    if key in _CATEGORY_MAP:
+        return _CATEGORY_MAP[key]
+    key_us = key.replace(" ", "_")
+    if key_us in _CATEGORY_MAP:
+        return _CATEGORY_MAP[key_us]
+    return None
+
+
+def read_keyframes(path: str | Path, *, fps: float | None = None,
+                   frame_names: list[str] | None = None,
+                   labelled_only: bool = False) -> list[Keyframe]:
+    """Read annotated keyframes; the format is detected from the file's content.
+
+    Parameters
+    ----------
+    path : str or Path
+        Scalabel/BDD100K JSON, KITTI tracking ``label_02/SSSS.txt`` or CVAT for video XML.
+    fps : float, optional
+        Video frame rate [frames/s] that turns frame numbers into ``t_s``. Needed for frame
+        numbers in Scalabel and CVAT files; KITTI defaults to 10 (its camera rate).
+    frame_names : list of str, optional
+        File names of the video's frames in order (an image folder used as a video); frames
+        are matched to them by name (see the module docstring) and others dropped.
+    labelled_only : bool
+        Keep only frames carrying at least one vehicle box (not just ignore regions).
+
+    Returns
+    -------
+    list of Keyframe
+        Sorted by ``t_s``.
+
+    Raises
+    ------
+    InputError
+        Unreadable file, unknown format, malformed records, or times that cannot be derived.
+    """
+    path = Path(path)
+    if fps is not None and not (math.isfinite(fps) and fps > 0):
+        raise InputError(path, f"fps {fps} must be a positive number")
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except FileNotFoundError:
+        raise InputError(path, "no such annotation file") from None
+    except IsADirectoryError:
+        raise InputError(path, "is a folder, expected an annotation file",
+                         "give the JSON, XML or label_02 .txt file itself") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(path, f"cannot read: {exc}") from None
+    head = text.lstrip()[:1]
+    if head in ("[", "{"):
+        frames = _read_scalabel(text, path, fps, frame_names)
+    elif head == "<":
+        frames = _read_cvat(text, path, fps, frame_names)
+    elif head and head[0].isdigit():
+        frames = _read_kitti(text, path, fps, frame_names)
+    else:
+        raise InputError(path, "unknown annotation format",
+                         "expected Scalabel/BDD100K JSON, KITTI label_02 text or CVAT XML")
+    if labelled_only:
+        frames = [k for k in frames if any(not b.ignore for b in k.boxes)]
+    frames.sort(key=lambda k: (k.t_s, k.name))
+    return frames
+
+
+# --------------------------------------------------------------------------- frame names
+
+
+def _trailing_number(name: str) -> int | None:
+    """Frame number carried by a file name: ``000010.png`` -> 10, ``frame_12.jpg`` -> 12."""
+    m = re.search(r"(\d+)(?:\.[A-Za-z0-9]+)?$", Path(str(name)).name)
+    return int(m.group(1)) if m else None
+
+
+class _FrameIndex:
+    """Looks frames up in an image folder's ordered names (by name, or by number)."""
+
+    def __init__(self, frame_names: list[str]):
+        self.by_name: dict[str, int] = {}
+        self.by_number: dict[int, int] = {}
+        for pos, raw in enumerate(frame_names):
+            name = Path(str(raw)).name
+            self.by_name.setdefault(name, pos)
+            self.by_name.setdefault(Path(name).stem, pos)
+            number = _trailing_number(name)
+            if number is not None:
+                self.by_number.setdefault(number, pos)
+
+    def position_of_name(self, name: str) -> int | None:
+        base = Path(str(name)).name
+        for key in (base, Path(base).stem):
+            if key in self.by_name:
+                return self.by_name[key]
+        return None
+
+    def position_of_number(self, number: int) -> int | None:
+        return self.by_number.get(int(number))
+
+
+def _need_fps(path: Path, fps: float | None, what: str) -> float:
+    if fps is None:
+        raise InputError(path, f"{what} are frame numbers but no frame rate is known",
+                         "pass --fps (video frames per second)")
+    return fps
+
+
+def _finite_box(vals: list[float], path: Path, where: str) -> tuple[float, float, float, float]:
+    if len(vals) != 4 or not all(math.isfinite(v) for v in vals):
+        raise InputError(path, f"{where}: box coordinates must be four finite numbers")
+    x1, y1, x2, y2 = vals
+    if x2 < x1 or y2 < y1:
+        raise InputError(path, f"{where}: box has x2 < x1 or y2 < y1 ({x1}, {y1}, {x2}, {y2})")
+    return (float(x1), float(y1), float(x2), float(y2))
+
+
+# --------------------------------------------------------------------------- KITTI label_02
+
+
+def _read_kitti(text: str, path: Path, fps: float | None,
+                frame_names: list[str] | None) -> list[Keyframe]:
+    """KITTI tracking ``label_02``: ``frame track_id type truncated occluded alpha x1 y1 x2
+    y2 h w l X Y Z rotation_y [score]``, one object per line."""
+    rate = KITTI_FPS if fps is None else fps
+    index = _FrameIndex(frame_names) if frame_names is not None else None
+    boxes_by_frame: dict[int, list[AnnotatedBox]] = defaultdict(list)
+    unknown: set[str] = set()
+    for lineno, line in enumerate(text.splitlines(), start=1):
+        fields = line.split()
+        if not fields:
+            continue
+        if len(fields) not in (17, 18):
+            raise InputError(path, f"line {lineno}: expected 17 fields of KITTI label_02, "
+                             f"got {len(fields)}")
+        try:
+            frame = int(fields[0])
+            track_id = int(fields[1])
+            nums = [float(v) for v in fields[3:17]]
+        except ValueError:
+            raise InputError(path, f"line {lineno}: frame, track id or a value is not a number"
+                             ) from None
+        if frame < 0:
+            raise InputError(path, f"line {lineno}: negative frame number {frame}")
+        mapped = normalise_category(fields[2])
+        if mapped is None:
+            if fields[2].lower() not in _NOT_VEHICLES:
+                unknown.add(fields[2])
+            continue
+        category, ignore = mapped
+        box = _finite_box(nums[3:7], path, f"line {lineno}")
+        h, w, length, _x_cam, _y_cam, z_cam, rot_y = nums[7:14]
+        range_m = None
+        # DontCare rows carry -1000 sizes and -10 positions: no 3D.
+        if not ignore and min(h, w, length) > 0 and math.isfinite(z_cam):
+            # X Y Z is the bottom centre in camera coordinates (Z forward); rotation_y turns
+            # the box's length axis from camera +X towards -Z, so the box reaches
+            # l/2|sin| + w/2|cos| towards the camera: Z minus that is the near face range.
+            half_depth = 0.5 * length * abs(math.sin(rot_y)) + 0.5 * w * abs(math.cos(rot_y))
+            range_m = z_cam - half_depth
+        boxes_by_frame[frame].append(AnnotatedBox(
+            box_px=box, category=category, id=None if track_id < 0 else str(track_id),
+            range_m=range_m, ignore=ignore))
+    if unknown:
+        log.warning("%s: classes %s are not vehicles the scenario models; dropped",
+                    path, ", ".join(sorted(unknown)))
+    if not boxes_by_frame:
+        raise InputError(path, "no labelled objects found in this KITTI label file")
+    out = []
+    for frame, boxes in boxes_by_frame.items():
+        name = f"{frame:06d}"
+        if index is not None:
+            pos = index.position_of_number(frame)
+            if pos is None:
+                continue
+            out.append(Keyframe(frame=pos, t_s=pos / rate, name=name, boxes=boxes))
+        else:
+            out.append(Keyframe(frame=frame, t_s=frame / rate, name=name, boxes=boxes))
+    if not out:
+        raise InputError(path, "none of the labelled frames has an image among the video's "
+                         "frames", "name images by KITTI frame number, e.g. 000010.png")
+    return out
+
+
+# --------------------------------------------------------------------------- Scalabel / BDD100K
+
+
+def _read_scalabel(text: str, path: Path, fps: float | None,
+                   frame_names: list[str] | None) -> list[Keyframe]:
+    """Scalabel / BDD100K JSON: a list of frames or ``{"frames": [...]}``; each frame with
+    ``name``, ``index`` (or ``frameIndex``) or ``timestamp`` [ms], and ``labels`` holding
+    ``category``, ``box2d {x1, y1, x2, y2}``, optional ``id`` and ``attributes.crowd``."""
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise InputError(path, f"not valid JSON: {exc.msg} at line {exc.lineno}") from None
+    if isinstance(data, dict):
+        if "frames" not in data:
+            raise InputError(path, "JSON object without 'frames'",
+                             "expected Scalabel: a list of frames or {\"frames\": [...]}")
+        data = data["frames"]
+    if not isinstance(data, list):
+        raise InputError(path, "'frames' must be a list of frame objects")
+    index = _FrameIndex(frame_names) if frame_names is not None else None
+    timestamps = [f.get("timestamp") for f in data if isinstance(f, dict)
+                  and isinstance(f.get("timestamp"), (int, float))
+                  and not isinstance(f.get("timestamp"), bool)]
+    t0_ms = min(timestamps) if timestamps else None
+    out: list[Keyframe] = []
+    unknown: set[str] = set()
+    for i, fr in enumerate(data):
+        where = f"frames[{i}]"
+        if not isinstance(fr, dict):
+            raise InputError(path, f"{where}: expected an object")
+        name = fr.get("name")
+        name = str(name) if name is not None else None
+        frame_no = fr.get("index", fr.get("frameIndex"))
+        ts = fr.get("timestamp")
+        video_frame: int | None
+        if frame_no is not None:
+            if isinstance(frame_no, bool) or not isinstance(frame_no, int) or frame_no < 0:
+                raise InputError(path, f"{where}.index: expected a non-negative integer")
+            video_frame = frame_no
+            t_s = frame_no / _need_fps(path, fps, "frame indices")
+        elif ts is not None:
+            if isinstance(ts, bool) or not isinstance(ts, (int, float)) or not math.isfinite(ts):
+                raise InputError(path, f"{where}.timestamp: expected a number of milliseconds")
+            t_s = (ts - t0_ms) / 1000.0
+            video_frame = round(t_s * fps) if fps is not None else None
+        elif name is not None:
+            pos = index.position_of_name(name) if index is not None else None
+            if index is not None and pos is None:
+                continue  # no image of that name: nothing to replay against
+            if pos is None:
+                # A name like "frame_000012.jpg" carries the frame number.
+                pos = _trailing_number(name)
+                if pos is None:
+                    raise InputError(path, f"{where}: frame '{name}' has no index, timestamp "
+                                     "or frame number in its name",
+                                     "add 'index' to each frame or pass the frame names")
+            video_frame = pos
+            t_s = pos / _need_fps(path, fps, "frame names")
+        else:
+            raise InputError(path, f"{where}: frame has no name, index or timestamp")
+        labels = fr.get("labels") or []
+        if not isinstance(labels, list):
+            raise InputError(path, f"{where}.labels: expected a list")
+        boxes = []
+        for j, lab in enumerate(labels):
+            lw = f"{where}.labels[{j}]"
+            if not isinstance(lab, dict):
+                raise InputError(path, f"{lw}: expected an object")
+            box2d = lab.get("box2d")
+            if box2d is None:
+                continue  # polygons, lanes, drivable area: not boxes
+            if not isinstance(box2d, dict) or not all(k in box2d for k in ("x1", "y1", "x2", "y2")):
+                raise InputError(path, f"{lw}.box2d: expected {{x1, y1, x2, y2}}")
+            try:
+                vals = [float(box2d[k]) for k in ("x1", "y1", "x2", "y2")]
+            except (TypeError, ValueError):
+                raise InputError(path, f"{lw}.box2d: coordinates must be numbers") from None
+            box = _finite_box(vals, path, lw)
+            cat_name = str(lab.get("category", ""))
+            mapped = normalise_category(cat_name)
+            if mapped is None:
+                if cat_name.lower() not in _NOT_VEHICLES:
+                    unknown.add(cat_name)
+                continue
+            category, ignore = mapped
+            attrs = lab.get("attributes") or {}
+            if isinstance(attrs, dict) and attrs.get("crowd") is True:
+                ignore = True
+            label_id = lab.get("id")
+            boxes.append(AnnotatedBox(box_px=box, category=category,
+                                      id=None if label_id is None else str(label_id),
+                                      ignore=ignore))
+        out.append(Keyframe(frame=video_frame, t_s=float(t_s),
+                            name=name if name is not None else str(video_frame), boxes=boxes))
+    if unknown:
+        log.warning("%s: categories %s are not vehicles the scenario models; dropped",
+                    path, ", ".join(sorted(unknown)))
+    if not out:
+        raise InputError(path, "no frames found in this annotation file")
+    return out
+
+
+# --------------------------------------------------------------------------- CVAT for video
+
+
+def _read_cvat(text: str, path: Path, fps: float | None,
+               frame_names: list[str] | None) -> list[Keyframe]:
+    """CVAT for video XML 1.1: ``<track label=..><box frame= xtl= ytl= xbr= ybr= outside=
+    keyframe=>``. Keyframes are the frames where an annotator drew or corrected a box
+    (``keyframe="1"``, or every box where the attribute is absent); each holds every track
+    visible there (``outside="0"``), interpolated boxes included. CVAT for images files
+    (``<image name=..><box ..>``) are read too, one keyframe per image."""
+    try:
+        root = ET.fromstring(text)
+    except ET.ParseError as exc:
+        raise InputError(path, f"not well-formed XML: {exc}") from None
+    if root.tag != "annotations":
+        raise InputError(path, f"XML root is <{root.tag}>, expected CVAT's <annotations>")
+    index = _FrameIndex(frame_names) if frame_names is not None else None
+    boxes_by_frame: dict[int, list[AnnotatedBox]] = defaultdict(list)
+    key_frames: set[int] = set()
+    names: dict[int, str] = {}
+    unknown: set[str] = set()
+
+    def parse_box(el: ET.Element, label: str, track_id: str | None, where: str
+                  ) -> AnnotatedBox | None:
+        try:
+            vals = [float(el.attrib[k]) for k in ("xtl", "ytl", "xbr", "ybr")]
+        except KeyError as exc:
+            raise InputError(path, f"{where}: <box> lacks {exc.args[0]}") from None
+        except ValueError:
+            raise InputError(path, f"{where}: box coordinates must be numbers") from None
+        box = _finite_box(vals, path, where)
+        mapped = normalise_category(label)
+        if mapped is None:
+            if label.lower() not in _NOT_VEHICLES:
+                unknown.add(label)
+            return None
+        return AnnotatedBox(box_px=box, category=mapped[0], id=track_id, ignore=mapped[1])
+
+    def frame_of(el: ET.Element, where: str) -> int:
+        try:
+            frame = int(el.attrib["frame"])
+        except KeyError:
+            raise InputError(path, f"{where}: <box> lacks its frame") from None
+        except ValueError:
+            raise InputError(path, f"{where}: frame is not an integer") from None
+        if frame < 0:
+            raise InputError(path, f"{where}: negative frame {frame}")
+        return frame
+
+    for t_i, track in enumerate(root.iter("track")):
+        label = track.attrib.get("label", "")
+        track_id = track.attrib.get("id")
+        for b_i, el in enumerate(track.iter("box")):
+            where = f"track {track_id if track_id is not None else t_i} box {b_i}"
+            frame = frame_of(el, where)
+            if el.attrib.get("outside", "0") == "1":
+                continue
+            if el.attrib.get("keyframe", "1") == "1":
+                key_frames.add(frame)
+            ab = parse_box(el, label, track_id, where)
+            if ab is not None:
+                boxes_by_frame[frame].append(ab)
+    for img in root.iter("image"):
+        try:
+            frame = int(img.attrib["id"])
+        except (KeyError, ValueError):
+            raise InputError(path, "<image> without an integer id") from None
+        key_frames.add(frame)
+        names[frame] = img.attrib.get("name", str(frame))
+        for b_i, el in enumerate(img.iter("box")):
+            ab = parse_box(el, el.attrib.get("label", ""), None, f"image {frame} box {b_i}")
+            if ab is not None:
+                boxes_by_frame[frame].append(ab)
+    if unknown:
+        log.warning("%s: labels %s are not vehicles the scenario models; dropped",
+                    path, ", ".join(sorted(unknown)))
+    if not key_frames:
+        raise InputError(path, "no <track> boxes or <image> elements found",
+                         "export the task as 'CVAT for video 1.1'")
+    out = []
+    for frame in sorted(key_frames):
+        name = names.get(frame, f"{frame:06d}")
+        pos: int | None = frame
+        if index is not None:
+            pos = index.position_of_name(name) if frame in names else None
+            if pos is None:
+                pos = frame if frame < len(frame_names or []) else None
+            if pos is None:
+                continue
+        rate = _need_fps(path, fps, "CVAT frames")
+        out.append(Keyframe(frame=pos, t_s=pos / rate, name=name,
+                            boxes=list(boxes_by_frame.get(frame, []))))
+    if not out:
+        raise InputError(path, "none of the annotated frames is among the video's frames")
+    return out
+
+
+def describe(keyframes: list[Keyframe]) -> dict[str, Any]:
+    """Counts for a summary line: keyframes, vehicle boxes, ignore regions, time span [s]."""
+    n_boxes = sum(1 for k in keyframes for b in k.boxes if not b.ignore)
+    n_ignore = sum(1 for k in keyframes for b in k.boxes if b.ignore)
+    span = (keyframes[0].t_s, keyframes[-1].t_s) if keyframes else (0.0, 0.0)
+    return {"keyframes": len(keyframes), "boxes": n_boxes, "ignore_regions": n_ignore,
+            "t_first_s": span[0], "t_last_s": span[1]}

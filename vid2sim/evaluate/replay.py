@@ -1,0 +1,549 @@
+"""Replay a scenario at annotated keyframes, project its vehicles into the camera, score them.
+
+Geometry: the ego trajectory is the pose of the vehicle-frame origin (the road point below
+the camera, as :mod:`vid2sim.camera` defines it); an actor's trajectory is the centre of its
+footprint. At time t an actor's centre (x, y) and heading go into the ego frame by
+
+    x_fwd  =  cos(h_ego) dx + sin(h_ego) dy
+    y_left = -sin(h_ego) dx + cos(h_ego) dy,    yaw = h_actor - h_ego
+
+with (dx, dy) the ENU offset from the ego. Its 3D box (length, width, height, standing on the
+road) is projected through the scenario camera; parts behind the camera are cut at a near
+plane so that vehicles alongside still give the truncated box an annotator would draw.
+
+Occlusion rule: boxes are taken nearest first; a box whose image area is covered to at least
+``OCCLUDED_FRACTION`` by the union of the boxes of nearer vehicles is dropped (annotators do
+not label what they cannot see). Boxes, not silhouettes, are used, so the rule slightly
+over-estimates occlusion.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+from dataclasses import replace
+from pathlib import Path
+
+import cv2
+import numpy as np
+from shapely.geometry import box as shapely_box
+from shapely.ops import unary_union
+
+from vid2sim.camera import Camera
+from vid2sim.errors import InputError
+from vid2sim.evaluate.annotations import describe, read_keyframes
+from vid2sim.evaluate.metrics import score_keyframes
+from vid2sim.fileio import write_bytes_atomic, write_text_atomic
+from vid2sim.records import Keyframe, ProjectedBox
+from vid2sim.scenario import Actor, Scenario, load
+
+log = logging.getLogger(__name__)
+
+OCCLUDED_FRACTION = 0.9
+"""Share of a box's image area hidden behind nearer boxes at which it is dropped."""
+NEAR_PLANE_M = 0.1
+"""Depth in front of the camera [m] at which 3D boxes are cut before projection."""
+RESCALE_RATIO = 0.05
+"""Relative frame-size difference above which the camera is rescaled to the video's size;
+below it the difference is taken for a crop and the intrinsics are kept."""
+TIME_TOLERANCE_S = 1e-3
+"""Slack when testing whether a keyframe lies within an actor's trajectory [s]."""
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp")
+ENV_ID = "vid2sim/Replay-v0"
+
+# Overlay colours (BGR): annotations green, simulated boxes magenta, ignore regions grey.
+_GT_BGR = (60, 200, 60)
+_SIM_BGR = (230, 60, 230)
+_IGNORE_BGR = (150, 150, 150)
+
+
+# --------------------------------------------------------------------------- projection
+
+
+_BOX_EDGES = ((0, 1), (0, 2), (1, 3), (2, 3), (4, 5), (4, 6), (5, 7), (6, 7),
+              (0, 4), (1, 5), (2, 6), (3, 7))
+
+
+def project_box_clipped(camera: Camera, center_veh_m: np.ndarray, length_m: float,
+                        width_m: float, height_m: float, yaw_rad: float,
+                        near_m: float = NEAR_PLANE_M
+                        ) -> tuple[tuple[float, float, float, float], float] | None:
+    """Pixel box of a 3D vehicle box, cut at a near plane in front of the camera.
+
+    Parameters
+    ----------
+    camera : Camera
+        The scenario camera.
+    center_veh_m : array_like
+        Footprint centre (x forward, y left[, z up]) in the vehicle frame [m].
+    length_m, width_m, height_m : float
+        Box size [m].
+    yaw_rad : float
+        Heading relative to the vehicle x axis, counter-clockwise [rad].
+    near_m : float
+        Depth of the cutting plane [m].
+
+    Returns
+    -------
+    (box_px, range_m) or None
+        ``box_px`` (x1, y1, x2, y2) clipped to the image and ``range_m`` the smallest
+        forward (x) coordinate of the box [m]; None when nothing of the box is in view.
+    """
+    corners = camera.box_corners_veh(center_veh_m, length_m, width_m, height_m, yaw_rad)
+    depth = camera.vehicle_to_camera(corners)[:, 2]
+    front = depth > near_m
+    if not front.any():
+        return None
+    pts = [corners[front]]
+    if not front.all():
+        # Where an edge crosses the near plane, keep the crossing point: the visible part of
+        # the box ends there.
+        for i, j in _BOX_EDGES:
+            if front[i] != front[j]:
+                s = (near_m - depth[i]) / (depth[j] - depth[i])
+                pts.append((corners[i] + s * (corners[j] - corners[i]))[None, :])
+    uv, ok = camera.project(np.vstack(pts))
+    uv = uv[ok]
+    if uv.size == 0:
+        return None
+    x1, y1 = uv.min(axis=0)
+    x2, y2 = uv.max(axis=0)
+    w, h = camera.image_width - 1, camera.image_height - 1
+    if x2 <= 0 or y2 <= 0 or x1 >= w or y1 >= h:
+        return None
+    x1, x2 = float(np.clip(x1, 0, w)), float(np.clip(x2, 0, w))
+    y1, y2 = float(np.clip(y1, 0, h)), float(np.clip(y2, 0, h))
+    if x2 - x1 < 1.0 or y2 - y1 < 1.0:
+        return None
+    return (x1, y1, x2, y2), float(corners[:, 0].min())
+
+
+def _drop_occluded(boxes: list[ProjectedBox]) -> list[ProjectedBox]:
+    """Apply the occlusion rule (module docstring); input order is kept."""
+    order = sorted(range(len(boxes)), key=lambda i: boxes[i].range_m)
+    nearer = None
+    keep: set[int] = set()
+    for i in order:
+        poly = shapely_box(*boxes[i].box_px)
+        hidden = 0.0
+        if nearer is not None and poly.area > 0:
+            hidden = poly.intersection(nearer).area / poly.area
+        if hidden < OCCLUDED_FRACTION:
+            keep.add(i)
+        # A hidden vehicle still hides what is behind it.
+        nearer = poly if nearer is None else unary_union([nearer, poly])
+    return [b for i, b in enumerate(boxes) if i in keep]
+
+
+# --------------------------------------------------------------------------- poses
+
+
+def _actor_active(actor: Actor, t_s: float) -> bool:
+    t = actor.trajectory.t
+    return bool(t[0] - TIME_TOLERANCE_S <= t_s <= t[-1] + TIME_TOLERANCE_S)
+
+
+def _poses_from_trajectories(scenario: Scenario, t_s: float
+                             ) -> tuple[tuple[float, float, float], dict[str, tuple[float, float, float]]]:
+    """Ego and active actors' (x, y, heading) in ENU [m, m, rad] at ``t_s``, interpolated."""
+    e = scenario.ego.trajectory.state_at(t_s)
+    ego = (float(e["x"]), float(e["y"]), float(e["heading"]))
+    actors = {}
+    for a in scenario.actors:
+        if _actor_active(a, t_s):
+            s = a.trajectory.state_at(t_s)
+            actors[a.id] = (float(s["x"]), float(s["y"]), float(s["heading"]))
+    return ego, actors
+
+
+def _env_available() -> bool:
+    """True when the ``vid2sim/Replay-v0`` environment is registered (``import vid2sim``)."""
+    try:
+        import gymnasium
+
+        import vid2sim  # noqa: F401 - registers the environment
+    except ImportError:
+        return False
+    return ENV_ID in gymnasium.registry
+
+
+# Step rates tried for the environment [Hz]: keyframes from a video fall on its frame grid,
+# so stepping at that rate lands exactly on them.
+_GRID_RATES_HZ = (10.0, 20.0, 2.0, 5.0, 30.0, 25.0, 15.0, 24.0, 50.0, 60.0, 30000 / 1001,
+                  60000 / 1001, 24000 / 1001, 12.0, 6.0, 4.0, 3.0, 1.0)
+
+
+def _grid_rate_hz(t0_s: float, times_s: list[float]) -> float | None:
+    """A step rate whose grid (from ``t0_s``) holds every time, or None."""
+    for rate in _GRID_RATES_HZ:
+        k = (np.asarray(times_s, dtype=float) - t0_s) * rate
+        if np.all(np.abs(k - np.round(k)) < 1e-6 * max(rate, 1.0)):
+            return rate
+    return None
+
+
+def _poses_from_env(scenario: Scenario, times_s: list[float]
+                    ) -> dict[float, tuple[tuple[float, float, float],
+                                           dict[str, tuple[float, float, float]]]]:
+    """Ego and actor poses (ENU x, y, heading) read from the gymnasium environment.
+
+    The environment replays the ego's log (``ego_mode="log"``) and is stepped forward to each
+    keyframe. Its step rate is chosen so that keyframes fall on steps; where no common rate
+    exists it steps at 10 Hz to the last step before a keyframe and asks the environment for
+    the logged states at the keyframe time itself (``vehicle_states(t_s)``).
+    """
+    import gymnasium
+
+    t0 = float(scenario.ego.trajectory.t[0])
+    grid = _grid_rate_hz(t0, [t for t in times_s if t >= t0])
+    rate = grid if grid is not None else 10.0
+    env = gymnasium.make(ENV_ID, scenario=scenario, ego_mode="log", disable_env_checker=True,
+                         config={"simulation_frequency": rate, "policy_frequency": rate})
+    out = {}
+    try:
+        env.reset(seed=0)
+        sim = env.unwrapped
+        action = np.zeros(env.action_space.shape, dtype=env.action_space.dtype)
+        done = False
+        for t in sorted(set(times_s)):
+            while not done and sim.t_s + 1.0 / rate <= t + 1e-6:
+                _, _, terminated, truncated, _ = env.step(action)
+                done = terminated or truncated
+            on_step = abs(sim.t_s - t) <= 1e-6
+            states = sim.vehicle_states() if on_step else sim.vehicle_states(max(t, t0))
+            ego_state, actor_states = states[0], states[1:]
+            out[t] = ((ego_state.x_m, ego_state.y_m, ego_state.heading_rad),
+                      {a.id: (a.x_m, a.y_m, a.heading_rad) for a in actor_states})
+    finally:
+        env.close()
+    return out
+
+
+def boxes_at(scenario: Scenario, camera: Camera, ego: tuple[float, float, float],
+             actors: dict[str, tuple[float, float, float]]) -> list[ProjectedBox]:
+    """Project actors given in ENU (x, y, heading) seen from the ego pose (x, y, heading).
+
+    Returns the visible, not occluded boxes in scenario actor order.
+    """
+    ex, ey, eh = ego
+    c, s = math.cos(eh), math.sin(eh)
+    out = []
+    for a in scenario.actors:
+        if a.id not in actors:
+            continue
+        ax, ay, ah = actors[a.id]
+        dx, dy = ax - ex, ay - ey
+        center = np.array([c * dx + s * dy, -s * dx + c * dy, 0.0])
+        res = project_box_clipped(camera, center, a.length_m, a.width_m, a.height_m, ah - eh)
+        if res is not None:
+            out.append(ProjectedBox(actor_id=a.id, box_px=res[0], category=a.category,
+                                    range_m=res[1]))
+    return _drop_occluded(out)
+
+
+def replay_boxes(scenario: Scenario, times_s: list[float], *, use_env: bool = True,
+                 camera: Camera | None = None) -> dict[float, list[ProjectedBox]]:
+    """Simulated vehicles' image boxes at each requested time.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario to replay (ego on its logged trajectory).
+    times_s : list of float
+        Keyframe times on the scenario clock [s].
+    use_env : bool
+        Take poses from the ``vid2sim/Replay-v0`` environment stepped to each time; when the
+        environment is not installed, poses are interpolated from the trajectories (the
+        environment replays the same trajectories) and a warning is logged.
+    camera : Camera, optional
+        Camera to project through; default the scenario's.
+
+    Returns
+    -------
+    dict
+        ``{t_s: [ProjectedBox, ...]}`` keyed by the given times.
+    """
+    cam = camera if camera is not None else Camera.from_dict(scenario.camera)
+    times = [float(t) for t in times_s]
+    if use_env and _env_available():
+        poses = _poses_from_env(scenario, times)
+    else:
+        if use_env:
+            log.warning("%s is not available: poses interpolated from the trajectories", ENV_ID)
+        poses = {t: _poses_from_trajectories(scenario, t) for t in times}
+    return {t: boxes_at(scenario, cam, *poses[t]) for t in times}
+
+
+# --------------------------------------------------------------------------- video frames
+
+
+def image_folder_names(folder: Path) -> list[Path]:
+    """Images of a folder used as a video, in name order."""
+    files = sorted(p for p in Path(folder).iterdir()
+                   if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
+    if not files:
+        raise InputError(folder, "folder holds no images", "give a video file or a folder of frames")
+    return files
+
+
+def read_frames(video: Path, indices: list[int]) -> dict[int, np.ndarray]:
+    """Decode only the requested frames (0-based) of a video file or image folder.
+
+    A video is streamed once in order: frames between the wanted ones are grabbed (not
+    converted), long gaps are skipped by seeking. Missing frames are left out of the result.
+    """
+    video = Path(video)
+    wanted = sorted({int(i) for i in indices if i is not None and i >= 0})
+    out: dict[int, np.ndarray] = {}
+    if not wanted:
+        return out
+    if video.is_dir():
+        files = image_folder_names(video)
+        for i in wanted:
+            if i < len(files):
+                img = cv2.imread(str(files[i]), cv2.IMREAD_COLOR)
+                if img is not None:
+                    out[i] = img
+        return out
+    if not video.exists():
+        raise InputError(video, "no such video file")
+    cap = cv2.VideoCapture(str(video))
+    if not cap.isOpened():
+        raise InputError(video, "OpenCV cannot open this video", "convert it to mp4 with ffmpeg")
+    try:
+        pos = 0
+        for i in wanted:
+            if i - pos > 300:
+                # Seeking costs a keyframe decode; worth it only over long gaps.
+                cap.set(cv2.CAP_PROP_POS_FRAMES, i)
+                pos = i
+            while pos < i and cap.grab():
+                pos += 1
+            if pos != i:
+                break
+            ok, img = cap.read()
+            if not ok:
+                break
+            pos += 1
+            out[i] = img
+    finally:
+        cap.release()
+    return out
+
+
+def video_size_and_fps(video: Path) -> tuple[int, int, float | None]:
+    """(width, height) [px] of the first frame and the container frame rate (None for a
+    folder or where the container does not say)."""
+    video = Path(video)
+    if video.is_dir():
+        img = cv2.imread(str(image_folder_names(video)[0]), cv2.IMREAD_COLOR)
+        if img is None:
+            raise InputError(video, "cannot read the first image of the folder")
+        return img.shape[1], img.shape[0], None
+    if not video.exists():
+        raise InputError(video, "no such video file")
+    cap = cv2.VideoCapture(str(video))
+    try:
+        if not cap.isOpened():
+            raise InputError(video, "OpenCV cannot open this video", "convert it to mp4 with ffmpeg")
+        w, h = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
+        fps = float(cap.get(cv2.CAP_PROP_FPS))
+    finally:
+        cap.release()
+    return w, h, fps if math.isfinite(fps) and fps > 0 else None
+
+
+def draw_overlay(image_bgr: np.ndarray | None, camera: Camera, keyframe: Keyframe,
+                 boxes: list[ProjectedBox], frame_stats: dict | None = None) -> bytes:
+    """PNG bytes: the frame (or a grey canvas) with annotated boxes (green), ignore regions
+    (grey) and simulated boxes (magenta, labelled with the actor id)."""
+    if image_bgr is None:
+        img = np.full((camera.image_height, camera.image_width, 3), 110, np.uint8)
+    else:
+        img = image_bgr.copy()
+    scale = max(img.shape[1] / 1280.0, 0.5)
+    thick = max(1, round(2 * scale))
+    for b in keyframe.boxes:
+        p1 = (round(b.box_px[0]), round(b.box_px[1]))
+        p2 = (round(b.box_px[2]), round(b.box_px[3]))
+        cv2.rectangle(img, p1, p2, _IGNORE_BGR if b.ignore else _GT_BGR,
+                      1 if b.ignore else thick, cv2.LINE_AA)
+    for p in boxes:
+        p1 = (round(p.box_px[0]), round(p.box_px[1]))
+        p2 = (round(p.box_px[2]), round(p.box_px[3]))
+        cv2.rectangle(img, p1, p2, _SIM_BGR, thick, cv2.LINE_AA)
+        cv2.putText(img, f"{p.actor_id} {p.range_m:.0f}m", (p1[0] + 2, max(p1[1] - 4, 10)),
+                    cv2.FONT_HERSHEY_SIMPLEX, 0.4 * scale, _SIM_BGR, 1, cv2.LINE_AA)
+    text = f"t={keyframe.t_s:.2f}s  annotated (green)  simulated (magenta)"
+    if frame_stats is not None:
+        text += f"  TP {frame_stats['tp']} FP {frame_stats['fp']} FN {frame_stats['fn']}"
+    # A dark banner keeps the caption legible on any frame.
+    font_scale = 0.5 * scale
+    (tw, th), base = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, font_scale, 1)
+    cv2.rectangle(img, (0, 0), (tw + 16, th + base + 10), (30, 30, 30), cv2.FILLED)
+    cv2.putText(img, text, (8, th + 5), cv2.FONT_HERSHEY_SIMPLEX, font_scale,
+                (255, 255, 255), 1, cv2.LINE_AA)
+    ok, png = cv2.imencode(".png", img)
+    if not ok:  # pragma: no cover - OpenCV encodes any uint8 BGR image
+        raise RuntimeError("PNG encoding failed")
+    return png.tobytes()
+
+
+# --------------------------------------------------------------------------- the eval stage
+
+
+def _scenario_fps(scenario: Scenario) -> float | None:
+    for key in ("fps", "video_fps"):
+        v = scenario.source.options.get(key)
+        if isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0:
+            return float(v)
+    return None
+
+
+def _safe_name(name: str) -> str:
+    keep = "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in name)
+    return keep.strip("._")[:60] or "frame"
+
+
+def run_eval(scenario_path: str | Path, keyframes_path: str | Path, *, video: Path | None = None,
+             out_dir: Path, fps: float | None = None, use_env: bool = True
+             ) -> tuple[dict, str]:
+    """Replay a scenario at its annotated keyframes and score it.
+
+    Writes ``out_dir/metrics.json``, ``out_dir/keyframes/*.png`` (overlays) and
+    ``out_dir/report.html``.
+
+    Parameters
+    ----------
+    scenario_path : path
+        scenario.json.
+    keyframes_path : path
+        Annotations (Scalabel/BDD100K JSON, KITTI label_02, CVAT for video XML).
+    video : Path, optional
+        The video (file or image folder) the scenario was built from, for overlays and for
+        mapping image names to frames; without it overlays use a grey canvas.
+    out_dir : Path
+        Output folder (created).
+    fps : float, optional
+        Video frame rate [frames/s]; default the container's rate, else the scenario's
+        recorded ``fps`` option (image folders), else the annotation format's default.
+    use_env : bool
+        Replay in the gymnasium environment where available (see :func:`replay_boxes`).
+
+    Returns
+    -------
+    (metrics, summary)
+        The metrics.json content and a few human-readable lines.
+    """
+    from vid2sim.evaluate.report import write_report
+
+    scenario_path, keyframes_path, out_dir = Path(scenario_path), Path(keyframes_path), Path(out_dir)
+    scenario = load(scenario_path)
+    camera = Camera.from_dict(scenario.camera, scenario_path)
+    warnings: list[str] = []
+    frame_names = None
+    video_fps = None
+    if video is not None:
+        video = Path(video)
+        vw, vh, video_fps = video_size_and_fps(video)
+        if video.is_dir():
+            frame_names = [p.name for p in image_folder_names(video)]
+        if (vw, vh) != (camera.image_width, camera.image_height):
+            ratio = max(abs(vw / camera.image_width - 1), abs(vh / camera.image_height - 1))
+            if ratio > RESCALE_RATIO:
+                # A resized video (e.g. 1920x1080 -> 1280x720): intrinsics scale with it.
+                warnings.append(f"video frames are {vw}x{vh} px but the scenario camera is "
+                                f"{camera.image_width}x{camera.image_height}: camera rescaled")
+                camera = camera.scaled_to(vw, vh)
+            else:
+                # A few pixels differ by cropping (KITTI's rectified sizes vary by date) or
+                # codec padding, which leave the intrinsics as they are.
+                warnings.append(f"video frames are {vw}x{vh} px, the scenario camera "
+                                f"{camera.image_width}x{camera.image_height}: intrinsics kept")
+                camera = replace(camera, image_width=vw, image_height=vh)
+    rate = fps or video_fps or _scenario_fps(scenario)
+    keyframes = read_keyframes(keyframes_path, fps=rate, frame_names=frame_names)
+    if rate is not None:
+        # Timestamps give times; frames for seeking follow from the rate.
+        for k in keyframes:
+            if k.frame is None:
+                k.frame = round(k.t_s * rate)
+    t0, t1 = scenario.ego.trajectory.t[0], scenario.ego.trajectory.t[-1]
+    outside = [k.name for k in keyframes if not t0 - 0.05 <= k.t_s <= t1 + 0.05]
+    if outside:
+        warnings.append(f"{len(outside)} keyframe(s) lie outside the scenario's "
+                        f"{t0:.2f}-{t1:.2f} s (first: {outside[0]}); the ego is held at its "
+                        "first/last pose there")
+    env_used = use_env and _env_available()
+    if use_env and not env_used:
+        warnings.append(f"{ENV_ID} not available: vehicle poses interpolated from the "
+                        "scenario trajectories")
+    times = [k.t_s for k in keyframes]
+    boxes = replay_boxes(scenario, times, use_env=env_used, camera=camera)
+    metrics = score_keyframes(keyframes, boxes)
+    metrics["replay"] = "gymnasium " + ENV_ID if env_used else "trajectory interpolation"
+    metrics["inputs"] = {"scenario": str(scenario_path), "keyframes": str(keyframes_path),
+                         "video": str(video) if video is not None else None, "fps": rate}
+
+    frames = read_frames(video, [k.frame for k in keyframes]) if video is not None else {}
+    if video is not None:
+        missing = [k.name for k in keyframes if k.frame not in frames]
+        if missing:
+            warnings.append(f"{len(missing)} keyframe(s) have no video frame (first: "
+                            f"{missing[0]}); drawn on a grey canvas")
+    images = []
+    for n, (k, stats) in enumerate(zip(keyframes, metrics["per_keyframe"], strict=True)):
+        png = draw_overlay(frames.get(k.frame), camera, k, boxes[k.t_s], stats)
+        fname = f"{n:04d}_{_safe_name(k.name)}.png"
+        write_bytes_atomic(out_dir / "keyframes" / fname, png)
+        stats["overlay"] = f"keyframes/{fname}"
+        f1 = "n/a" if stats["f1"] is None else f"{stats['f1']:.2f}"
+        images.append((f"{k.name}  t={k.t_s:.2f} s  F1 {f1}", png))
+    metrics["warnings"] = warnings
+    write_text_atomic(out_dir / "metrics.json",
+                      json.dumps(_json_safe(metrics), indent=1, sort_keys=False) + "\n")
+    write_report(out_dir / "report.html", scenario=scenario, metrics=metrics,
+                 keyframe_images=images, extra_figures=[], warnings=warnings,
+                 inputs=metrics["inputs"])
+    return metrics, _summary(metrics, keyframes, out_dir)
+
+
+def _json_safe(obj):
+    if isinstance(obj, dict):
+        return {k: _json_safe(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_json_safe(v) for v in obj]
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    if isinstance(obj, np.generic):
+        return _json_safe(obj.item())
+    return obj
+
+
+def _fmt(x: float | None, spec: str = ".3f") -> str:
+    return "n/a" if x is None else format(x, spec)
+
+
+def _summary(m: dict, keyframes: list[Keyframe], out_dir: Path) -> str:
+    d = describe(keyframes)
+    ref = m["reference_study"]
+    rng = m["range_error"]
+    lines = [
+        (f"keyframes: {m['keyframes']} ({d['boxes']} annotated vehicles, "
+         f"{d['ignore_regions']} ignore regions, t {d['t_first_s']:.2f}-{d['t_last_s']:.2f} s)"),
+        (f"standard:  TP {m['tp']}  FP {m['fp']}  FN {m['fn']}  precision {_fmt(m['precision'])}"
+         f"  recall {_fmt(m['recall'])}  F1 {_fmt(m['f1'])}  mean IoU {_fmt(m['mean_iou'])}"),
+        (f"reference: TP {ref['tp']}  FP {ref['fp']}  FN {ref['fn']}  precision "
+         f"{_fmt(ref['precision'])}  recall {_fmt(ref['recall'])}  F1 {_fmt(ref['f1'])}"),
+    ]
+    if rng["pairs"]:
+        lines.append(f"range error: {rng['pairs']} pairs, mean |e| {rng['mean_abs_m']:.2f} m, "
+                     f"median |e| {rng['median_abs_m']:.2f} m, mean signed "
+                     f"{rng['mean_signed_m']:+.2f} m")
+    lines.append(f"replay: {m['replay']}")
+    for w in m.get("warnings", []):
+        lines.append(f"warning: {w}")
+    lines.append(f"wrote {out_dir / 'metrics.json'}, {out_dir / 'report.html'}, "
+                 f"{len(keyframes)} overlays in {out_dir / 'keyframes'}")
+    return "\n".join(lines)
