@@ -276,3 +276,35 @@ class ProjectedBox:
     box_px: tuple[float, float, float, float]
     category: str
     range_m: float
+
+
+# --------------------------------------------------------------------------- road
+
+
+@dataclass(slots=True)
+class RoadResult:
+    """The road stage's output (:func:`vid2sim.geo.roads.build_road`).
+
+    :param roads: ``scenario.Road`` records in ENU about ``origin`` (normally one: the matched
+        route as one centerline; ``lanes`` counts all lanes of the carriageway, the ego's
+        direction has ``lanes_forward`` of them, on the right of the centerline)
+    :param route_osm_way_ids: OSM way ids in travel order, consecutive repeats merged
+    :param matches: one dict per input fix: ``t`` (scenario clock [s]), ``osm_way_id``
+        (None where unmatched), ``offset_m`` (signed lateral offset of the raw fix from the
+        matched way, positive left of travel [m], None where unmatched)
+    :param ego_lane: lane index per ego sample, 0 = rightmost lane in the travel direction
+    :param ego_offset_m: signed lateral offset of each ego sample from the centerline [m]
+    :param source: ``"osm"`` or ``"trajectory"``
+    :param stats: summary figures (fixes, matched_share, route_length_m, ways, lanes, ...)
+    """
+
+    origin: Origin
+    roads: list  # list[vid2sim.scenario.Road]; scenario imports records, not the reverse
+    route_osm_way_ids: list[int]
+    matches: list[dict]
+    ego_lane: np.ndarray
+    ego_offset_m: np.ndarray
+    source: str
+    lanes_forward: int = 1
+    stats: dict = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
