@@ -380,30 +380,52 @@ def _consistent_chain(t: np.ndarray, xy: np.ndarray, sig: np.ndarray, v_max_mps:
 # jerk (Bar-Shalom, Estimation with Applications to Tracking and Navigation, sec. 6.3.3).
 
 
-def _transition(dt: float, q: float) -> tuple[np.ndarray, np.ndarray]:
-    f1 = np.array([[1.0, dt, 0.5 * dt * dt], [0.0, 1.0, dt], [0.0, 0.0, 1.0]])
-    q1 = q * np.array([
-        [dt**5 / 20, dt**4 / 8, dt**3 / 6],
-        [dt**4 / 8, dt**3 / 3, dt**2 / 2],
-        [dt**3 / 6, dt**2 / 2, dt],
-    ])
-    eye2 = np.eye(2)
-    return np.kron(f1, eye2), np.kron(q1, eye2)
+def _transitions(dt: np.ndarray, q: float) -> tuple[np.ndarray, np.ndarray]:
+    """(M, 6, 6) transition and process-noise matrices for steps of ``dt`` seconds."""
+    m = len(dt)
+    f1 = np.zeros((m, 3, 3))
+    f1[:, 0, 0] = f1[:, 1, 1] = f1[:, 2, 2] = 1.0
+    f1[:, 0, 1] = f1[:, 1, 2] = dt
+    f1[:, 0, 2] = 0.5 * dt * dt
+    q1 = np.empty((m, 3, 3))
+    q1[:, 0, 0] = dt**5 / 20
+    q1[:, 0, 1] = q1[:, 1, 0] = dt**4 / 8
+    q1[:, 0, 2] = q1[:, 2, 0] = dt**3 / 6
+    q1[:, 1, 1] = dt**3 / 3
+    q1[:, 1, 2] = q1[:, 2, 1] = dt**2 / 2
+    q1[:, 2, 2] = dt
+    q1 *= q
+    # The x and y axes are independent in the model: interleave the 3x3 blocks.
+    f = np.zeros((m, 6, 6))
+    qq = np.zeros((m, 6, 6))
+    for axis in (0, 1):
+        f[:, axis::2, axis::2] = f1
+        qq[:, axis::2, axis::2] = q1
+    return f, qq
 
 
-_H_POS = np.hstack((np.eye(2), np.zeros((2, 4))))
-_H_VEL = np.hstack((np.zeros((2, 2)), np.eye(2), np.zeros((2, 2))))
+def _update_block(x: np.ndarray, P: np.ndarray, z: np.ndarray, lo: int,
+                  R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Kalman update with a measurement of state elements ``lo`` and ``lo + 1`` (positions
+    at 0, velocities at 2); a 2x2 innovation covariance inverted in closed form."""
+    S = P[lo:lo + 2, lo:lo + 2] + R
+    det = S[0, 0] * S[1, 1] - S[0, 1] * S[1, 0]
+    s_inv = np.array([[S[1, 1], -S[0, 1]], [-S[1, 0], S[0, 0]]]) / det
+    K = P[:, lo:lo + 2] @ s_inv
+    x = x + K @ (z - x[lo:lo + 2])
+    P = P - K @ P[lo:lo + 2, :]
+    # Re-symmetrise: the tiny zero-velocity variances would otherwise let rounding build up.
+    return x, 0.5 * (P + P.T)
 
 
-def _update(x: np.ndarray, P: np.ndarray, z: np.ndarray, H: np.ndarray,
-            R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    S = H @ P @ H.T + R
-    K = np.linalg.solve(S, H @ P).T  # P and S are symmetric
-    x = x + K @ (z - H @ x)
-    # Joseph form keeps P symmetric positive definite with the tiny ZUPT variances.
-    ikh = np.eye(6) - K @ H
-    P = ikh @ P @ ikh.T + K @ R @ K.T
-    return x, P
+def _update_scalar(x: np.ndarray, P: np.ndarray, z: float, h: np.ndarray,
+                   r: float) -> tuple[np.ndarray, np.ndarray]:
+    """Kalman update with one scalar measurement z = h . x + noise of variance r."""
+    ph = P @ h
+    k = ph / (h @ ph + r)
+    x = x + k * (z - h @ x)
+    P = P - np.outer(k, ph)
+    return x, 0.5 * (P + P.T)
 
 
 def _smooth(t, xy, sig, spd, vel_meas, crs_ok, used, stopped, p: TraceParams):
@@ -416,22 +438,22 @@ def _smooth(t, xy, sig, spd, vel_meas, crs_ok, used, stopped, p: TraceParams):
     pf = np.zeros((m, 6, 6))
     xp = np.zeros((m, 6))
     pp = np.zeros((m, 6, 6))
-    fs = np.zeros((m, 6, 6))
+    fs, qs = _transitions(np.diff(t[idx], prepend=t[idx[0]]), p.jerk_psd)
     x = np.zeros(6)
     x[:2] = xy[idx[0]]
     P = np.diag([sig[idx[0]] ** 2] * 2 + [30.0**2] * 2 + [3.0**2] * 2)
     cs = math.radians(p.course_sigma_deg)
+    zupt_r = np.eye(2) * 1e-4
     for k, i in enumerate(idx):
         if k > 0:
-            F, Q = _transition(t[i] - t[idx[k - 1]], p.jerk_psd)
+            F = fs[k]
             x = F @ x
-            P = F @ P @ F.T + Q
-            fs[k] = F
+            P = F @ P @ F.T + qs[k]
         xp[k], pp[k] = x, P
-        x, P = _update(x, P, xy[i], _H_POS, np.eye(2) * sig[i] ** 2)
+        x, P = _update_block(x, P, xy[i], 0, np.eye(2) * sig[i] ** 2)
         if stopped[i]:
             # Zero-velocity update: the vehicle is known to stand still.
-            x, P = _update(x, P, np.zeros(2), _H_VEL, np.eye(2) * 1e-4)
+            x, P = _update_block(x, P, np.zeros(2), 2, zupt_r)
         elif crs_ok[i]:
             v = vel_meas[i]
             s = float(spd[i])
@@ -439,23 +461,22 @@ def _smooth(t, xy, sig, spd, vel_meas, crs_ok, used, stopped, p: TraceParams):
             n = np.array([-u[1], u[0]])
             R = (np.outer(u, u) * p.speed_sigma_mps**2
                  + np.outer(n, n) * max(s * cs, p.speed_sigma_mps) ** 2)
-            x, P = _update(x, P, v, _H_VEL, R)
+            x, P = _update_block(x, P, v, 2, R)
         elif not np.isnan(spd[i]):
             # Speed without course: |v| = s, linearised about the current velocity.
             vn = float(np.hypot(x[2], x[3]))
             if vn > 0.5:
-                h = np.zeros((1, 6))
-                h[0, 2:4] = x[2:4] / vn
-                z = np.array([float(spd[i]) - vn]) + h @ x
-                x, P = _update(x, P, z, h, np.array([[p.speed_sigma_mps**2]]))
+                h = np.zeros(6)
+                h[2:4] = x[2:4] / vn
+                x, P = _update_scalar(x, P, float(spd[i]) - vn + float(h @ x), h,
+                                      p.speed_sigma_mps**2)
         xf[k], pf[k] = x, P
     xs = xf.copy()
-    ps = pf.copy()
-    for k in range(m - 2, -1, -1):
-        F = fs[k + 1]
-        C = np.linalg.solve(pp[k + 1], F @ pf[k]).T  # P_f F^T P_p^-1
-        xs[k] = xf[k] + C @ (xs[k + 1] - xp[k + 1])
-        ps[k] = pf[k] + C @ (ps[k + 1] - pp[k + 1]) @ C.T
+    if m > 1:
+        # RTS gains for all steps at once: C_k = P_f,k F_k+1^T P_p,k+1^-1.
+        gains = np.linalg.solve(pp[1:], fs[1:] @ pf[:-1]).transpose(0, 2, 1)
+        for k in range(m - 2, -1, -1):
+            xs[k] = xf[k] + gains[k] @ (xs[k + 1] - xp[k + 1])
     # Spread to all fixes: rejected ones get the Hermite interpolation of their neighbours.
     out = np.zeros((len(t), 6))
     pos, vel = _hermite(t[idx], xs[:, :2], xs[:, 2:4], t)
@@ -504,13 +525,20 @@ def _position_stops(t, xy, sig, spd, used, p: TraceParams) -> np.ndarray:
     tt, pp, ss, vv = t[idx], xy[idx], sig[idx], spd[idx]
     m = len(idx)
     out = np.zeros(len(t), bool)
+    if m < 3:
+        return out
+    # Typical noise around each fix (median over the next 50), for the slope's standard error.
+    win = min(50, m)
+    padded = np.concatenate((ss, np.full(win - 1, ss[-1])))
+    s_meds = np.median(np.lib.stride_tricks.sliding_window_view(padded, win), axis=1)[:m]
+    windows: list[tuple[int, int]] = []
     i = 0
     while i < m - 2:
         n = st = stt = 0.0
         sx = np.zeros(2)
         stx = np.zeros(2)
         last_ok = -1
-        s_med = float(np.median(ss[i:min(m, i + 50)]))
+        s_med = float(s_meds[i])
         for j in range(i, m):
             if not np.isnan(vv[j]) and vv[j] > 2.0 * p.stop_doppler_mps:
                 break
@@ -536,9 +564,10 @@ def _position_stops(t, xy, sig, spd, used, p: TraceParams) -> np.ndarray:
                 break
             last_ok = j
         if last_ok >= 0 and tt[last_ok] - tt[i] >= p.stop_min_s:
-            a, b = _refine_stop(tt, pp, i, last_ok)
-            if tt[b] - tt[a] >= p.stop_min_s:
-                out[idx[a:b + 1]] = True
+            if windows and i <= windows[-1][1] + 1:
+                windows[-1] = (windows[-1][0], max(windows[-1][1], last_ok))
+            else:
+                windows.append((i, last_ok))
             if last_ok == m - 1:
                 break
             # A window that began in the braking before a stop can fail before the stop ends;
@@ -547,6 +576,11 @@ def _position_stops(t, xy, sig, spd, used, p: TraceParams) -> np.ndarray:
             i += max(1, (last_ok - i) // 4)
         else:
             i += 1
+    # Overlapping windows belong to one stop; its ends are then placed once.
+    for i, j in windows:
+        a, b = _refine_stop(tt, pp, i, j)
+        if tt[b] - tt[a] >= p.stop_min_s:
+            out[idx[a:b + 1]] = True
     return _merge_stops(tt, pp, ss, idx, out)
 
 
