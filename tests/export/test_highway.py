@@ -8,6 +8,8 @@ import gymnasium
 import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import vid2sim  # noqa: F401  registers the environment
 from vid2sim.errors import InputError
@@ -91,11 +93,11 @@ def test_replay_fidelity_every_step():
         while not truncated:
             _, _, terminated, truncated, info = env.step(ZERO)
             assert not terminated
-            for st in env.vehicle_states():
-                ref = trajs[st.id].state_at(info["t_s"])
-                err = math.hypot(st.x_m - float(ref["x"]), st.y_m - float(ref["y"]))
-                assert err < (0.5 if st.id == "ego" else 0.2), (st.id, info["t_s"], err)
-                seen.add(st.id)
+            for vs in env.vehicle_states():
+                ref = trajs[vs.id].state_at(info["t_s"])
+                err = math.hypot(vs.x_m - float(ref["x"]), vs.y_m - float(ref["y"]))
+                assert err < (0.5 if vs.id == "ego" else 0.2), (vs.id, info["t_s"], err)
+                seen.add(vs.id)
         assert seen == set(trajs)
         assert info["t_s"] == pytest.approx(sc.duration_s)
 
@@ -181,3 +183,17 @@ def test_follow_log_policy_tracks_the_logged_ego():
     end = env.vehicle_states()[0]
     ref = sc.ego.trajectory.state_at(infos[-1]["t_s"])
     assert math.hypot(end.x_m - float(ref["x"]), end.y_m - float(ref["y"])) < 1.0
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.floats(0.0, 200.0), st.floats(-6.0, 6.0))
+def test_scenario_lane_projection_inverts_position(s_m, lat_m):
+    from vid2sim.export.highway import build_network
+
+    road = left_turn_scenario().roads[0]
+    lane = build_network([road]).get_lane(("road0:start", "road0:end", 0))
+    s_back, lat_back = lane.local_coordinates(lane.position(s_m, lat_m))
+    # exact on straights; on the arc highway-env's piecewise-constant heading (1 m samples)
+    # shifts s by up to |lat| * curvature * 1 m (6 m / 40 m = 0.15 m)
+    assert s_back == pytest.approx(s_m, abs=0.2)
+    assert lat_back == pytest.approx(lat_m, abs=0.05)

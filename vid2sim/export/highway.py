@@ -74,6 +74,8 @@ ROAD_EXTENSION_M = 50.0
 LANE_SAMPLE_M = 1.0
 """Resampling step of lane polylines [m] (highway-env samples its curves at 1 m too)."""
 EGO_MODES = ("policy", "log")
+_COARSE_STEP = 10  # samples between coarse search points of ScenarioLane
+_WINDOW = 40  # fine search half-window of ScenarioLane [samples]
 _EGO_COLOR = (50, 200, 0)  # RGB, highway-env's ego green
 _ACTOR_COLOR = (100, 200, 255)  # RGB, highway-env's traffic blue
 
@@ -122,25 +124,36 @@ class ScenarioLane(PolyLaneFixedWidth):
         super().__init__(lane_points, width=width, line_types=line_types,
                          speed_limit=speed_limit)
         poses = self.curve.poses
-        self._p = np.array([p.position for p in poses])  # (N, 2) sample positions
-        self._t = np.array([p.normal for p in poses])  # unit tangents
+        p = np.array([q.position for q in poses])  # (N, 2) sample positions, 1 m apart
+        t = np.array([q.normal for q in poses])  # unit tangents
+        self._px, self._py, self._tx, self._ty = p[:, 0], p[:, 1], t[:, 0], t[:, 1]
         self._s = np.asarray(self.curve.s_samples, float)
         # Segment i runs from sample i to sample i+1; the first extends backwards and the last
         # forwards without bound, matching highway-env's extrapolation beyond the ends.
         self._seg_len = np.append(np.diff(self._s), np.inf)
+        self._coarse = np.arange(0, len(self._s), _COARSE_STEP)
 
     def local_coordinates(self, position: np.ndarray) -> tuple[float, float]:
-        d = np.asarray(position, float)[:2] - self._p
-        along = np.einsum("ij,ij->i", d, self._t)
-        lo = np.zeros_like(along)
-        lo[0] = -np.inf
-        clamped = np.clip(along, lo, self._seg_len)
+        x, y = float(position[0]), float(position[1])
+        # Coarse-to-fine: the nearest every-10th sample, then an exact search in a window
+        # around it. The window (+-_WINDOW samples, 1 m each) covers points up to ~15 m off the
+        # lane exactly; farther points (other roads) still get a nearby, consistent answer.
+        c = self._coarse
+        j = int(c[np.argmin((self._px[c] - x) ** 2 + (self._py[c] - y) ** 2)])
+        lo, hi = max(j - _WINDOW, 0), min(j + _WINDOW + 1, len(self._s))
+        dx, dy = x - self._px[lo:hi], y - self._py[lo:hi]
+        tx, ty = self._tx[lo:hi], self._ty[lo:hi]
+        along = dx * tx + dy * ty
+        low = np.zeros_like(along)
+        if lo == 0:
+            low[0] = -np.inf
+        clamped = np.clip(along, low, self._seg_len[lo:hi])
         # squared distance from the point to its clamped foot on each segment
-        dist2 = np.einsum("ij,ij->i", d, d) - 2 * clamped * along + clamped**2
+        dist2 = dx * dx + dy * dy - 2 * clamped * along + clamped**2
         i = int(np.argmin(dist2))
         # lateral positive along (-t_y, t_x), the same side as PolyLaneFixedWidth.position()
-        lat = -d[i, 0] * self._t[i, 1] + d[i, 1] * self._t[i, 0]
-        return float(self._s[i] + along[i]), float(lat)
+        lat = -dx[i] * ty[i] + dy[i] * tx[i]
+        return float(self._s[lo + i] + along[i]), float(lat)
 
 
 def _resample_polyline(points_m: np.ndarray, step_m: float) -> np.ndarray:
