@@ -88,6 +88,11 @@ def test_failed_run_keeps_previous_output(tmp_path, capsys):
     assert out.read_text() == "previous\n"
 
 
+def test_output_folder_is_an_input_error(sample_gpx, tmp_path, capsys):
+    assert main(["trace", str(sample_gpx), "--out", str(tmp_path)]) == 2
+    assert "is a folder" in capsys.readouterr().err
+
+
 def test_verbose_error_shows_traceback(tmp_path, capsys):
     empty = tmp_path / "empty.nmea"
     empty.write_text("")

@@ -287,6 +287,8 @@ def run_trace(gps_file: str | Path, out_path: str | Path, rate_hz: float = 10.0,
     """Read ``gps_file``, smooth it, write ``out_path`` (ego.csv) and return a summary."""
     from vid2sim.geo.readers import read_gps
 
+    if Path(out_path).is_dir():
+        raise InputError(out_path, "is a folder", "give the output file name, e.g. ego.csv")
     trace = read_gps(Path(gps_file))
     ego, stats = smooth_ego(trace, rate_hz=rate_hz, gps_offset_s=gps_offset_s)
     write_ego_csv(ego, out_path)
