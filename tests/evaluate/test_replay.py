@@ -171,7 +171,11 @@ def test_shifted_annotations_drop_by_known_amount(tmp_path, visible_scenario, dx
 def test_run_eval_writes_contract_overlays_and_report(tmp_path, visible_scenario):
     ann = scalabel(tmp_path, [0, 15, 30], fps=10.0)
     out = tmp_path / "out"
-    m, _ = run_eval(visible_scenario, ann, out_dir=out, fps=10.0)
+    fig = tmp_path / "road.png"
+    cv2.imwrite(str(fig), np.full((20, 30, 3), 128, np.uint8))
+    m, _ = run_eval(visible_scenario, ann, out_dir=out, fps=10.0, extra_figures=[("road", fig)],
+                    extra_warnings=["from the build stage"])
+    assert "from the build stage" not in m["warnings"]  # the caller prints its own
     data = json.loads((out / "metrics.json").read_text())
     assert data["keyframes"] == 3 and len(data["per_keyframe"]) == 3
     for key in ("tp", "fp", "fn", "precision", "recall", "f1", "mean_iou"):
@@ -181,7 +185,8 @@ def test_run_eval_writes_contract_overlays_and_report(tmp_path, visible_scenario
     img = cv2.imread(str(pngs[0]))
     assert img.shape[:2] == (CAMERA.image_height, CAMERA.image_width)
     html = (out / "report.html").read_text()
-    assert "Keyframe metrics" in html and html.count("data:image/png;base64,") >= 5
+    assert "Keyframe metrics" in html and html.count("data:image/png;base64,") == 6
+    assert "from the build stage" in html and "More figures" in html
 
 
 def _write_video(path: Path, n: int, size=(CAMERA.image_width, CAMERA.image_height)) -> None:

@@ -407,7 +407,9 @@ def _safe_name(name: str) -> str:
 
 
 def run_eval(scenario_path: str | Path, keyframes_path: str | Path, *, video: Path | None = None,
-             out_dir: Path, fps: float | None = None, use_env: bool = True
+             out_dir: Path, fps: float | None = None, use_env: bool = True,
+             extra_figures: list[tuple[str, bytes | Path]] | None = None,
+             extra_warnings: list[str] | None = None, report_inputs: dict | None = None
              ) -> tuple[dict, str]:
     """Replay a scenario at its annotated keyframes and score it.
 
@@ -430,6 +432,10 @@ def run_eval(scenario_path: str | Path, keyframes_path: str | Path, *, video: Pa
         recorded ``fps`` option (image folders), else the annotation format's default.
     use_env : bool
         Replay in the gymnasium environment where available (see :func:`replay_boxes`).
+    extra_figures, extra_warnings, report_inputs : optional
+        Passed on to the report by a caller that ran more stages (``vid2sim build``): figures
+        as (title, PNG bytes or path), warnings shown before this stage's, inputs shown
+        instead of this stage's own.
 
     Returns
     -------
@@ -441,7 +447,7 @@ def run_eval(scenario_path: str | Path, keyframes_path: str | Path, *, video: Pa
     scenario_path, keyframes_path, out_dir = Path(scenario_path), Path(keyframes_path), Path(out_dir)
     scenario = load(scenario_path)
     camera = Camera.from_dict(scenario.camera, scenario_path)
-    warnings: list[str] = []
+    warnings: list[str] = []  # this stage's, in metrics.json and the summary
     frame_names = None
     video_fps = None
     if video is not None:
@@ -504,8 +510,9 @@ def run_eval(scenario_path: str | Path, keyframes_path: str | Path, *, video: Pa
     write_text_atomic(out_dir / "metrics.json",
                       json.dumps(_json_safe(metrics), indent=1, sort_keys=False) + "\n")
     write_report(out_dir / "report.html", scenario=scenario, metrics=metrics,
-                 keyframe_images=images, extra_figures=[], warnings=warnings,
-                 inputs=metrics["inputs"])
+                 keyframe_images=images, extra_figures=list(extra_figures or []),
+                 warnings=[*(extra_warnings or []), *warnings],
+                 inputs=report_inputs or metrics["inputs"])
     return metrics, _summary(metrics, keyframes, out_dir)
 
 
