@@ -129,6 +129,30 @@ def test_gpx_route_with_times(tmp_path):
     assert tr.fixes[-1].t_utc_s - tr.fixes[0].t_utc_s == pytest.approx(6.0)
 
 
+@settings(max_examples=30, deadline=None)
+@given(st.lists(st.tuples(st.floats(-89.9, 89.9), st.floats(-179.9, 179.9),
+                          st.floats(-400, 8000)), min_size=1, max_size=15))
+def test_gpx_round_trip_property(tmp_path_factory, pts):
+    import gpxpy.gpx
+
+    gpx = gpxpy.gpx.GPX()
+    seg = gpxpy.gpx.GPXTrackSegment()
+    seg.points = [gpxpy.gpx.GPXTrackPoint(la, lo, elevation=el,
+                                          time=datetime.fromtimestamp(T0 + i, UTC))
+                  for i, (la, lo, el) in enumerate(pts)]
+    trk = gpxpy.gpx.GPXTrack()
+    trk.segments.append(seg)
+    gpx.tracks.append(trk)
+    f = tmp_path_factory.mktemp("gpx") / "p.gpx"
+    f.write_text(gpx.to_xml())
+    fixes = read_gps(f).fixes
+    assert [fx.t_utc_s for fx in fixes] == [T0 + i for i in range(len(pts))]
+    for fx, (la, lo, el) in zip(fixes, pts, strict=True):
+        assert fx.lat_deg == pytest.approx(la, abs=1e-9)
+        assert fx.lon_deg == pytest.approx(lo, abs=1e-9)
+        assert fx.alt_m == pytest.approx(el, abs=1e-6)
+
+
 def test_gpx_without_times_is_an_input_error(tmp_path):
     f = tmp_path / "notime.gpx"
     f.write_text(gpx_text("1.1", '<trkpt lat="60.1" lon="24.9"></trkpt>' * 3))

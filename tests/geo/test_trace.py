@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from datasets.sample_gps import HELSINKI, Segment, sample_fixes, simulate, write_sample_gpx
+from datasets.sample_gps import HELSINKI, Segment, main, sample_fixes, simulate, write_sample_gpx
 from vid2sim.errors import InputError
 from vid2sim.geo.frames import EnuFrame
 from vid2sim.geo.readers import read_gps
@@ -229,6 +229,13 @@ def test_sample_gpx_and_run_trace(tmp_path):
                  "rejected", "time:", str(tmp_path / "ego.csv")):
         assert word in summary
     assert (tmp_path / "ego.csv").read_text().startswith("t_s,lat,lon")
+
+
+def test_sample_gps_module_entry(tmp_path, capsys):
+    assert main([]) == 2
+    assert main([str(tmp_path / "s.gpx")]) == 0
+    assert (tmp_path / "s.gpx").read_text().startswith("<?xml")
+    assert "wrote" in capsys.readouterr().out
 
 
 # --------------------------------------------------------------------------- real data
