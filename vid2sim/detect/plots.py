@@ -88,17 +88,18 @@ def plot_topdown(boxes: list[RangedBox], path: str | Path, lane_width_m: float =
     cmap = plt.get_cmap("tab20")
     for k, (tid, rows) in enumerate(sorted(by_track.items())):
         rows.sort(key=lambda b: b.t_s)
-        # Plot -lateral on x so that vehicles on the left appear on the left.
-        x = [-b.lateral_m for b in rows]
+        x = [b.lateral_m for b in rows]
         y = [b.range_m for b in rows]
         ax.plot(x, y, color=cmap(k % 20), linewidth=1)
         ax.annotate(str(tid), (x[-1], y[-1]), fontsize=7)
     lead = [b for b in boxes if b.is_lead and np.isfinite(b.range_m)]
     if lead:
-        ax.scatter([-b.lateral_m for b in lead], [b.range_m for b in lead], s=4, c="black",
+        ax.scatter([b.lateral_m for b in lead], [b.range_m for b in lead], s=4, c="black",
                    label="lead", zorder=3)
     ax.plot([0], [0], marker="^", color="tab:green", markersize=10, label="camera")
-    ax.set_xlabel("lateral [m] (left <- -> right)")
+    # Lateral is positive to the left: invert the axis so the left of the road is on the left.
+    ax.invert_xaxis()
+    ax.set_xlabel("lateral offset [m], positive to the left")
     ax.set_ylabel("range [m]")
     ax.set_title(f"All tracks, top-down ({len(by_track)} tracks)")
     ax.legend(loc="upper right", fontsize=8)

@@ -1,0 +1,119 @@
+"""Ranging against real labelled data (KITTI); skips when ../shared/data is absent.
+
+Input are the LABELLED 2D boxes (so the figures isolate ranging from detection); the truth is
+the labelled rear distance Z - l/2 of each vehicle with a box at least 25 px high. Each
+labelled frame is ranged on its own (single-frame ranging, no temporal fusion).
+
+Issue 5 asks for a median absolute relative error <= 8 % below 40 m. Measured (see the
+printed lines, ``pytest -s``) it is not reached on these frames; the asserts below are
+regression bounds a little above what the method achieves, so a change that makes ranging
+worse fails here.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from vid2sim.camera import load_camera
+from vid2sim.detect.external import read_kitti_tracking_labels
+from vid2sim.detect.ranging import RangingConfig, range_tracks
+from vid2sim.records import TrackedBox
+
+# What a detector would call each labelled class (COCO has no van: a van is a "car").
+KITTI_TO_CATEGORY = {"Car": "car", "Van": "car", "Truck": "truck"}
+SIX_FRAMES = {"0001": (10, 15, 20), "0016": (2, 7, 12)}
+BINS_M = ((0.0, 20.0), (20.0, 40.0), (40.0, np.inf))
+# The KITTI camera is calibrated and rectified: a user of such a rig says so.
+CALIBRATED = RangingConfig(camera_pitch_std_deg=0.05)
+
+
+def _range_frames(data: Path, seq: str, frames, config: RangingConfig):
+    """(truth rear range, estimate, truncated, occluded) per labelled vehicle >= 25 px."""
+    camera = load_camera(data / "calib" / f"{seq}.txt")
+    labels = read_kitti_tracking_labels(data / "label_02" / f"{seq}.txt")
+    rows = []
+    for frame in frames if frames is not None else sorted(labels)[::20]:
+        objs = [lb for lb in labels.get(frame, []) if lb.type in KITTI_TO_CATEGORY]
+        if not objs:
+            continue
+        boxes = [TrackedBox(frame, 0.0, lb.track_id, KITTI_TO_CATEGORY[lb.type], 1.0,
+                            *lb.box_px) for lb in objs]
+        result = range_tracks(boxes, camera, config=config)
+        for lb, rb in zip(objs, result.boxes, strict=True):
+            if lb.box_px[3] - lb.box_px[1] < 25:
+                continue
+            truth = lb.location_m[2] - lb.size_hwl_m[2] / 2
+            rows.append((truth, rb.range_m, lb.truncated, lb.occluded))
+    return np.array(rows, dtype=float).reshape(-1, 4)
+
+
+def _medians(rows: np.ndarray) -> dict[str, float]:
+    truth, est = rows[:, 0], rows[:, 1]
+    rel = np.abs(est - truth) / truth
+    out = {}
+    for lo, hi in BINS_M:
+        m = (truth >= lo) & (truth < hi)
+        out[f"{lo:g}-{hi:g} m"] = float(np.median(rel[m])) if m.any() else float("nan")
+    out["below 40 m"] = float(np.median(rel[truth < 40]))
+    out["n"] = len(rows)
+    return out
+
+
+def _line(name: str, med: dict[str, float]) -> str:
+    parts = [f"{k} {v:.1%}" for k, v in med.items() if k != "n"]
+    return f"{name} (n={med['n']}): " + ", ".join(parts)
+
+
+def test_six_labelled_frames_single_frame(kitti_tracking_dir):
+    res = {}
+    for name, cfg in (("default (dash-cam)", RangingConfig()), ("calibrated", CALIBRATED)):
+        rows = np.vstack([_range_frames(kitti_tracking_dir, s, f, cfg)
+                          for s, f in SIX_FRAMES.items()])
+        assert np.isfinite(rows[:, 1]).all(), "every labelled vehicle must get a range"
+        res[name] = _medians(rows)
+        print(_line(f"KITTI six frames, {name}", res[name]))
+    assert res["calibrated"]["below 40 m"] < 0.16
+    assert res["default (dash-cam)"]["below 40 m"] < 0.20
+
+
+def test_all_labelled_frames_single_frame(kitti_tracking_dir):
+    # Labels exist for every frame of 12 sequences; every 20th frame, ranged alone, gives
+    # ~700 vehicles on many streets: a steadier figure than six frames.
+    seqs = sorted(p.stem for p in (kitti_tracking_dir / "label_02").glob("*.txt"))
+    rows = np.vstack([_range_frames(kitti_tracking_dir, s, None, CALIBRATED) for s in seqs])
+    clean = rows[(rows[:, 2] == 0) & (rows[:, 3] <= 1)]
+    med_all, med_clean = _medians(rows), _medians(clean)
+    print(_line("KITTI all sequences, calibrated", med_all))
+    print(_line("KITTI all sequences, calibrated, unoccluded/untruncated", med_clean))
+    assert med_clean["below 40 m"] < 0.11
+    assert med_all["below 40 m"] < 0.12
+    # No systematic scale error: the signed median within a few percent.
+    signed = (rows[:, 1] - rows[:, 0]) / rows[:, 0]
+    assert abs(np.median(signed[rows[:, 0] < 40])) < 0.05
+
+
+def test_lane_marking_horizon_on_kitti_raw(kitti_raw_dir):
+    import cv2
+
+    from vid2sim.detect.lanes import HorizonEstimator
+
+    camera = load_camera(kitti_raw_dir / "camera.yaml")
+    est = HorizonEstimator(camera, every=5)
+    cap = cv2.VideoCapture(str(kitti_raw_dir / "video.mp4"))
+    try:
+        while True:
+            ok, image = cap.read()
+            if not ok:
+                break
+            est.add_frame(image)
+    finally:
+        cap.release()
+    row, votes = est.estimate()
+    print(f"KITTI raw 0001 lane-marking horizon {row} px from {votes} frames; calibration "
+          f"says {camera.horizon_y_px():.1f} px")
+    assert votes >= 10
+    # The rectified KITTI camera is level to within a few tenths of a degree (0.4 deg = 5 px).
+    assert row == pytest.approx(camera.horizon_y_px(), abs=5.0)
