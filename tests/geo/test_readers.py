@@ -241,6 +241,17 @@ def test_nmea_midnight_rollover(tmp_path):
     assert t[3] - t[2] == pytest.approx(1.0)  # the GGA-only epoch inherits the new date
 
 
+def test_nmea_gga_only_has_no_date_but_consistent_times(tmp_path):
+    f = tmp_path / "gga.log"
+    f.write_text("\n".join(gga(f"1000{i:02d}.50", 60.0, 24.0 + i * 1e-4, 12.0, geoid=None)
+                           for i in range(3)))
+    tr = read_gps(f)
+    assert [fx.t_utc_s for fx in tr.fixes] == pytest.approx([36000.5, 36001.5, 36002.5])
+    assert tr.fixes[0].alt_m == pytest.approx(12.0)  # no geoid separation given: as reported
+    assert tr.fixes[0].speed_mps is None
+    assert any("date" in w for w in tr.warnings)
+
+
 def test_nmea_only_corrupt_is_an_input_error(tmp_path):
     f = tmp_path / "bad.nmea"
     f.write_text("\n".join(rmc("090000", 60, 24, 1, 1, "170524")[:-2] + "00" for _ in range(3)))

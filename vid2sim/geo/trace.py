@@ -207,7 +207,7 @@ def smooth_ego(trace: GpsTrace, rate_hz: float = 10.0, gps_offset_s: float | Non
             stopped |= m
             pos[m] = pos[m].mean(axis=0)  # one place for the whole stop: no creeping
     speed[stopped] = 0.0
-    heading = _held_heading(vel, speed, stopped, p.heading_min_speed_mps, tg, t, spd, crs)
+    heading = _held_heading(vel, speed, stopped, p.heading_min_speed_mps, crs)
     if heading is None:
         heading = np.zeros(len(tg))
         warnings.append("the vehicle never moves: heading set to 0 (east)")
@@ -619,7 +619,6 @@ def _refine_stop(tt: np.ndarray, pp: np.ndarray, a: int, b: int,
     residual over the same window wins.
     """
     m = len(tt)
-    core = pp[a:b + 1].mean(axis=0)
 
     def ssr(k: int, lo: int, hi: int, leaving: bool) -> float:
         stay = slice(lo, k + 1) if leaving else slice(k, hi + 1)
@@ -634,7 +633,6 @@ def _refine_stop(tt: np.ndarray, pp: np.ndarray, a: int, b: int,
             total += float(np.sum(r * r))
         return total
 
-    del core
     if b < m - 1:
         lo, hi = max(a, b - k_in), min(m - 1, b + k_out)
         ks = range(max(a + 2, lo), b + 1)
@@ -668,7 +666,7 @@ def _spans(t, mask, min_s) -> list[tuple[float, float]]:
             if t[b - 1] - t[a] >= min_s]
 
 
-def _held_heading(vel, speed, stopped, min_speed, tg, t, spd, crs) -> np.ndarray | None:
+def _held_heading(vel, speed, stopped, min_speed, crs) -> np.ndarray | None:
     """Heading CCW from east [rad] from the velocity where moving; held (carried forward,
     or back from the first motion) where stopped or too slow for the velocity's direction to
     mean anything."""
@@ -677,9 +675,9 @@ def _held_heading(vel, speed, stopped, min_speed, tg, t, spd, crs) -> np.ndarray
     if not moving.any():
         ok = ~np.isnan(crs)
         if ok.any():
-            return np.full(len(tg), math.atan2(*_course_to_enu(float(crs[ok][0]))[::-1]))
+            return np.full(len(speed), math.atan2(*_course_to_enu(float(crs[ok][0]))[::-1]))
         return None
-    idx = np.where(moving, np.arange(len(tg)), -1)
+    idx = np.where(moving, np.arange(len(speed)), -1)
     np.maximum.accumulate(idx, out=idx)
     first = int(np.argmax(moving))
     idx[idx < 0] = first
