@@ -85,6 +85,33 @@ def trace(gps_file: Path, rate_hz: float, gps_offset_s: float | None, out_path: 
     echo(summary)
 
 
+# --------------------------------------------------------------------------- road
+
+
+@cli.command()
+@click.argument("gps_file", type=EXISTING_PATH)
+@click.option("--map", "map_path", type=EXISTING_PATH, default=None,
+              help="OpenStreetMap extract (.osm XML or .osm.pbf). Default: download the "
+                   "trace's area (cached), or derive the road from the trajectory offline.")
+@click.option("--out", "out_path", type=EXISTING_PATH, required=True,
+              help="Where to write road.json (origin, roads, route_osm_way_ids, matches).")
+@click.option("--plot", "plot_path", type=EXISTING_PATH, default=None,
+              help="Also draw roads, fixes, matched route and ego path to this PNG.")
+@click.option("--gps-offset", "gps_offset_s", type=float, default=None,
+              help="Video time of the first fix [s], overriding the file's own clock.")
+@click.option("--no-download", is_flag=True, help="Never fetch OpenStreetMap data.")
+@click.option("--cache-dir", type=EXISTING_PATH, default=None,
+              help="Download cache [default: ~/.cache/vid2sim/osm].")
+def road(gps_file: Path, map_path: Path | None, out_path: Path, plot_path: Path | None,
+         gps_offset_s: float | None, no_download: bool, cache_dir: Path | None) -> None:
+    """Match a GPS trace to OpenStreetMap and write the driven road with its lanes."""
+    from vid2sim.geo.roads import run_road
+
+    echo(run_road(gps_file, out_path, map_path=map_path, plot_path=plot_path,
+                  allow_download=not no_download, cache_dir=cache_dir,
+                  gps_offset_s=gps_offset_s))
+
+
 # --------------------------------------------------------------------------- detect
 
 

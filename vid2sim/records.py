@@ -308,3 +308,5 @@ class RoadResult:
     lanes_forward: int = 1
     stats: dict = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
+    #: ENU polylines [m] of the drivable OSM ways near the trace, for pictures only
+    map_polylines: list = field(default_factory=list)

@@ -392,7 +392,16 @@ def load_network(path: str | Path, origin: Origin, *,
     try:
         return build_network(ways, origin, source=path.name, bbox_lonlat=bbox_lonlat)
     except InputError as exc:
+        if bbox_lonlat is None:
+            raise InputError(path, exc.problem, exc.hint) from None
+    # nothing near the trace: say where the map's drivable roads are
+    try:
+        whole = build_network(ways, origin, source=path.name)
+    except InputError as exc:
         raise InputError(path, exc.problem, exc.hint) from None
+    raise InputError(path, f"the trace area ({format_bbox(bbox_lonlat)}) lies outside the map's "
+                     f"drivable roads ({format_bbox(whole.bbox_lonlat)})",
+                     "pass a map that covers the drive")
 
 
 def map_bbox_lonlat(ways_or_net: RoadNetwork) -> tuple[float, float, float, float]:

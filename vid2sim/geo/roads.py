@@ -1,0 +1,502 @@
+"""The road the car drove: map-matched OSM route -> one centerline with lanes, in ENU.
+
+Pipeline (:func:`build_road`): map (file, download, or none) -> :func:`vid2sim.geo.mapmatch.match`
+-> centerline of the route (ways joined in travel order, resampled at <= 1 m) -> lanes and
+lane width from OSM tags (defaults in :data:`LANE_DEFAULTS`) -> the ego's lane from its lateral
+offset. Without a map, the road is the smoothed ego path itself (``source: "trajectory"``).
+
+Lane convention: ``Road.lanes`` counts every lane of the carriageway (OSM ``lanes``); the
+centerline is the OSM way geometry, i.e. the middle of the carriageway; the ego's direction
+has ``lanes_forward`` lanes, on the right of the middle on a two-way road (right-hand
+traffic). Lane index 0 is the rightmost lane in the direction of travel.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import re
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+
+from vid2sim.errors import InputError
+from vid2sim.geo.frames import EnuFrame
+from vid2sim.geo.mapmatch import MatchConfig, MatchResult, match
+from vid2sim.geo.osm import RoadNetwork, download_network, format_bbox, load_network
+from vid2sim.records import EgoTrack, GpsTrace, RoadResult
+from vid2sim.scenario import Road
+
+log = logging.getLogger(__name__)
+
+#: Defaults where OSM has no ``lanes`` / ``width`` tag, per ``highway`` value:
+#: (lanes of a two-way road, lanes of a one-way road, lane width [m]). Lane counts follow the
+#: OSM wiki's assumptions (Key:lanes: two-way roads 2, one-way roads 1, motorways and trunks
+#: 2 per direction); widths are typical European design values (motorway 3.75 m, urban main
+#: roads 3.25-3.5 m, residential 3.0 m, service and living streets 2.75-3.0 m).
+LANE_DEFAULTS: dict[str, tuple[int, int, float]] = {
+    "motorway": (4, 2, 3.75),
+    "motorway_link": (2, 1, 3.5),
+    "trunk": (4, 2, 3.5),
+    "trunk_link": (2, 1, 3.5),
+    "primary": (2, 1, 3.5),
+    "primary_link": (2, 1, 3.5),
+    "secondary": (2, 1, 3.25),
+    "secondary_link": (2, 1, 3.25),
+    "tertiary": (2, 1, 3.25),
+    "tertiary_link": (2, 1, 3.25),
+    "unclassified": (2, 1, 3.0),
+    "residential": (2, 1, 3.0),
+    "living_street": (1, 1, 2.75),
+    "service": (1, 1, 3.0),
+    "road": (2, 1, 3.0),
+}
+#: lane width of a road derived from the trajectory, and of unknown highway types [m]
+DEFAULT_LANE_WIDTH_M = 3.5
+#: lane widths outside this range in a ``width`` tag are taken as tagging errors [m]
+LANE_WIDTH_RANGE_M = (2.5, 4.5)
+#: centerline sample spacing, at most [m]
+CENTERLINE_STEP_M = 1.0
+#: margin around the trace's bounding box when cropping the map [m]
+MAP_MARGIN_M = 300.0
+#: a fix is heading-informative when the ego moves at least this fast [m/s]
+_HEADING_MIN_SPEED_MPS = 2.0
+
+
+# --------------------------------------------------------------------------- lanes
+
+
+def _number(text: str | None) -> float | None:
+    """First number in an OSM value ('7', '7.5 m', '3;2' -> 3), None if none."""
+    if not text:
+        return None
+    m = re.search(r"\d+(?:\.\d+)?", str(text))
+    return float(m.group()) if m else None
+
+
+def lanes_from_tags(tags: dict[str, str], along_way: bool = True) -> tuple[int, int, float]:
+    """Lanes of a carriageway from its OSM tags.
+
+    Parameters
+    ----------
+    tags : OSM way tags (``highway``, ``lanes``, ``lanes:forward``, ``lanes:backward``,
+        ``width``, ``oneway``)
+    along_way : travel follows the way's node order (else ``lanes:backward`` applies)
+
+    Returns
+    -------
+    (lanes_total, lanes_in_travel_direction, lane_width_m)
+    """
+    highway = tags.get("highway", "")
+    two_way_default, one_way_default, width_default = LANE_DEFAULTS.get(
+        highway, (2, 1, DEFAULT_LANE_WIDTH_M))
+    oneway = tags.get("oneway", "") in ("yes", "true", "1", "-1", "reverse") or (
+        tags.get("junction") in ("roundabout", "circular") and tags.get("oneway") != "no")
+    lanes = _number(tags.get("lanes"))
+    fwd = _number(tags.get("lanes:forward"))
+    bwd = _number(tags.get("lanes:backward"))
+    if oneway:
+        total = int(lanes) if lanes and lanes >= 1 else one_way_default
+        forward = total
+    else:
+        if lanes and lanes >= 1:
+            total = int(lanes)
+        elif fwd and bwd:
+            total = int(fwd + bwd)
+        else:
+            total = two_way_default
+        mine = fwd if along_way else bwd
+        if mine and 1 <= mine <= total:
+            forward = int(mine)
+        else:
+            # split evenly; an odd middle lane (turn lane, or one shared lane) counts for both
+            forward = max(1, math.ceil(total / 2)) if total > 1 else 1
+    width = _number(tags.get("width"))
+    lane_width = width_default
+    if width and total:
+        per_lane = width / total
+        if LANE_WIDTH_RANGE_M[0] <= per_lane <= LANE_WIDTH_RANGE_M[1]:
+            lane_width = per_lane
+    return total, forward, float(lane_width)
+
+
+# --------------------------------------------------------------------------- geometry
+
+
+def resample_polyline(xy_m: np.ndarray, step_m: float = CENTERLINE_STEP_M) -> np.ndarray:
+    """Resample a polyline at equal spacing <= ``step_m``, keeping both ends.
+
+    Repeated points are dropped first, so standing still or a way join never creates a
+    zero-length step (the source of heading flips and zig-zags).
+    """
+    xy = np.asarray(xy_m, float).reshape(-1, 2)
+    if len(xy) < 2:
+        return xy.copy()
+    seg = np.hypot(*np.diff(xy, axis=0).T)
+    xy = xy[np.concatenate([[True], seg > 1e-6])]
+    if len(xy) < 2:
+        return xy[:1].copy()
+    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
+    n = max(1, math.ceil(s[-1] / step_m - 1e-9))
+    grid = np.linspace(0.0, s[-1], n + 1)
+    return np.column_stack([np.interp(grid, s, xy[:, 0]), np.interp(grid, s, xy[:, 1])])
+
+
+def join_route(net: RoadNetwork, edges: list[int]) -> np.ndarray:
+    """Edge geometries joined in travel order (the shared node written once) [m]."""
+    parts = [net.edge_xy[edges[0]]] + [net.edge_xy[e][1:] for e in edges[1:]]
+    return np.vstack(parts)
+
+
+def signed_offsets(line_xy_m: np.ndarray, xy_m: np.ndarray,
+                   expected_s_m: np.ndarray | None = None, window_m: float = 40.0
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """Arc length along ``line_xy_m`` and signed lateral offset (positive left) of points.
+
+    With ``expected_s_m`` each point is projected only onto the part of the line within
+    ``window_m`` of where it should be, so a route that passes a place twice (a loop round a
+    block) does not project onto the wrong pass.
+
+    Returns
+    -------
+    (s_m, offset_m) per point [m]
+    """
+    line = np.asarray(line_xy_m, float)
+    pts = np.asarray(xy_m, float).reshape(-1, 2)
+    a, b = line[:-1], line[1:]
+    d = b - a
+    seg_len2 = np.maximum((d ** 2).sum(axis=1), 1e-12)
+    seg_s = np.concatenate([[0.0], np.cumsum(np.sqrt(seg_len2))])
+    s_out = np.full(len(pts), np.nan)
+    off_out = np.full(len(pts), np.nan)
+    chunk = 256
+    for k0 in range(0, len(pts), chunk):
+        p = pts[k0:k0 + chunk]
+        # (points x segments) projection parameter clipped to the segment
+        u = np.clip(((p[:, None, :] - a[None]) * d[None]).sum(-1) / seg_len2[None], 0.0, 1.0)
+        foot = a[None] + u[..., None] * d[None]
+        dist2 = ((p[:, None, :] - foot) ** 2).sum(-1)
+        if expected_s_m is not None:
+            exp = np.asarray(expected_s_m, float)[k0:k0 + chunk]
+            far = np.abs(seg_s[None, :-1] + u * np.sqrt(seg_len2)[None] - exp[:, None]) > window_m
+            dist2 = np.where(far & np.isfinite(exp)[:, None], np.inf, dist2)
+        j = np.argmin(dist2, axis=1)
+        rows = np.arange(len(p))
+        rel = p - foot[rows, j]
+        cross = d[j, 0] * rel[:, 1] - d[j, 1] * rel[:, 0]
+        s_out[k0:k0 + chunk] = seg_s[j] + u[rows, j] * np.sqrt(seg_len2[j])
+        off_out[k0:k0 + chunk] = np.sign(cross) * np.sqrt(dist2[rows, j])
+    return s_out, off_out
+
+
+def lane_index(offset_m: np.ndarray, lanes_total: int, lanes_forward: int,
+               lane_width_m: float) -> np.ndarray:
+    """Lane (0 = rightmost in travel direction) from the signed offset to the carriageway's
+    middle line (positive left).
+
+    The carriageway spans ``-lanes_total * w / 2 .. +lanes_total * w / 2``; the travel
+    direction owns the ``lanes_forward`` lanes from its right edge. Offsets beyond the road
+    are clipped to the outermost lane of the travel direction.
+    """
+    right_edge = -lanes_total * lane_width_m / 2.0
+    lane = np.floor((np.asarray(offset_m, float) - right_edge) / lane_width_m)
+    lane = np.where(np.isfinite(lane), lane, 0)
+    return np.clip(lane, 0, max(lanes_forward - 1, 0)).astype(int)
+
+
+# --------------------------------------------------------------------------- building
+
+
+def fix_times_s(trace: GpsTrace, gps_offset_s: float | None = None) -> np.ndarray:
+    """Fix times on the scenario clock [s], with the same rule as the ego smoother
+    (:func:`vid2sim.geo.trace.smooth_ego`): ``gps_offset_s`` is the video time of the first
+    fix; else the file's own clock (``video_start_utc_s``); else the first fix is t = 0."""
+    t_utc = np.array([f.t_utc_s for f in trace.fixes], float)
+    if not t_utc.size:
+        return t_utc
+    if gps_offset_s is not None:
+        return t_utc - t_utc[0] + gps_offset_s
+    if trace.video_start_utc_s is not None:
+        return t_utc - trace.video_start_utc_s
+    return t_utc - t_utc[0]
+
+
+def _trace_bbox(lat: np.ndarray, lon: np.ndarray, margin_m: float
+                ) -> tuple[float, float, float, float]:
+    dlat = margin_m / 111_320.0
+    dlon = margin_m / (111_320.0 * max(math.cos(math.radians(float(np.mean(lat)))), 0.01))
+    return (float(lon.min() - dlon), float(lat.min() - dlat),
+            float(lon.max() + dlon), float(lat.max() + dlat))
+
+
+def _weighted_mode(values: list, weights: np.ndarray):
+    acc: Counter = Counter()
+    for v, w in zip(values, weights, strict=True):
+        acc[v] += float(w)
+    return acc.most_common(1)[0][0]
+
+
+def _ego_headings(ego: EgoTrack, t_s: np.ndarray) -> np.ndarray:
+    """Ego heading at the fix times where the ego moves, else NaN [rad]."""
+    if len(ego.t_s) < 2:
+        return np.full(len(t_s), np.nan)
+    heading = np.interp(t_s, ego.t_s, np.unwrap(ego.heading_rad))
+    speed = np.interp(t_s, ego.t_s, ego.speed_mps)
+    inside = (t_s >= ego.t_s[0]) & (t_s <= ego.t_s[-1])
+    return np.where(inside & (speed >= _HEADING_MIN_SPEED_MPS), heading, np.nan)
+
+
+def _osm_road(net: RoadNetwork, res: MatchResult, piece: int) -> tuple[Road, int, list[str]]:
+    edges = res.route_edges[piece]
+    warnings: list[str] = []
+    centerline = resample_polyline(join_route(net, edges))
+    lengths = net.edge_length_m[edges]
+    per_edge = [lanes_from_tags(net.edge_tags[e], bool(net.edge_along_way[e])) for e in edges]
+    lanes = int(_weighted_mode([p[0] for p in per_edge], lengths))
+    forward = int(_weighted_mode([p[1] for p in per_edge if p[0] == lanes],
+                                 lengths[[p[0] == lanes for p in per_edge]]))
+    width = float(np.median(np.repeat([p[2] for p in per_edge],
+                                      np.maximum(1, np.round(lengths).astype(int)))))
+    if len({p[0] for p in per_edge}) > 1:
+        counts = sorted({p[0] for p in per_edge})
+        warnings.append(f"lane count varies along the route ({counts}); the road uses {lanes}, "
+                        "the most common by length")
+    names = [net.edge_tags[e].get("name", "") for e in edges]
+    highways = [net.edge_tags[e].get("highway", "") for e in edges]
+    ways: list[int] = []
+    for e in edges:
+        if not ways or ways[-1] != int(net.edge_way_id[e]):
+            ways.append(int(net.edge_way_id[e]))
+    road = Road(id=f"road{piece}", name=_weighted_mode(names, lengths),
+                highway=_weighted_mode(highways, lengths), source="osm", osm_way_ids=ways,
+                lanes=lanes, lane_width_m=round(width, 3), centerline=centerline)
+    return road, forward, warnings
+
+
+def trajectory_road(ego: EgoTrack) -> Road:
+    """A one-lane road along the smoothed ego path (used where no map is available).
+
+    Standing-still samples are dropped; a path shorter than 2 m becomes a 20 m straight road
+    along the median heading, so the scenario still has a road.
+    """
+    xy = np.column_stack([ego.x_m, ego.y_m])
+    line = resample_polyline(xy)
+    if len(line) < 3:
+        h = float(np.median(ego.heading_rad)) if len(ego.heading_rad) else 0.0
+        c = xy.mean(axis=0) if len(xy) else np.zeros(2)
+        direction = np.array([math.cos(h), math.sin(h)])
+        line = resample_polyline(np.vstack([c - 10 * direction, c + 10 * direction]))
+    return Road(id="road0", name="", highway="unknown", source="trajectory", osm_way_ids=[],
+                lanes=1, lane_width_m=DEFAULT_LANE_WIDTH_M, centerline=line)
+
+
+def build_road(trace: GpsTrace, ego: EgoTrack, map_path: Path | None, *,
+               allow_download: bool = True, cache_dir: Path | None = None,
+               fix_t_s: np.ndarray | None = None,
+               config: MatchConfig | None = None) -> RoadResult:
+    """Match the trace to OSM and build the driven road in the ego's ENU frame.
+
+    Parameters
+    ----------
+    trace : GPS fixes (as read); every fix gets one entry in ``matches``
+    ego : smoothed ego track; its ``origin`` is the frame of the output
+    map_path : ``.osm`` or ``.osm.pbf``; None -> download the trace's box with osmnx if
+        ``allow_download`` and the network is reachable, else the trajectory road
+    cache_dir : osmnx download cache (default ``~/.cache/vid2sim/osm``)
+    fix_t_s : fix times on the scenario clock [s]; default :func:`fix_times_s` (pass it when
+        the ego was smoothed with ``gps_offset_s``)
+    config : matcher tuning
+
+    Raises
+    ------
+    InputError
+        unreadable/empty map, no drivable roads, or the trace outside the map (both boxes).
+    """
+    fixes = trace.fixes
+    if not fixes:
+        raise InputError(trace.path, "no GPS fixes")
+    lat = np.array([f.lat_deg for f in fixes])
+    lon = np.array([f.lon_deg for f in fixes])
+    t_fix = fix_times_s(trace) if fix_t_s is None else np.asarray(fix_t_s, float)
+    xy = EnuFrame(ego.origin).to_enu(lat, lon)[:, :2]
+    bbox = _trace_bbox(lat, lon, MAP_MARGIN_M)
+    warnings: list[str] = []
+
+    net: RoadNetwork | None = None
+    if map_path is not None:
+        net = load_network(map_path, ego.origin, bbox_lonlat=bbox)
+    elif allow_download:
+        net = download_network(bbox, ego.origin, cache_dir=cache_dir)
+        if net is None:
+            warnings.append("no map given and OpenStreetMap could not be reached: the road "
+                            "follows the smoothed trajectory (default lane width)")
+    else:
+        warnings.append("no map given (downloads disabled): the road follows the smoothed "
+                        "trajectory (default lane width)")
+
+    if net is None:
+        return _trajectory_result(trace, ego, xy, t_fix, warnings)
+
+    accuracy = np.array([np.nan if f.accuracy_m is None else f.accuracy_m for f in fixes])
+    speed = np.interp(t_fix, ego.t_s, ego.speed_mps) if len(ego.t_s) else None
+    res = match(net, xy[:, 0], xy[:, 1], t_fix, heading_rad=_ego_headings(ego, t_fix),
+                accuracy_m=accuracy, speed_mps=speed, config=config)
+    if not res.route_edges or res.matched_share == 0.0:
+        raise InputError(map_path, f"no fix lies near a drivable road of this map: the trace "
+                         f"({format_bbox(_trace_bbox(lat, lon, 0.0))}) and the map's roads "
+                         f"({format_bbox(net.bbox_lonlat)}) do not overlap",
+                         "pass a map that covers the drive")
+    warnings.extend(res.warnings)
+    if res.matched_share < 0.5:
+        warnings.append(f"only {res.matched_share:.0%} of the fixes matched a road")
+
+    roads, forwards = [], []
+    for k in range(len(res.route_edges)):
+        road, forward, w = _osm_road(net, res, k)
+        roads.append(road)
+        forwards.append(forward)
+        warnings.extend(w)
+    # ego lane: offsets to the road of the matched piece, searched near the expected place
+    main = int(np.argmax([r.centerline.shape[0] for r in roads]))
+    ego_xy = np.column_stack([ego.x_m, ego.y_m])
+    on_main = res.fix_piece == main
+    expected = (np.interp(ego.t_s, t_fix[on_main], res.fix_route_s_m[on_main])
+                if on_main.sum() >= 2 else None)
+    _, ego_off = signed_offsets(roads[main].centerline, ego_xy, expected)
+    ego_lane = lane_index(ego_off, roads[main].lanes, forwards[main], roads[main].lane_width_m)
+
+    matches = [
+        {"t": float(t), "osm_way_id": int(w) if w >= 0 else None,
+         "offset_m": float(o) if np.isfinite(o) else None}
+        for t, w, o in zip(t_fix, res.fix_way_id, res.fix_offset_m, strict=True)
+    ]
+    ways = res.way_sequence()
+    route_length = float(sum(net.edge_length_m[p].sum() for p in res.route_edges))
+    stats = {
+        "fixes": len(fixes), "matched_share": res.matched_share,
+        "outlier_fixes": int(res.fix_outlier.sum()), "route_length_m": route_length,
+        "ways": len(ways), "lanes": roads[main].lanes, "lanes_forward": forwards[main],
+        "lane_width_m": roads[main].lane_width_m, "source": "osm", "map": net.source,
+        "breaks": res.n_breaks,
+    }
+    return RoadResult(origin=ego.origin, roads=roads, route_osm_way_ids=ways, matches=matches,
+                      ego_lane=ego_lane, ego_offset_m=ego_off, source="osm",
+                      lanes_forward=forwards[main], stats=stats, warnings=warnings,
+                      map_polylines=[net.edge_xy[i] for i in range(net.n_edges)
+                                     if net.edge_twin[i] < i])
+
+
+def _trajectory_result(trace: GpsTrace, ego: EgoTrack, fix_xy: np.ndarray, t_fix: np.ndarray,
+                       warnings: list[str]) -> RoadResult:
+    road = trajectory_road(ego)
+    _, fix_off = signed_offsets(road.centerline, fix_xy)
+    _, ego_off = signed_offsets(road.centerline, np.column_stack([ego.x_m, ego.y_m]))
+    matches = [{"t": float(t), "osm_way_id": None, "offset_m": float(o)}
+               for t, o in zip(t_fix, fix_off, strict=True)]
+    length = float(np.hypot(*np.diff(road.centerline, axis=0).T).sum())
+    stats = {"fixes": len(trace.fixes), "matched_share": 0.0, "outlier_fixes": 0,
+             "route_length_m": length, "ways": 0, "lanes": 1, "lanes_forward": 1,
+             "lane_width_m": road.lane_width_m, "source": "trajectory", "map": None,
+             "breaks": 0}
+    return RoadResult(origin=ego.origin, roads=[road], route_osm_way_ids=[], matches=matches,
+                      ego_lane=np.zeros(len(ego.t_s), dtype=int), ego_offset_m=ego_off,
+                      source="trajectory", lanes_forward=1, stats=stats, warnings=warnings)
+
+
+# --------------------------------------------------------------------------- output
+
+
+def road_json(result: RoadResult) -> dict:
+    """The ``road.json`` content: ``origin`` and ``roads`` exactly as in scenario.json, the
+    route's way ids and the per-fix matches."""
+    o = result.origin
+    return {
+        "origin": {"lat": o.lat, "lon": o.lon, "alt": o.alt},
+        "roads": [r.to_json() for r in result.roads],
+        "route_osm_way_ids": [int(w) for w in result.route_osm_way_ids],
+        "matches": result.matches,
+    }
+
+
+def format_summary(result: RoadResult, out_path: Path | None = None) -> str:
+    """Human summary: fixes, matched share, route length, ways, lanes."""
+    s = result.stats
+    lines = [
+        f"road source:    {result.source}" + (f" ({s['map']})" if s.get("map") else ""),
+        f"fixes:          {s['fixes']}, matched {s['matched_share']:.1%}"
+        + (f", {s['outlier_fixes']} skipped as outliers" if s.get("outlier_fixes") else ""),
+        f"route length:   {s['route_length_m']:.0f} m over {s['ways']} OSM way(s)",
+        (f"lanes:          {s['lanes']} ({s['lanes_forward']} in the travel direction), "
+        f"{s['lane_width_m']:.2f} m wide"),
+    ]
+    if len(result.ego_lane):
+        counts = np.bincount(result.ego_lane)
+        share = ", ".join(f"lane {k}: {c / counts.sum():.0%}" for k, c in enumerate(counts) if c)
+        lines.append(f"ego lane:       {share} (0 = rightmost)")
+    lines.extend(f"warning:        {w}" for w in result.warnings)
+    if out_path is not None:
+        lines.append(f"written:        {out_path}")
+    return "\n".join(lines)
+
+
+def plot_road(result: RoadResult, trace: GpsTrace, ego: EgoTrack, path_png: str | Path) -> None:
+    """PNG picture: OSM roads (grey), raw fixes (dots), matched route (blue), smoothed ego
+    path (orange), in ENU metres, written atomically."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from vid2sim.fileio import atomic_open
+
+    frame = EnuFrame(result.origin)
+    fixes_xy = (frame.to_enu([f.lat_deg for f in trace.fixes], [f.lon_deg for f in trace.fixes])
+                [:, :2] if trace.fixes else np.zeros((0, 2)))
+    fig, ax = plt.subplots(figsize=(8, 8), dpi=110)
+    for k, line in enumerate(result.map_polylines):
+        ax.plot(line[:, 0], line[:, 1], color="0.75", lw=1.0, zorder=1,
+                label="OSM drivable roads" if k == 0 else None)
+    ax.scatter(fixes_xy[:, 0], fixes_xy[:, 1], s=8, color="k", zorder=3, label="GPS fixes")
+    for k, road in enumerate(result.roads):
+        c = road.centerline
+        ax.plot(c[:, 0], c[:, 1], color="tab:blue", lw=3, alpha=0.7, zorder=2,
+                label=f"matched route ({road.source})" if k == 0 else None)
+    ax.plot(ego.x_m, ego.y_m, color="tab:orange", lw=1.5, zorder=4, label="smoothed ego path")
+    pts = np.vstack([fixes_xy, np.column_stack([ego.x_m, ego.y_m])] +
+                    [r.centerline for r in result.roads])
+    lo, hi = pts.min(axis=0) - 30, pts.max(axis=0) + 30
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
+    ax.set_aspect("equal")
+    ax.set_xlabel("east [m]")
+    ax.set_ylabel("north [m]")
+    s = result.stats
+    ax.set_title(f"road: {result.source}, {s['route_length_m']:.0f} m, {s['ways']} ways, "
+                 f"{s['lanes']} lanes, matched {s['matched_share']:.0%}")
+    ax.legend(loc="best", fontsize=8)
+    ax.grid(True, alpha=0.3)
+    fig.tight_layout()
+    with atomic_open(path_png, "wb") as fh:
+        fig.savefig(fh, format="png")
+    plt.close(fig)
+
+
+def run_road(gps_file: str | Path, out_path: str | Path, *, map_path: Path | None = None,
+             plot_path: Path | None = None, allow_download: bool = True,
+             cache_dir: Path | None = None, gps_offset_s: float | None = None) -> str:
+    """``vid2sim road``: read the trace, smooth the ego, match, write road.json (atomically),
+    optionally the PNG; returns the summary text."""
+    from vid2sim.fileio import write_text_atomic
+    from vid2sim.geo.readers import read_gps
+    from vid2sim.geo.trace import smooth_ego
+    from vid2sim.scenario import dumps_canonical
+
+    trace = read_gps(gps_file)
+    ego, _ = smooth_ego(trace, rate_hz=10.0, gps_offset_s=gps_offset_s)
+    result = build_road(trace, ego, map_path, allow_download=allow_download,
+                        cache_dir=cache_dir, fix_t_s=fix_times_s(trace, gps_offset_s))
+    write_text_atomic(out_path, dumps_canonical(road_json(result)))
+    if plot_path is not None:
+        plot_road(result, trace, ego, plot_path)
+    return format_summary(result, Path(out_path))
