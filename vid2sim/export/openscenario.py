@@ -30,6 +30,7 @@ import math
 import os
 import shutil
 import tempfile
+import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -335,6 +336,39 @@ def _stop_trigger(t_end_s: float):
 # --------------------------------------------------------------------------- writing
 
 
+def _tidy_numbers(root: ET.Element) -> None:
+    """Write floats with 12 significant digits (``0.44999999999999996`` -> ``0.45``): far
+    below a millimetre at scenario scales, and files a person can read and diff."""
+    for elem in root.iter():
+        for key, value in elem.attrib.items():
+            if "." not in value and "e" not in value.lower():
+                continue
+            try:
+                number = float(value)
+            except ValueError:
+                continue
+            if math.isfinite(number):
+                elem.set(key, format(number, ".12g"))
+
+
+def _set_header_bounds(root: ET.Element, roads: list[Road]) -> None:
+    # OpenDRIVE's header north/south/east/west bound the road data in inertial (ENU) metres;
+    # scenariogeneration writes zeros.
+    pts = np.vstack([r.centerline for r in roads])
+    margin = max(r.lanes * r.lane_width_m for r in roads)
+    header = root.find("header")
+    header.set("north", format(float(pts[:, 1].max() + margin), ".6f"))
+    header.set("south", format(float(pts[:, 1].min() - margin), ".6f"))
+    header.set("east", format(float(pts[:, 0].max() + margin), ".6f"))
+    header.set("west", format(float(pts[:, 0].min() - margin), ".6f"))
+
+
+def _write_xml(root: ET.Element, path: Path) -> None:
+    _tidy_numbers(root)
+    ET.indent(root, space="    ")
+    ET.ElementTree(root).write(path, encoding="utf-8", xml_declaration=True)
+
+
 def write_openscenario(scenario: Scenario, out_dir: Path) -> tuple[Path, Path]:
     """Write ``out_dir/scenario.xosc`` (OpenSCENARIO 1.2) and ``out_dir/road.xodr``
     (OpenDRIVE 1.8), both atomically (written in a temporary folder, then renamed).
@@ -343,14 +377,17 @@ def write_openscenario(scenario: Scenario, out_dir: Path) -> tuple[Path, Path]:
     -------
     xosc_path, xodr_path : Path
     """
+    from vid2sim.export.assemble import straight_road_for
+
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    odr = build_opendrive(scenario)
-    osc = build_openscenario(scenario, road_file=XODR_NAME)
+    odr_root = build_opendrive(scenario).get_element()
+    _set_header_bounds(odr_root, scenario.roads or [straight_road_for(scenario.ego)])
+    osc_root = build_openscenario(scenario, road_file=XODR_NAME).get_element()
     tmp = Path(tempfile.mkdtemp(prefix=".vid2sim-export-", dir=out_dir))
     try:
-        odr.write_xml(str(tmp / XODR_NAME))
-        osc.write_xml(str(tmp / XOSC_NAME))
+        _write_xml(odr_root, tmp / XODR_NAME)
+        _write_xml(osc_root, tmp / XOSC_NAME)
         xodr_path, xosc_path = out_dir / XODR_NAME, out_dir / XOSC_NAME
         os.replace(tmp / XODR_NAME, xodr_path)
         os.replace(tmp / XOSC_NAME, xosc_path)
