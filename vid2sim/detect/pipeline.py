@@ -30,7 +30,9 @@ def run_detect(source: Path, *, detector: Detector | None,
     source : Path
         Video file or folder of images.
     detector : Detector or None
-        Runs on every ``detect_every``-th frame. None when ``detections`` is given.
+        Runs on every ``detect_every``-th frame. None with ``detections`` given: the imported
+        boxes are used; None without: the default detector (YOLOX-nano with tiles, weights
+        from $VID2SIM_MODEL_DIR or the user cache) is loaded.
     detections : dict, optional
         Imported boxes, 0-based frame -> detections (see :mod:`vid2sim.detect.external`);
         used instead of a detector. Frames absent from the dict are treated as frames where
@@ -56,7 +58,8 @@ def run_detect(source: Path, *, detector: Detector | None,
     from tqdm import tqdm
 
     if detector is None and detections is None:
-        raise ValueError("run_detect needs a detector or imported detections")
+        # low threshold: boxes between 0.1 and the tracker's high score feed stage two
+        detector = load_detector(DEFAULT_DETECTOR, score_threshold=TrackerConfig().low_score)
     if detect_every < 1:
         raise InputError(None, f"--detect-every must be >= 1, got {detect_every}")
     info = video_info(source, fps=fps)
