@@ -28,7 +28,7 @@ from vid2sim.records import Detection
 COCO_VEHICLES: dict[int, str] = {2: "car", 3: "motorcycle", 5: "bus", 7: "truck"}
 """COCO class id (0-based) -> vehicle category; train (6) is left out on purpose (trams)."""
 
-DEFAULT_DETECTOR = "yolox-nano"
+DEFAULT_DETECTOR = models.DEFAULT_DETECTOR
 CROSS_CLASS_IOU = 0.7
 """IoU above which boxes of different vehicle classes are taken for one vehicle."""
 

@@ -13,6 +13,9 @@ from pathlib import Path
 from vid2sim.errors import InputError
 
 MODEL_DIR_ENV = "VID2SIM_MODEL_DIR"
+DEFAULT_DETECTOR = "yolox-nano"
+"""The detector used when none is named: with its half-frame tiles it is the one that reaches
+the KITTI recall/precision bar (see benchmarks/bench_detect.py)."""
 
 
 @dataclass(frozen=True, slots=True)
