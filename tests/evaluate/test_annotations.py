@@ -238,3 +238,27 @@ def test_kitti_tracking_labelled_frames(kitti_tracking_dir, seq, numbers):
     n_dontcare = sum(1 for line in text.splitlines()
                      if line.split()[2] == "DontCare" and int(line.split()[0]) in numbers)
     assert sum(1 for k in kfs for b in k.boxes if b.category == "dontcare") == n_dontcare
+
+
+# --------------------------------------------------------------------------- robustness
+
+
+VALID_SCALABEL = json.dumps([{"name": "a.jpg", "index": 2, "labels": [
+    {"id": "1", "category": "car", "attributes": {"crowd": False},
+     "box2d": {"x1": 1.5, "y1": 2, "x2": 30, "y2": 40}}]}])
+
+
+@given(st.sampled_from([KITTI_LINES, VALID_SCALABEL, CVAT]), st.integers(0, 2000),
+       st.text(max_size=8))
+@settings(max_examples=150, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+def test_damaged_files_give_input_errors_only(tmp_path, text, cut, junk):
+    """A file truncated anywhere, with junk appended, is read or refused with InputError;
+    never another exception."""
+    p = write(tmp_path, "damaged", text[:cut] + junk)
+    try:
+        kfs = read_keyframes(p, fps=10.0)
+    except InputError:
+        return
+    for k in kfs:
+        assert k.t_s >= 0 and all(b.box_px[0] <= b.box_px[2] for b in k.boxes)

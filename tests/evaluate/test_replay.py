@@ -316,3 +316,19 @@ def test_kitti_projection_with_label_heights(kitti_tracking_dir, seq, numbers):
         ious.append(iou_matrix([res[0]], [[x1, y1, x2, y2]])[0, 0] if res else 0.0)
     print(seq, "mean IoU with label heights", np.mean(ious), len(ious))
     assert len(ious) >= 12 and np.mean(ious) >= 0.85 and min(ious) >= 0.5
+
+
+def test_image_folder_without_fps_assumes_ten_and_says_so(tmp_path, visible_scenario):
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    for i in range(12):
+        cv2.imwrite(str(folder / f"frame_{i:04d}.png"),
+                    np.full((CAMERA.image_height, CAMERA.image_width, 3), 7 * i, np.uint8))
+    ann = scalabel(tmp_path, [0, 11], fps=10.0)  # names frame_0000.jpg, frame_0011.jpg
+    sc = json.loads(visible_scenario.read_text())
+    sc["source"]["options"] = {}  # no recorded rate
+    visible_scenario.write_text(json.dumps(sc))
+    m, summary = run_eval(visible_scenario, ann, video=folder, out_dir=tmp_path / "out",
+                          use_env=False)
+    assert [k["t_s"] for k in m["per_keyframe"]] == [0.0, 1.1]
+    assert m["f1"] == 1.0 and "assumed 10 frames/s" in summary

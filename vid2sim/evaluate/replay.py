@@ -50,6 +50,9 @@ below it the difference is taken for a crop and the intrinsics are kept."""
 TIME_TOLERANCE_S = 1e-3
 """Slack when testing whether a keyframe lies within an actor's trajectory [s]."""
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp")
+FOLDER_FPS = 10.0
+"""Frame rate assumed for an image folder without one [frames/s]: KITTI's camera rate, the
+same default as the video reader of the build."""
 ENV_ID = "vid2sim/Replay-v0"
 
 # Overlay colours (BGR): annotations green, simulated boxes magenta, ignore regions grey.
@@ -469,6 +472,10 @@ def run_eval(scenario_path: str | Path, keyframes_path: str | Path, *, video: Pa
                                 f"{camera.image_width}x{camera.image_height}: intrinsics kept")
                 camera = replace(camera, image_width=vw, image_height=vh)
     rate = fps or video_fps or _scenario_fps(scenario)
+    if rate is None and video is not None and video.is_dir():
+        rate = FOLDER_FPS
+        warnings.append(f"no frame rate given for the image folder: assumed {FOLDER_FPS:g} "
+                        "frames/s as vid2sim build does (pass --fps)")
     keyframes = read_keyframes(keyframes_path, fps=rate, frame_names=frame_names)
     if rate is not None:
         # Timestamps give times; frames for seeking follow from the rate.
