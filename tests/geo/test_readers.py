@@ -120,6 +120,20 @@ def test_gpx10_speed_course_hdop(tmp_path):
     assert fx.accuracy_m == pytest.approx(1.2 * UERE_M)
 
 
+def test_gpx11_extension_speed_and_course(tmp_path):
+    tpx = "http://www.garmin.com/xmlschemas/TrackPointExtension/v2"
+    extra = (f'<extensions><gpxtpx:TrackPointExtension xmlns:gpxtpx="{tpx}">'
+             "<gpxtpx:speed>8.25</gpxtpx:speed><gpxtpx:course>271.5</gpxtpx:course>"
+             "</gpxtpx:TrackPointExtension></extensions>")
+    osmand = "<extensions><speed>3.5</speed><bearing>10</bearing></extensions>"
+    pts = gpx_point(60.17, 24.94, T0, extra=extra) + gpx_point(60.17, 24.941, T0 + 1, extra=osmand)
+    f = tmp_path / "ext.gpx"
+    f.write_text(gpx_text("1.1", pts))
+    a, b = read_gps(f).fixes
+    assert (a.speed_mps, a.course_deg) == (pytest.approx(8.25), pytest.approx(271.5))
+    assert (b.speed_mps, b.course_deg) == (pytest.approx(3.5), pytest.approx(10.0))
+
+
 def test_gpx_route_with_times(tmp_path):
     pts = "".join(gpx_point(60.17, 24.94 + i * 1e-4, T0 + 2 * i) for i in range(4))
     f = tmp_path / "route.xml"  # extension says nothing; content does

@@ -165,8 +165,9 @@ def _opt(value: float | None, lo: float = -math.inf, hi: float = math.inf) -> fl
 def read_gpx(path: Path) -> GpsTrace:
     """GPX 1.0/1.1 tracks and routes (points need ``<time>``), parsed by gpxpy.
 
-    ``<speed>``/``<course>`` (GPX 1.0) become speed [m/s] and course [deg]; ``<hdop>`` becomes
-    an accuracy of HDOP x :data:`UERE_M`.
+    ``<speed>``/``<course>`` (GPX 1.0, or in GPX 1.1 ``<extensions>`` such as Garmin's
+    TrackPointExtension) become speed [m/s] and course [deg]; ``<hdop>`` becomes an accuracy
+    of HDOP x :data:`UERE_M`.
     """
     import gpxpy
     import gpxpy.gpx
@@ -185,10 +186,14 @@ def read_gpx(path: Path) -> GpsTrace:
             continue
         t = p.time if p.time.tzinfo is not None else p.time.replace(tzinfo=UTC)
         hdop = _opt(getattr(p, "horizontal_dilution", None), 0.0, 1e3)
+        ext = _gpx_extension_values(p)
+        speed = _opt(getattr(p, "speed", None), 0.0, 1e3)
+        course = _opt(getattr(p, "course", None), 0.0, 360.0)
         fixes.append(GpsFix(
             t_utc_s=t.timestamp(), lat_deg=float(p.latitude), lon_deg=float(p.longitude),
-            alt_m=_opt(p.elevation), speed_mps=_opt(getattr(p, "speed", None), 0.0, 1e3),
-            course_deg=_opt(getattr(p, "course", None), 0.0, 360.0),
+            alt_m=_opt(p.elevation),
+            speed_mps=speed if speed is not None else _opt(ext.get("speed"), 0.0, 1e3),
+            course_deg=course if course is not None else _opt(ext.get("course"), 0.0, 360.0),
             accuracy_m=None if hdop is None else hdop * UERE_M))
     warnings = []
     if not points:
@@ -200,6 +205,21 @@ def read_gpx(path: Path) -> GpsTrace:
     if n_no_time:
         warnings.append(f"skipped {n_no_time} GPX points without <time>")
     return _finish(fixes, "gpx", path, n_skipped=n_no_time, warnings=warnings)
+
+
+def _gpx_extension_values(point) -> dict[str, str]:
+    """Speed [m/s] and course [deg] from a point's ``<extensions>``, whatever the namespace:
+    Garmin TrackPointExtension v2 (``gpxtpx:speed``, ``gpxtpx:course``) and phone loggers such
+    as OsmAnd (``speed``, ``bearing``) put them there in GPX 1.1, which dropped the tags."""
+    found: dict[str, str] = {}
+    names = {"speed": "speed", "course": "course", "bearing": "course", "heading": "course"}
+    for root in getattr(point, "extensions", None) or []:
+        for el in root.iter():
+            local = str(el.tag).rsplit("}", 1)[-1].lower()
+            key = names.get(local)
+            if key and key not in found and el.text and el.text.strip():
+                found[key] = el.text.strip()
+    return found
 
 
 # --------------------------------------------------------------------------- NMEA
