@@ -235,6 +235,14 @@ def test_nmea_bad_checksum_void_and_garbage_are_counted_and_skipped(tmp_path):
     assert any("checksum" in w for w in tr.warnings)
 
 
+def test_nmea_lines_with_logger_prefixes(tmp_path):
+    f = tmp_path / "prefixed.log"
+    f.write_text("\n".join(f"2024-05-17 09:00:0{i} INFO " + rmc(f"0900{i:02d}", 60, 24, 1, 1, "170524")
+                           for i in range(3)))
+    tr = read_gps(f)
+    assert tr.format == "nmea" and len(tr.fixes) == 3
+
+
 def test_nmea_southern_western_hemispheres(tmp_path):
     f = tmp_path / "sw.nmea"
     f.write_text("\n".join(rmc(f"1200{i:02d}", -33.8688, -151.2093 + i * 1e-4, 1, 1, "010124")

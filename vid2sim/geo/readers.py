@@ -99,7 +99,7 @@ def _detect(text: str, path: Path) -> Callable[[Path], GpsTrace] | None:
     return None
 
 
-_NMEA_LINE = re.compile(r"^\$[A-Z]{2}(RMC|GGA|GSA|GSV|VTG|GLL|ZDA),", re.MULTILINE)
+_NMEA_LINE = re.compile(r"\$[A-Z]{2}(RMC|GGA|GSA|GSV|VTG|GLL|ZDA),")  # also after logger prefixes
 _OXTS_LINE = re.compile(r"^\s*-?\d+\.\d+(\s+-?\d+(\.\d+)?([eE][-+]?\d+)?){20,}\s*$")
 
 
