@@ -155,6 +155,12 @@ class ScenarioLane(PolyLaneFixedWidth):
         lat = -dx[i] * ty[i] + dy[i] * tx[i]
         return float(self._s[lo + i] + along[i]), float(lat)
 
+    def heading_at(self, longitudinal: float) -> float:
+        # the same piecewise-constant heading as highway-env's, found by bisection
+        i = int(np.clip(np.searchsorted(self._s, longitudinal, side="right") - 1,
+                        0, len(self._s) - 1))
+        return float(math.atan2(self._ty[i], self._tx[i]))
+
 
 def _resample_polyline(points_m: np.ndarray, step_m: float) -> np.ndarray:
     """Points along a polyline every ``step_m`` or less (ends kept; repeated points dropped)."""
@@ -276,6 +282,15 @@ class ReplayVehicle(Vehicle):
 
     def act(self, action=None) -> None:
         pass  # a log does not take actions
+
+    def on_state_update(self) -> None:
+        # A replayed vehicle usually stays on its lane: one projection instead of a search
+        # over every lane of the network (the dominant cost of a step with many actors).
+        if self.lane is not None:
+            s, lat = self.lane.local_coordinates(self.position)
+            if abs(lat) <= self.lane.width_at(s) / 2.0 and 0.0 <= s <= self.lane.length:
+                return
+        super().on_state_update()
 
     def step(self, dt: float) -> None:
         # The env places replayed vehicles before the road steps; collision impulses must not
@@ -403,6 +418,7 @@ class ReplayEnv(AbstractEnv):
     def _reset(self) -> None:
         self.t_s = self._ego_track.t0
         self._policy_steps = 0
+        self._info_key = None  # invalidate the per-step info cache
         self.road = HwRoad(network=self._network, np_random=self.np_random,
                            record_history=self.config["show_trajectories"])
         ego_rec = self.scenario.ego
@@ -484,6 +500,13 @@ class ReplayEnv(AbstractEnv):
         return best, best_gap
 
     def _info(self, obs, action=None) -> dict:
+        # step() asks for the reward and then the info of the same state: compute once
+        key = (self.steps, self._policy_steps)
+        if getattr(self, "_info_key", None) != key:
+            self._info_cache, self._info_key = self._compute_info(), key
+        return dict(self._info_cache)
+
+    def _compute_info(self) -> dict:
         ego = self.vehicle
         lead, gap_m = self.lead()
         info: dict[str, Any] = {
