@@ -10,6 +10,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from datasets.sample_gps import HELSINKI, Segment, main, sample_fixes, simulate, write_sample_gpx
 from vid2sim.errors import InputError
@@ -135,6 +137,30 @@ def test_gaps_are_reported():
     _, stats = run(fixes)
     assert len(stats.gaps) == 1
     assert stats.gaps[0] == pytest.approx((39.0, 16.0))
+
+
+@settings(max_examples=15, deadline=None)
+@given(segs=st.lists(st.tuples(st.floats(2.0, 20.0), st.floats(-2.0, 2.0), st.floats(-0.2, 0.2)),
+                     min_size=1, max_size=5),
+       v0=st.floats(0.0, 20.0), noise=st.floats(0.1, 5.0), rate=st.sampled_from([1.0, 5.0]),
+       seed=st.integers(0, 2**16))
+def test_output_invariants_property(segs, v0, noise, rate, seed):
+    truth = simulate([Segment(*s) for s in segs], v0_mps=v0, dt=0.05)
+    fixes = sample_fixes(truth, rate_hz=rate, noise_m=noise, seed=seed)
+    if len(fixes) < 2:
+        return
+    ego, stats = run(fixes, rate_hz=10.0)
+    n = len(ego.t_s)
+    assert n == stats.n_samples and n >= 1
+    for a in (ego.x_m, ego.y_m, ego.heading_rad, ego.speed_mps, ego.lat_deg, ego.lon_deg):
+        assert len(a) == n and np.all(np.isfinite(a))
+    assert np.all(ego.speed_mps >= 0.0)
+    assert np.all(np.abs(ego.heading_rad) <= math.pi + 1e-12)
+    assert np.allclose(np.diff(ego.t_s), 0.1)
+    assert 0 <= stats.n_rejected < len(fixes)
+    for a, b in stats.stationary:
+        inside = (ego.t_s >= a) & (ego.t_s <= b)
+        assert np.all(ego.speed_mps[inside] == 0.0)
 
 
 # --------------------------------------------------------------------------- time alignment
