@@ -27,6 +27,7 @@ from vid2sim.detect.external import (
     score_against_kitti,
 )
 from vid2sim.detect.pipeline import run_detect
+from vid2sim.detect.video import video_info
 
 MODELS = ("yolox-nano", "picodet-s")
 SMALL_PX = 40.0  # "small" targets for the tiling comparison: box height 25-40 px
@@ -63,22 +64,17 @@ def accuracy(tracking_dir: Path, model_dir: Path, score: float, threads: int) ->
                   f"{small.recall:6.3f} ({small.n_found}/{small.n_targets})")
 
 
-def speed(video: Path, model_dir: Path, threads: int, every: int) -> None:
+def speed(video: Path, model_dir: Path, threads: int, every: int, models: tuple[str, ...]
+          ) -> None:
     print(f"speed on {video}: decode + detect + track (run_detect), detect every {every}")
-    for name in MODELS:
+    for name in models:
         for tiles in (False, True):
             det = load_detector(name, model_dir, score_threshold=0.1, small_object_mode=tiles,
                                 threads=threads)
             start = time.perf_counter()
-            frames = [0]
-
-            def count(_frame, frames=frames):
-                frames[0] += 1
-
-            boxes = run_detect(video, detector=det, detect_every=every, progress=False,
-                               on_frame=count)
+            boxes = run_detect(video, detector=det, detect_every=every, progress=False)
             elapsed = time.perf_counter() - start
-            n = 108
+            n = video_info(video).n_frames
             print(f"{name:12s} tiles={tiles!s:5s} {n / elapsed:6.1f} frames/s "
                   f"({elapsed:.1f} s, {len({b.track_id for b in boxes})} tracks)")
 
@@ -91,12 +87,15 @@ def main() -> None:
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--every", type=int, default=1)
     parser.add_argument("--no-speed", action="store_true")
+    parser.add_argument("--no-accuracy", action="store_true")
+    parser.add_argument("--models", nargs="+", default=list(MODELS))
     args = parser.parse_args()
     model_dir = args.shared / "models"
-    accuracy(args.shared / "data" / "kitti_tracking", model_dir, args.score, args.threads)
+    if not args.no_accuracy:
+        accuracy(args.shared / "data" / "kitti_tracking", model_dir, args.score, args.threads)
     if not args.no_speed:
         speed(args.shared / "data" / "kitti_raw_0001" / "video.mp4", model_dir, args.threads,
-              args.every)
+              args.every, tuple(args.models))
 
 
 if __name__ == "__main__":

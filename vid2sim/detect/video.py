@@ -77,9 +77,10 @@ def iter_frames(path: Path, every: int = 1, fps: float | None = None) -> Iterato
     """Stream the frames of a video file or image folder, decoding only every N-th one.
 
     Every frame of the source is yielded in order, so the caller sees the full time base;
-    frames whose index is not a multiple of ``every`` carry ``image_bgr=None`` and are never
-    decoded (``VideoCapture.grab`` without ``retrieve``; images not read), which is what makes
-    ``--detect-every N`` cheap. Only one frame is held in memory at a time.
+    frames whose index is not a multiple of ``every`` carry ``image_bgr=None``: for a video
+    they are grabbed without ``retrieve`` (the codec still decodes them, since later frames
+    depend on them, but no BGR conversion or copy is made), for a folder the image is not
+    read. Only one frame is held in memory at a time.
 
     Timestamps ``t_s`` come from the container (``CAP_PROP_POS_MSEC``) relative to the first
     frame, so variable-rate videos keep their true clock; where the container gives no usable
