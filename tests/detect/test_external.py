@@ -139,3 +139,18 @@ def test_read_kitti_labels(kitti_tracking_dir):
     assert car2.type == "Car" and car2.occluded == 0
     assert car2.box_px == pytest.approx((780.042083, 178.652771, 1016.857010, 335.097849))
     assert sum(lab.type == "DontCare" for lab in frame10) == 7
+
+
+def test_own_detections_csv_reads_back(tmp_path):
+    from vid2sim.detect.pipeline import write_detections_csv
+    from vid2sim.records import TrackedBox
+
+    rows = [TrackedBox(0, 0.0, 1, "car", 0.9, 1.0, 2.0, 30.0, 40.0),
+            TrackedBox(0, 0.0, 2, "bus", 0.5, 50.0, 2.0, 90.0, 40.0),
+            TrackedBox(4, 0.4, 1, "car", 0.8, 5.0, 2.0, 35.0, 40.0)]
+    path = tmp_path / "detections.csv"
+    write_detections_csv(rows, path)
+    got = read_detections(path)
+    assert got == {0: [Detection((1.0, 2.0, 30.0, 40.0), 0.9, "car"),
+                       Detection((50.0, 2.0, 90.0, 40.0), 0.5, "bus")],
+                   4: [Detection((5.0, 2.0, 35.0, 40.0), 0.8, "car")]}

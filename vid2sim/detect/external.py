@@ -1,4 +1,5 @@
-"""Boxes made by other tools or people: MOT-challenge CSV, Scalabel/BDD100K JSON, KITTI labels.
+"""Boxes made by other tools or people: MOT-challenge CSV, Scalabel/BDD100K JSON, KITTI labels,
+and this project's own detections.csv.
 
 Frame convention: every reader returns 0-based frame indices, the project's convention
 (frame 0 is the video's first frame). MOT-challenge files count from 1, so MOT frame f is
@@ -40,7 +41,9 @@ def read_detections(path: Path) -> dict[int, list[Detection]]:
     Parameters
     ----------
     path : Path
-        ``.json`` is read as Scalabel; anything else as MOT-challenge CSV.
+        ``.json`` is read as Scalabel; a CSV whose header is this project's
+        ``frame,t_s,track_id,category,score,x1,y1,x2,y2`` as ``detections.csv``; anything
+        else as MOT-challenge CSV.
 
     Returns
     -------
@@ -57,7 +60,31 @@ def read_detections(path: Path) -> dict[int, list[Detection]]:
         raise InputError(path, "no such detections file")
     if path.suffix.lower() == ".json":
         return read_scalabel(path)
+    with open(path, encoding="utf-8-sig") as fh:
+        header = fh.readline().strip().replace(" ", "")
+    if header.startswith("frame,t_s,track_id,category,score,x1,y1,x2,y2"):
+        return read_vid2sim_csv(path)
     return read_mot(path)
+
+
+def read_vid2sim_csv(path: Path) -> dict[int, list[Detection]]:
+    """Read this project's own ``detections.csv`` (``vid2sim detect`` output; 0-based frames,
+    corner boxes [px]) back as per-frame detections, e.g. to re-track or re-range them."""
+    out: dict[int, list[Detection]] = {}
+    with open(path, newline="", encoding="utf-8-sig") as fh:
+        for n, row in enumerate(csv.DictReader(fh), start=2):
+            try:
+                frame = int(row["frame"])
+                box = tuple(float(row[k]) for k in ("x1", "y1", "x2", "y2"))
+                score = float(row["score"])
+            except (KeyError, TypeError, ValueError) as exc:
+                raise InputError(path, f"line {n}: {exc}", "columns: frame,t_s,track_id,"
+                                 "category,score,x1,y1,x2,y2") from None
+            category = _category(row.get("category") or "")
+            if category is None:
+                continue
+            out.setdefault(frame, []).append(Detection(box_px=box, score=score, category=category))
+    return out
 
 
 def read_mot(path: Path) -> dict[int, list[Detection]]:
