@@ -38,7 +38,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from datasets.render import RoadGeometry, SceneRenderer, VehicleState, VehicleView
+from datasets.render import Building, RoadGeometry, SceneRenderer, VehicleState, VehicleView
 from vid2sim.camera import Camera
 from vid2sim.errors import InputError
 from vid2sim.fileio import write_text_atomic
@@ -80,6 +80,7 @@ SIM_DT_S = 0.01
 # Visibility rules shared by annotations and detections.
 MIN_BOX_PX = 10.0
 MAX_OCCLUDED = 0.8
+MIN_IN_IMAGE = 0.5
 
 GARMIN_TPX_NS = "http://www.garmin.com/xmlschemas/TrackPointExtension/v2"
 
@@ -115,7 +116,7 @@ ACTORS = (
               4.7, 1.85, 1.5, (60, 110, 50)),
 )
 # Parked cars: arc length along the route [m] (the ego passes them at about 9 s and 21 s).
-PARKED_S_M = {"parked1": 150.0, "parked2": 156.5, "parked3": 240.0}
+PARKED_S_M = {"parked1": 140.0, "parked2": 172.0, "parked3": 240.0}
 PARKING_STRIP_M = 2.5
 PARKED_OFFSET_M = -LANE_WIDTH_M - PARKING_STRIP_M / 2.0
 
@@ -230,6 +231,30 @@ def _smooth_centerline(raw_xy: np.ndarray, width_m: float, lane_width_m: float) 
     normal = np.column_stack((-tangent[:, 1], tangent[:, 0]))  # +90 deg: to the left
     return RoadGeometry(s_m=s, xy_m=xy, left_normal=normal, width_m=width_m,
                         lane_width_m=lane_width_m, parking_m=PARKING_STRIP_M)
+
+
+# Facade colours of Helsinki's stone blocks (BGR): ochre, cream, pale grey, salmon, sand.
+_FACADE_BGR = ((90, 170, 205), (185, 215, 230), (180, 182, 178), (140, 160, 215),
+               (150, 190, 200))
+
+
+def demo_buildings(route_length_m: float) -> list[Building]:
+    """Blocks of flats along both sides of the street (a fixed layout, not seeded: the scene
+    is part of the drive). Facades start beyond the pavements; on the right, beyond the
+    parking strip too."""
+    rng = np.random.default_rng(20250612)
+    out = []
+    half = N_LANES * LANE_WIDTH_M / 2.0
+    for side, setback in ((1.0, half + 3.0 + 1.5), (-1.0, half + PARKING_STRIP_M + 3.0 + 1.5)):
+        s = -20.0
+        while s < route_length_m:
+            length = float(rng.uniform(18.0, 45.0))
+            out.append(Building(s0_m=s, s1_m=min(s + length, route_length_m), side=side,
+                                setback_m=setback + float(rng.uniform(0.0, 2.0)),
+                                depth_m=12.0, height_m=float(rng.uniform(11.0, 21.0)),
+                                color_bgr=_FACADE_BGR[int(rng.integers(len(_FACADE_BGR)))]))
+            s += length + float(rng.uniform(3.0, 12.0))
+    return out
 
 
 # --------------------------------------------------------------------------- traffic
@@ -494,11 +519,16 @@ def _write_gpx(path: Path, frame: EnuFrame, tracks: dict[str, EnuTrack], t_sim: 
 
 
 def _visible(view: VehicleView, width: int, height: int) -> bool:
-    if view.box_px is None:
+    """The annotation rule: at least ``MIN_BOX_PX`` both ways, at most ``MAX_OCCLUDED`` hidden
+    by nearer vehicles, at most half cut off by the image border, and wholly in front of
+    the camera (a car alongside has no box a replay can project, and no detector sees it
+    whole)."""
+    if view.box_px is None or not view.in_front:
         return False
     x1, y1, x2, y2 = view.box_px
     return (x2 - x1 >= MIN_BOX_PX and y2 - y1 >= MIN_BOX_PX
-            and view.visible_fraction >= 1.0 - MAX_OCCLUDED)
+            and view.visible_fraction >= 1.0 - MAX_OCCLUDED
+            and view.in_image_fraction >= MIN_IN_IMAGE)
 
 
 def _noisy_detections(frame_no: int, views: list[VehicleView], rng: np.random.Generator,
@@ -604,7 +634,7 @@ def generate_demo_sample(out_dir: Path, *, seed: int = 7, duration_s: float = 24
     tracks = traffic_to_enu(traffic, route.road)
     t_sim = traffic.t_s
     cam = demo_camera(width, height)
-    renderer = SceneRenderer(cam, route.road)
+    renderer = SceneRenderer(cam, route.road, demo_buildings(route.length_m))
     seeds = np.random.SeedSequence(seed).spawn(3)
     rng_gps, rng_det, rng_px = (np.random.default_rng(s) for s in seeds)
     grain = _GrainNoise(rng_px, (height, width, 3))
@@ -777,7 +807,9 @@ def _manifest(sample: DemoSample, route: RouteInfo) -> dict:
                           "rule": f"true projected 3D boxes clipped to the image, every "
                                   f"{KEYFRAME_PERIOD_S:g} s from {KEYFRAME_OFFSET_S:g} s; "
                                   f"vehicles under {MIN_BOX_PX:g} px or more than "
-                                  f"{MAX_OCCLUDED:.0%} occluded dropped"},
+                                  f"{MAX_OCCLUDED:.0%} occluded, more than "
+                                  f"{1 - MIN_IN_IMAGE:.0%} outside the image or partly "
+                                  "behind the camera dropped"},
             "detections": {"path": sample.detections.name,
                            "format": "MOT-challenge CSV frame,id,x,y,w,h,score,-1,-1,-1; "
                                      "1-based frames, id -1 (untracked)",

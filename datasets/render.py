@@ -114,6 +114,8 @@ class VehicleView:
     :param range_m: longitudinal distance from the camera's ground point to its nearest
         footprint point along the ego x axis [m]
     :param lateral_m: ego-frame y of its centre [m], positive left
+    :param in_front: all corners of its 3D box are in front of the camera (only then does
+        :meth:`Camera.project_box` give a box)
     """
 
     id: str
@@ -122,6 +124,28 @@ class VehicleView:
     in_image_fraction: float
     range_m: float
     lateral_m: float
+    in_front: bool = True
+
+
+@dataclass(frozen=True, slots=True)
+class Building:
+    """A block of flats beside the road, for context (a detector judges a car partly by its
+    surroundings, and facades give the scene texture and motion parallax).
+
+    :param s0_m, s1_m: extent along the road [m]
+    :param side: +1 left of the road, -1 right
+    :param setback_m: distance of the facade from the road's centre line [m]
+    :param depth_m, height_m: size [m]
+    :param color_bgr: facade colour
+    """
+
+    s0_m: float
+    s1_m: float
+    side: float
+    setback_m: float
+    depth_m: float
+    height_m: float
+    color_bgr: tuple[int, int, int]
 
 
 # --------------------------------------------------------------------------- vehicle models
@@ -155,6 +179,10 @@ _GLASS_SIDE_BGR = (80, 68, 60)
 _TAIL_LIGHT_BGR = (35, 35, 225)
 _HEAD_LIGHT_BGR = (205, 235, 245)
 _PLATE_BGR = (225, 228, 230)
+# Car shape: beltline height as a share of the roof height; cabin setbacks [m] from the rear
+# and front of the body at the beltline and at the roof, and the roof's inset from the sides.
+_BELT_FRAC = 0.66
+_CABIN = (0.35, 1.35, 0.95, 2.0, 0.22)
 _BUMPER_BGR = (45, 45, 48)
 
 
@@ -221,7 +249,7 @@ def vehicle_model(length_m: float, width_m: float, height_m: float,
         light_z = (0.28 * H, 0.42 * H)
         plate_z = (0.22 * H, 0.28 * H)
     else:
-        body_top = 0.66 * H
+        body_top = _BELT_FRAC * H
         add_box(-hx, hx, -hy, hy, clearance, body_top, color_bgr)
         light_z = (body_top - 0.22, body_top - 0.06)
         plate_z = (clearance + 0.12, clearance + 0.26)
@@ -237,14 +265,23 @@ def vehicle_model(length_m: float, width_m: float, height_m: float,
         # Cabin (greenhouse): a frustum on the body, its rear window and windscreen raked and
         # its sides drawn in (tumblehome), glass all round, roof in body colour. A box here
         # reads as a pickup's cab; the rake is what makes the outline a saloon's.
-        bottom = (-hx + 0.35, hx - 1.35, hy - 0.08, body_top)
-        top = (-hx + 0.95, hx - 2.0, hy - 0.22, H)
+        bottom = (-hx + _CABIN[0], hx - _CABIN[1], hy - 0.08, body_top)
+        top = (-hx + _CABIN[2], hx - _CABIN[3], hy - _CABIN[4], H)
+        glass = {"rear": _GLASS_BGR, "front": _GLASS_BGR, "right": _GLASS_SIDE_BGR,
+                 "left": _GLASS_SIDE_BGR}
+        inside = np.array([0.0, 0.0, (body_top + H) / 2])
         for name, corners in _frustum_faces(bottom, top):
+            n = _outward_normal(corners, inside)
             quads.append(corners)
-            normals.append(_outward_normal(corners, np.array([0.0, 0.0, (body_top + H) / 2])))
-            glass = {"rear": _GLASS_BGR, "front": _GLASS_BGR, "right": _GLASS_SIDE_BGR,
-                     "left": _GLASS_SIDE_BGR}
-            colors.append(glass[name] if name in glass else _shade(color_bgr, _SHADE[name]))
+            normals.append(n)
+            colors.append(_shade(color_bgr, _SHADE[name]))
+            if name in glass:
+                # The window inset in its frame: body-coloured pillars and roof edge around
+                # dark glass are much of what makes a rear view read as a car.
+                quads.append(_inset(corners, 0.14 if name in ("rear", "front") else 0.08,
+                                    0.12) + 0.01 * n)
+                normals.append(n)
+                colors.append(glass[name])
     return (np.asarray(quads, float), np.asarray(normals, float),
             np.asarray(colors, float))
 
@@ -265,6 +302,27 @@ def _frustum_faces(bottom: tuple[float, float, float, float],
         ("left", np.array([b[1], b[2], t[2], t[1]])),
         ("top", np.array([t[0], t[1], t[2], t[3]])),
     ]
+
+
+def _inset(quad: np.ndarray, side_frac: float, top_frac: float) -> np.ndarray:
+    """A face quad (two corners at its bottom, two at its top) shrunk towards its centre:
+    ``side_frac`` of its width from each side, ``top_frac`` of its height from the top and
+    a thin sill at the bottom; the winding is kept."""
+    zs = quad[:, 2]
+    ib = np.argsort(zs, kind="stable")[:2]
+    it = np.array([k for k in range(4) if k not in ib])
+    # Pair each bottom corner with the top corner on its side (the nearer one).
+    if (np.linalg.norm(quad[ib[0]] - quad[it[0]])
+            > np.linalg.norm(quad[ib[0]] - quad[it[1]])):
+        it = it[::-1]
+    out = quad.copy()
+    for k in range(2):
+        o = 1 - k
+        b = quad[ib[k]] + side_frac * (quad[ib[o]] - quad[ib[k]])
+        t = quad[it[k]] + side_frac * (quad[it[o]] - quad[it[k]])
+        out[ib[k]] = b + 0.06 * (t - b)
+        out[it[k]] = t + top_frac * (b - t)
+    return out
 
 
 def _outward_normal(quad: np.ndarray, inside: np.ndarray) -> np.ndarray:
@@ -310,11 +368,15 @@ class SceneRenderer:
         (edges are straight between projected vertices), so use an undistorted camera.
     road : RoadGeometry
         The road to draw (centerline, widths, marking pattern).
+    buildings : list of Building, optional
+        Facades along the road, drawn between the road and the vehicles.
     """
 
-    def __init__(self, camera: Camera, road: RoadGeometry):
+    def __init__(self, camera: Camera, road: RoadGeometry,
+                 buildings: list[Building] | tuple[Building, ...] = ()):
         self.camera = camera
         self.road = road
+        self._buildings = [self._building_quads(b) for b in buildings]
         self._w, self._h = camera.image_width, camera.image_height
         self._rot_veh_from_cam = camera.R_veh_from_cam
         self._cam_pos_veh = camera.position_veh_m
@@ -417,13 +479,99 @@ class SceneRenderer:
                 dashes.append(self._strip(ds, d - 0.06, d + 0.06, ego_xy, ego_heading))
         self._fill(img, dashes, MARKING_BGR)
 
+    # ------------------------------------------------------------------ buildings
+
+    def _building_quads(self, b: Building) -> tuple[float, np.ndarray, np.ndarray, list]:
+        """ENU quads of a building (facade, ends, windows) with normals and colours; the
+        facade is straight between the road points at its two ends."""
+        near = self.road.points_at(np.array([b.s0_m, b.s1_m]), b.side * b.setback_m)
+        far = self.road.points_at(np.array([b.s0_m, b.s1_m]),
+                                  b.side * (b.setback_m + b.depth_m))
+        h = b.height_m
+
+        def quad(p0, p1, z0, z1):
+            return np.array([[p0[0], p0[1], z0], [p1[0], p1[1], z0],
+                             [p1[0], p1[1], z1], [p0[0], p0[1], z1]])
+
+        centre = np.array([*(near.mean(axis=0) + far.mean(axis=0)) / 2.0, h / 2.0])
+        quads, colors = [], []
+        quads.append(quad(near[0], near[1], 0.0, h))
+        colors.append(_shade(b.color_bgr, 0.9))
+        quads.append(quad(near[0], far[0], 0.0, h))
+        colors.append(_shade(b.color_bgr, 0.7))
+        quads.append(quad(near[1], far[1], 0.0, h))
+        colors.append(_shade(b.color_bgr, 0.7))
+        # Windows: 1.4 m x 1.5 m every 3.2 m along the facade, one row per 3.3 m storey
+        # above a ground floor of shop windows.
+        facade = near[1] - near[0]
+        length = float(np.hypot(*facade))
+        unit = facade / max(length, 1e-9)
+        normal_out = _outward_normal(quads[0], centre)
+        inset = 0.02 * normal_out[:2]
+        n_win = int((length - 1.0) // 3.2)
+        for storey in range(int((h - 1.0) // 3.3)):
+            z0 = 1.0 + storey * 3.3 + (0.0 if storey == 0 else 0.6)
+            z1 = z0 + (2.2 if storey == 0 else 1.5)
+            for k in range(n_win):
+                a = near[0] + unit * (1.0 + k * 3.2) + inset
+                quads.append(quad(a, a + unit * (2.4 if storey == 0 else 1.4), z0, z1))
+                colors.append(_GLASS_BGR if (k + storey) % 3 else _GLASS_SIDE_BGR)
+        quads_arr = np.asarray(quads, float)
+        normals = np.array([_outward_normal(q, centre) for q in quads_arr[:3]]
+                           + [normal_out] * (len(quads_arr) - 3))
+        s_mid = (b.s0_m + b.s1_m) / 2.0
+        return s_mid, quads_arr, normals, [tuple(int(c) for c in col) for col in colors]
+
+    def _draw_buildings(self, img: np.ndarray, ego_s_m: float, ego_xy, ego_heading) -> None:
+        visible = [bq for bq in self._buildings
+                   if -60.0 < bq[0] - ego_s_m < DRAW_RANGE_M + 40.0]
+        for _, quads, normals, colors in sorted(visible, key=lambda bq: -abs(bq[0] - ego_s_m)):
+            self._draw_quads(img, quads, normals, colors, ego_xy, ego_heading, n_walls=3)
+
+    def _draw_quads(self, img, quads_enu, normals_enu, colors, ego_xy, ego_heading,
+                    n_walls: int | None = None) -> None:
+        """Fill ENU quads in order with back-face culling and near clipping.
+
+        ``colors`` is a list of BGR int tuples. Quads from index ``n_walls`` on (windows) must
+        not overlap one another: they are filled in one ``fillPoly`` call per colour, which is
+        what keeps a street of facades fast.
+        """
+        quads_cam = self._enu_to_cam(quads_enu, ego_xy, ego_heading)
+        ce, se = math.cos(ego_heading), math.sin(ego_heading)
+        n_veh = np.stack((ce * normals_enu[:, 0] + se * normals_enu[:, 1],
+                          -se * normals_enu[:, 0] + ce * normals_enu[:, 1], normals_enu[:, 2]),
+                         axis=-1)
+        n_cam = n_veh @ self._rot_veh_from_cam
+        # Back-face culling: a face is seen when the camera lies on its outer side, i.e. the
+        # outward normal points against the ray from the camera to the face.
+        facing = np.einsum("ij,ij->i", n_cam, quads_cam[:, 0, :]) < 0.0
+        z_ok = quads_cam[..., 2] >= NEAR_M
+        in_front = z_ok.all(axis=1)
+        facing &= z_ok.any(axis=1)  # wholly behind the near plane: nothing to draw
+        uv = np.zeros(quads_cam.shape[:2] + (2,), np.int32)
+        if in_front.any():
+            uv[in_front] = np.round(self._project(quads_cam[in_front]) * _SCALE
+                                    ).astype(np.int32)
+        n_walls = len(quads_cam) if n_walls is None else n_walls
+        batches: dict[tuple[int, int, int], list[np.ndarray]] = {}
+        for i in np.flatnonzero(facing):
+            if i >= n_walls and in_front[i]:
+                batches.setdefault(colors[i], []).append(uv[i])
+            elif in_front[i]:
+                cv2.fillConvexPoly(img, uv[i], colors[i], cv2.LINE_AA, _SHIFT)
+            else:
+                self._fill(img, [quads_cam[i]], colors[i], convex=True)
+        for color, pts in batches.items():
+            cv2.fillPoly(img, pts, color, cv2.LINE_AA, shift=_SHIFT)
+
     # ------------------------------------------------------------------ vehicles
 
     def _model(self, v: VehicleState):
         key = (v.length_m, v.width_m, v.height_m, tuple(v.color_bgr), v.style)
         if key not in self._models:
-            self._models[key] = vehicle_model(v.length_m, v.width_m, v.height_m, v.color_bgr,
-                                              v.style)
+            quads, normals, colors = vehicle_model(v.length_m, v.width_m, v.height_m,
+                                                   v.color_bgr, v.style)
+            self._models[key] = (quads, normals, [tuple(int(c) for c in col) for col in colors])
         return self._models[key]
 
     def _body_to_enu(self, v: VehicleState, pts_body: np.ndarray) -> np.ndarray:
@@ -432,16 +580,21 @@ class SceneRenderer:
         y = v.y_m + s * pts_body[..., 0] + c * pts_body[..., 1]
         return np.stack((x, y, pts_body[..., 2]), axis=-1)
 
-    def _silhouette_px(self, v: VehicleState, ego_xy, ego_heading) -> np.ndarray | None:
-        """Projected vertices of the vehicle's full 3D box after near clipping, or None."""
+    def _silhouette_px(self, v: VehicleState, ego_xy, ego_heading
+                       ) -> tuple[np.ndarray | None, bool]:
+        """Projected vertices of the vehicle's full 3D box after near clipping (None if
+        nothing is in front), and whether the whole box is in front of the camera."""
         hx, hy = v.length_m / 2.0, v.width_m / 2.0
         faces = _box_faces(-hx, hx, -hy, hy, 0.0, v.height_m)
         pts = []
+        whole = True
         for _, corners, _ in faces:
-            cam = _clip_near(self._enu_to_cam(self._body_to_enu(v, corners), ego_xy, ego_heading))
+            cam = self._enu_to_cam(self._body_to_enu(v, corners), ego_xy, ego_heading)
+            whole = whole and bool((cam[:, 2] >= NEAR_M).all())
+            cam = _clip_near(cam)
             if len(cam):
                 pts.append(self._project(cam))
-        return np.vstack(pts) if pts else None
+        return (np.vstack(pts) if pts else None), whole
 
     def _draw_shadow(self, img: np.ndarray, v: VehicleState, ego_xy, ego_heading) -> None:
         hx, hy = v.length_m / 2.0, v.width_m / 2.0
@@ -453,26 +606,10 @@ class SceneRenderer:
 
     def _draw_vehicle(self, img: np.ndarray, v: VehicleState, ego_xy, ego_heading) -> None:
         quads, normals, colors = self._model(v)
-        quads_cam = self._enu_to_cam(self._body_to_enu(v, quads), ego_xy, ego_heading)
         c, s = math.cos(v.heading_rad), math.sin(v.heading_rad)
         n_enu = np.stack((c * normals[:, 0] - s * normals[:, 1],
                           s * normals[:, 0] + c * normals[:, 1], normals[:, 2]), axis=-1)
-        ce, se = math.cos(ego_heading), math.sin(ego_heading)
-        n_veh = np.stack((ce * n_enu[:, 0] + se * n_enu[:, 1],
-                          -se * n_enu[:, 0] + ce * n_enu[:, 1], n_enu[:, 2]), axis=-1)
-        n_cam = n_veh @ self._rot_veh_from_cam
-        # Back-face culling: a face is seen when the camera lies on its outer side, i.e. the
-        # outward normal points against the ray from the camera to the face.
-        facing = np.einsum("ij,ij->i", n_cam, quads_cam[:, 0, :]) < 0.0
-        all_front = bool((quads_cam[..., 2] >= NEAR_M).all())
-        if all_front:
-            uv = np.round(self._project(quads_cam) * _SCALE).astype(np.int32)
-        for i in np.flatnonzero(facing):
-            color = tuple(int(x) for x in colors[i])
-            if all_front:
-                cv2.fillConvexPoly(img, uv[i], color, cv2.LINE_AA, _SHIFT)
-            else:
-                self._fill(img, [quads_cam[i]], color, convex=True)
+        self._draw_quads(img, self._body_to_enu(v, quads), n_enu, colors, ego_xy, ego_heading)
 
     # ------------------------------------------------------------------ frame
 
@@ -500,6 +637,7 @@ class SceneRenderer:
         img = self._background.copy()
         if draw_road:
             self._draw_road(img, ego_s_m, ego_xy, ego_heading_rad)
+            self._draw_buildings(img, ego_s_m, ego_xy, ego_heading_rad)
         # Painter's order: far to near by distance from the camera's ground point.
         ce, se = math.cos(ego_heading_rad), math.sin(ego_heading_rad)
         info = []
@@ -518,15 +656,16 @@ class SceneRenderer:
             for i in order:
                 self._draw_shadow(img, vehicles[i], ego_xy, ego_heading_rad)
         silhouettes: dict[int, np.ndarray] = {}
+        whole: dict[int, bool] = {}
         for i in order:
             self._draw_vehicle(img, vehicles[i], ego_xy, ego_heading_rad)
-            sil = self._silhouette_px(vehicles[i], ego_xy, ego_heading_rad)
+            sil, whole[i] = self._silhouette_px(vehicles[i], ego_xy, ego_heading_rad)
             if sil is not None:
                 silhouettes[i] = sil
-        views = self._views(vehicles, info, order, silhouettes)
+        views = self._views(vehicles, info, order, silhouettes, whole)
         return img, views
 
-    def _views(self, vehicles, info, order, silhouettes) -> list[VehicleView]:
+    def _views(self, vehicles, info, order, silhouettes, whole) -> list[VehicleView]:
         """Pixel boxes and visibility from an id buffer of silhouettes at half resolution
         (occlusion shares need only a couple of per cent accuracy)."""
         w, h = self._w, self._h
@@ -566,7 +705,8 @@ class SceneRenderer:
             views.append(VehicleView(id=v.id, box_px=box,
                                      visible_fraction=min(1.0, visible),
                                      in_image_fraction=min(1.0, in_image),
-                                     range_m=info[i][3], lateral_m=info[i][2]))
+                                     range_m=info[i][3], lateral_m=info[i][2],
+                                     in_front=whole.get(i, False)))
         return views
 
 
