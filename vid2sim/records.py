@@ -270,12 +270,15 @@ class ProjectedBox:
 
     :param box_px: (x1, y1, x2, y2) in pixels, clipped to the image
     :param range_m: longitudinal distance from the camera to the box's nearest point [m]
+    :param hard: a box an annotator may legitimately skip (tiny, mostly outside the image,
+        partly behind the camera or largely hidden): a match counts, no match is no FP
     """
 
     actor_id: str
     box_px: tuple[float, float, float, float]
     category: str
     range_m: float
+    hard: bool = False
 
 
 # --------------------------------------------------------------------------- road

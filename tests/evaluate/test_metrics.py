@@ -13,9 +13,9 @@ from vid2sim.evaluate.metrics import iou_matrix, match_boxes, score_frame, score
 from vid2sim.records import AnnotatedBox, Keyframe, ProjectedBox
 
 
-def pb(box, aid="a", range_m=10.0):
+def pb(box, aid="a", range_m=10.0, hard=False):
     return ProjectedBox(actor_id=aid, box_px=tuple(map(float, box)), category="car",
-                        range_m=range_m)
+                        range_m=range_m, hard=hard)
 
 
 def ab(box, ignore=False, range_m=None, aid=None):
@@ -123,6 +123,16 @@ def test_ignore_regions_neither_reward_nor_penalise():
     # an ignore region is never a FN
     s2 = score_frame([], gt)
     assert (s2.tp, s2.fp, s2.fn) == (0, 0, 1)
+
+
+def test_hard_simulated_boxes_count_only_when_matched():
+    gt = [ab((0, 0, 100, 100))]
+    pred = [pb((0, 0, 100, 100), "matched_hard", hard=True), pb((300, 0, 305, 6), "tiny",
+                                                                 hard=True)]
+    s = score_frame(pred, gt)
+    assert (s.tp, s.fp, s.fn, s.ignored) == (1, 0, 0, 1)
+    s = score_frame([pb((300, 0, 305, 6), "tiny", hard=False)], gt)
+    assert (s.tp, s.fp, s.fn) == (0, 1, 1)
 
 
 def test_score_keyframes_contract_and_totals():

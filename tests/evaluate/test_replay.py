@@ -74,7 +74,9 @@ def visible_scenario(tmp_path) -> Path:
 
 
 def test_box_straight_ahead_is_centred_and_ranged():
-    box, range_m = project_box_clipped(CAMERA, np.array([20.0, 0.0]), 4.0, 1.8, 1.5, 0.0)
+    box, range_m, in_image, behind = project_box_clipped(CAMERA, np.array([20.0, 0.0]), 4.0,
+                                                         1.8, 1.5, 0.0)
+    assert in_image == 1.0 and not behind
     assert (box[0] + box[2]) / 2 == pytest.approx(CAMERA.cx, abs=1e-6)
     assert range_m == pytest.approx(18.0)
     # bottom edge: the near face's ground line at 18 m
@@ -82,11 +84,12 @@ def test_box_straight_ahead_is_centred_and_ranged():
 
 
 def test_vehicle_alongside_is_cut_at_the_near_plane():
-    # A car whose rear is 2 m behind the camera, one lane to the right.
+    # A car whose rear is 0.7 m behind the camera, one lane to the right.
     res = project_box_clipped(CAMERA, np.array([1.5, -3.0]), 4.4, 1.8, 1.5, 0.0)
     assert CAMERA.project_box(np.array([1.5, -3.0]), 4.4, 1.8, 1.5) is None  # uncut: lost
     assert res is not None
-    box, range_m = res
+    box, range_m, _, behind = res
+    assert behind
     assert box[2] == pytest.approx(CAMERA.image_width - 1)  # truncated at the right edge
     assert box[0] > CAMERA.cx
     assert range_m == pytest.approx(1.5 - 2.2)
@@ -111,6 +114,20 @@ def test_replay_follows_time_windows_occlusion_and_frame_rotation():
         for a, b in zip(boxes[t], rotated[t], strict=True):
             assert a.box_px == pytest.approx(b.box_px, abs=1e-6)
             assert a.range_m == pytest.approx(b.range_m, abs=1e-9)
+
+
+def test_hard_boxes_are_flagged():
+    # ahead (plain), alongside (behind the camera), 150 m away (7 px high), half out of view
+    actors = [("plain", 20.0, 0.0, 10.0, 0.0, 1.0), ("alongside", 2.0, -3.0, 10.0, 0.0, 1.0),
+              ("tiny", 150.0, 0.0, 10.0, 0.0, 1.0), ("edge", 6.0, 5.0, 10.0, 0.0, 1.0)]
+    sc = make_scenario(actors=actors, duration_s=1.0)
+    got = {b.actor_id: b.hard for b in replay_boxes(sc, [0.5], use_env=False)[0.5]}
+    assert got == {"plain": False, "alongside": True, "tiny": True, "edge": True}
+    # 70-90 % hidden behind a nearer car: kept, but hard
+    sc = make_scenario(actors=[("near", 15.0, 0.0, 10.0, 0.0, 1.0),
+                               ("behind", 22.0, -0.9, 10.0, 0.0, 1.0)], duration_s=1.0)
+    boxes = {b.actor_id: b for b in replay_boxes(sc, [0.0], use_env=False)[0.0]}
+    assert not boxes["near"].hard and boxes["behind"].hard
 
 
 def test_replay_matches_independent_projection():

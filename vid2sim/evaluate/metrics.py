@@ -7,7 +7,9 @@ Two counting rules are reported side by side (``metrics.json`` states which is w
   IoU >= 0.5, then their summed IoU; a pair is a TP, every unmatched simulated box a FP,
   every unmatched annotated box a FN. Simulated boxes lying mostly (>= 50 % of their area)
   inside an ignore region (KITTI DontCare, crowd, unmodelled vehicle classes) are not
-  counted at all, as in the KITTI benchmark.
+  counted at all, as in the KITTI benchmark, nor are unmatched "hard" simulated boxes (ones
+  an annotator may skip: tiny, mostly outside the image, partly behind the camera, largely
+  hidden; see :mod:`vid2sim.evaluate.replay`).
 - **reference_study** (the counting of the study this tool is compared with): Hungarian
   matching admitting pairs with IoU > 0.1; a pair with IoU >= 0.5 is a TP, a pair with
   0.1 < IoU < 0.5 a FP, an annotated box without a pair (IoU <= 0.1) a FN; simulated boxes
@@ -161,6 +163,7 @@ def score_frame(pred: Sequence[ProjectedBox], gt: Sequence[AnnotatedBox]) -> _Fr
     matched_pred = {i for i, _, _ in pairs}
     unmatched = [i for i in range(len(pred)) if i not in matched_pred]
     ignored = _ignored_predictions(pred_px, ignore, unmatched)
+    ignored |= {i for i in unmatched if pred[i].hard}
     tp = len(pairs)
     fp = len(unmatched) - len(ignored)
     fn = len(care) - tp
@@ -207,8 +210,9 @@ def range_error_summary(errors_m: list[float], pairs: list[tuple[float, float]]
 
 DEFINITIONS = {
     "tp_fp_fn": "standard: Hungarian one-to-one matching, a pair needs IoU >= 0.5; every "
-                "unmatched simulated box is a FP (unless >= 50% inside an ignore region), "
-                "every unmatched annotated vehicle a FN",
+                "unmatched simulated box is a FP (unless >= 50% inside an ignore region or "
+                "'hard': under 10 px high, under half in the image, partly behind the camera "
+                "or >= 70% hidden), every unmatched annotated vehicle a FN",
     "precision": "tp / (tp + fp)",
     "recall": "tp / (tp + fn)",
     "f1": "2 tp / (2 tp + fp + fn)",

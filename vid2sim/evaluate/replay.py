@@ -15,6 +15,14 @@ Occlusion rule: boxes are taken nearest first; a box whose image area is covered
 ``OCCLUDED_FRACTION`` by the union of the boxes of nearer vehicles is dropped (annotators do
 not label what they cannot see). Boxes, not silhouettes, are used, so the rule slightly
 over-estimates occlusion.
+
+"Hard" boxes: annotation guidelines differ on what is too small, too truncated or too hidden
+to label (KITTI labels cars alongside; other sets skip them). A projected box is marked
+``hard`` when it is under ``HARD_MIN_HEIGHT_PX`` high, less than ``HARD_MIN_IN_IMAGE`` of it
+lies inside the image, the vehicle reaches behind the camera, or at least
+``HARD_OCCLUDED_FRACTION`` of it is hidden. The metrics count a hard box that matches an
+annotation as a TP but do not count an unmatched one as a FP, as the KITTI benchmark does
+with objects outside its difficulty levels.
 """
 
 from __future__ import annotations
@@ -24,6 +32,7 @@ import logging
 import math
 from dataclasses import replace
 from pathlib import Path
+from typing import NamedTuple
 
 import cv2
 import numpy as np
@@ -42,6 +51,12 @@ log = logging.getLogger(__name__)
 
 OCCLUDED_FRACTION = 0.9
 """Share of a box's image area hidden behind nearer boxes at which it is dropped."""
+HARD_OCCLUDED_FRACTION = 0.7
+"""Share of a box's image area hidden behind nearer boxes from which it is "hard"."""
+HARD_MIN_HEIGHT_PX = 10.0
+"""Box height [px] below which a projected box is "hard"."""
+HARD_MIN_IN_IMAGE = 0.5
+"""Share of a projected box's area inside the image below which it is "hard"."""
 NEAR_PLANE_M = 0.1
 """Depth in front of the camera [m] at which 3D boxes are cut before projection."""
 RESCALE_RATIO = 0.05
@@ -68,10 +83,24 @@ _BOX_EDGES = ((0, 1), (0, 2), (1, 3), (2, 3), (4, 5), (4, 6), (5, 7), (6, 7),
               (0, 4), (1, 5), (2, 6), (3, 7))
 
 
+class BoxView(NamedTuple):
+    """How a 3D box appears in the image.
+
+    :param box_px: (x1, y1, x2, y2) clipped to the image [px]
+    :param range_m: smallest forward (x) coordinate of the box [m]
+    :param in_image_fraction: share of the unclipped image box inside the image
+    :param behind_camera: part of the box lies behind the near plane (cut there)
+    """
+
+    box_px: tuple[float, float, float, float]
+    range_m: float
+    in_image_fraction: float
+    behind_camera: bool
+
+
 def project_box_clipped(camera: Camera, center_veh_m: np.ndarray, length_m: float,
                         width_m: float, height_m: float, yaw_rad: float,
-                        near_m: float = NEAR_PLANE_M
-                        ) -> tuple[tuple[float, float, float, float], float] | None:
+                        near_m: float = NEAR_PLANE_M) -> BoxView | None:
     """Pixel box of a 3D vehicle box, cut at a near plane in front of the camera.
 
     Parameters
@@ -89,9 +118,8 @@ def project_box_clipped(camera: Camera, center_veh_m: np.ndarray, length_m: floa
 
     Returns
     -------
-    (box_px, range_m) or None
-        ``box_px`` (x1, y1, x2, y2) clipped to the image and ``range_m`` the smallest
-        forward (x) coordinate of the box [m]; None when nothing of the box is in view.
+    BoxView or None
+        None when nothing of the box is in view.
     """
     corners = camera.box_corners_veh(center_veh_m, length_m, width_m, height_m, yaw_rad)
     depth = camera.vehicle_to_camera(corners)[:, 2]
@@ -115,28 +143,33 @@ def project_box_clipped(camera: Camera, center_veh_m: np.ndarray, length_m: floa
     w, h = camera.image_width - 1, camera.image_height - 1
     if x2 <= 0 or y2 <= 0 or x1 >= w or y1 >= h:
         return None
+    full_area = max((x2 - x1) * (y2 - y1), 1e-9)
     x1, x2 = float(np.clip(x1, 0, w)), float(np.clip(x2, 0, w))
     y1, y2 = float(np.clip(y1, 0, h)), float(np.clip(y2, 0, h))
     if x2 - x1 < 1.0 or y2 - y1 < 1.0:
         return None
-    return (x1, y1, x2, y2), float(corners[:, 0].min())
+    return BoxView((x1, y1, x2, y2), float(corners[:, 0].min()),
+                   float((x2 - x1) * (y2 - y1) / full_area), bool(not front.all()))
 
 
 def _drop_occluded(boxes: list[ProjectedBox]) -> list[ProjectedBox]:
-    """Apply the occlusion rule (module docstring); input order is kept."""
+    """Apply the occlusion rule (module docstring): drop boxes hidden to
+    ``OCCLUDED_FRACTION``, mark those hidden to ``HARD_OCCLUDED_FRACTION`` hard; input
+    order is kept."""
     order = sorted(range(len(boxes)), key=lambda i: boxes[i].range_m)
     nearer = None
-    keep: set[int] = set()
+    keep: dict[int, ProjectedBox] = {}
     for i in order:
         poly = shapely_box(*boxes[i].box_px)
         hidden = 0.0
         if nearer is not None and poly.area > 0:
             hidden = poly.intersection(nearer).area / poly.area
         if hidden < OCCLUDED_FRACTION:
-            keep.add(i)
+            b = boxes[i]
+            keep[i] = replace(b, hard=True) if hidden >= HARD_OCCLUDED_FRACTION else b
         # A hidden vehicle still hides what is behind it.
         nearer = poly if nearer is None else unary_union([nearer, poly])
-    return [b for i, b in enumerate(boxes) if i in keep]
+    return [keep[i] for i in range(len(boxes)) if i in keep]
 
 
 # --------------------------------------------------------------------------- poses
@@ -238,10 +271,12 @@ def boxes_at(scenario: Scenario, camera: Camera, ego: tuple[float, float, float]
         ax, ay, ah = actors[a.id]
         dx, dy = ax - ex, ay - ey
         center = np.array([c * dx + s * dy, -s * dx + c * dy, 0.0])
-        res = project_box_clipped(camera, center, a.length_m, a.width_m, a.height_m, ah - eh)
-        if res is not None:
-            out.append(ProjectedBox(actor_id=a.id, box_px=res[0], category=a.category,
-                                    range_m=res[1]))
+        view = project_box_clipped(camera, center, a.length_m, a.width_m, a.height_m, ah - eh)
+        if view is not None:
+            hard = (view.box_px[3] - view.box_px[1] < HARD_MIN_HEIGHT_PX
+                    or view.in_image_fraction < HARD_MIN_IN_IMAGE or view.behind_camera)
+            out.append(ProjectedBox(actor_id=a.id, box_px=view.box_px, category=a.category,
+                                    range_m=view.range_m, hard=hard))
     return _drop_occluded(out)
 
 
@@ -360,7 +395,8 @@ def video_size_and_fps(video: Path) -> tuple[int, int, float | None]:
 def draw_overlay(image_bgr: np.ndarray | None, camera: Camera, keyframe: Keyframe,
                  boxes: list[ProjectedBox], frame_stats: dict | None = None) -> bytes:
     """PNG bytes: the frame (or a grey canvas) with annotated boxes (green), ignore regions
-    (grey) and simulated boxes (magenta, labelled with the actor id)."""
+    (grey) and simulated boxes (magenta, labelled with the actor id and range; thin lines
+    for hard boxes)."""
     if image_bgr is None:
         img = np.full((camera.image_height, camera.image_width, 3), 110, np.uint8)
     else:
@@ -375,10 +411,11 @@ def draw_overlay(image_bgr: np.ndarray | None, camera: Camera, keyframe: Keyfram
     for p in boxes:
         p1 = (round(p.box_px[0]), round(p.box_px[1]))
         p2 = (round(p.box_px[2]), round(p.box_px[3]))
-        cv2.rectangle(img, p1, p2, _SIM_BGR, thick, cv2.LINE_AA)
+        # thin: a "hard" box that counts only when matched
+        cv2.rectangle(img, p1, p2, _SIM_BGR, 1 if p.hard else thick, cv2.LINE_AA)
         cv2.putText(img, f"{p.actor_id} {p.range_m:.0f}m", (p1[0] + 2, max(p1[1] - 4, 10)),
                     cv2.FONT_HERSHEY_SIMPLEX, 0.4 * scale, _SIM_BGR, 1, cv2.LINE_AA)
-    text = f"t={keyframe.t_s:.2f}s  annotated (green)  simulated (magenta)"
+    text = f"t={keyframe.t_s:.2f}s  annotated (green)  simulated (magenta, thin: hard)"
     if frame_stats is not None:
         text += f"  TP {frame_stats['tp']} FP {frame_stats['fp']} FN {frame_stats['fn']}"
     # A dark banner keeps the caption legible on any frame.
