@@ -272,3 +272,21 @@ def test_tiles_recover_small_cars(kitti_tracking_dir, model_dir):
             n += score_against_kitti(detector.detect(image), small).n_found
         found[tiles] = n
     assert found[True] >= found[False] + 3, found
+
+
+def test_weights_under_another_name_get_the_right_decoder(model_dir, tmp_path):
+    import shutil
+
+    for filename, cls in (("yolox_nano.onnx", YoloxDetector),
+                          ("picodet_s_416_coco.onnx", PicodetDetector)):
+        renamed = tmp_path / f"my_{filename}"
+        shutil.copyfile(model_dir / filename, renamed)
+        det = load_detector(renamed, small_object_mode=False)
+        assert type(det) is cls
+        assert det.input_size_px == (416, 416)
+    bad = tmp_path / "broken.onnx"
+    bad.write_bytes(b"not a model")
+    with pytest.raises(InputError, match="cannot load"):
+        load_detector(bad, decoder="yolox")
+    with pytest.raises(InputError, match="cannot load"):
+        load_detector(bad)

@@ -389,8 +389,13 @@ def load_detector(name_or_path: str | Path = DEFAULT_DETECTOR, model_dir: Path |
 
         options = ort.SessionOptions()
         options.log_severity_level = 3
-        n_out = len(ort.InferenceSession(str(path), sess_options=options,
-                                         providers=["CPUExecutionProvider"]).get_outputs())
+        try:
+            n_out = len(ort.InferenceSession(str(path), sess_options=options,
+                                             providers=["CPUExecutionProvider"]).get_outputs())
+        except Exception as exc:  # onnxruntime raises its own Fail/InvalidGraph types
+            raise InputError(path, f"onnxruntime cannot load the model: {exc}",
+                             "is this an ONNX file of a YOLOX or PicoDet export?") from exc
+        # YOLOX exports one decoded-head tensor; PicoDet 4 score + 4 distance tensors
         kind = "yolox" if n_out == 1 else "picodet"
     if kind not in DETECTOR_CLASSES:
         raise InputError(path, f"unknown decoder '{kind}'", "use yolox or picodet")
