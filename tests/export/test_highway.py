@@ -197,3 +197,14 @@ def test_scenario_lane_projection_inverts_position(s_m, lat_m):
     # shifts s by up to |lat| * curvature * 1 m (6 m / 40 m = 0.15 m)
     assert s_back == pytest.approx(s_m, abs=0.2)
     assert lat_back == pytest.approx(lat_m, abs=0.05)
+
+
+def test_leaving_the_road_terminates_in_policy_mode():
+    # the map road ends 60 m into a 200 m drive; the simulation extends it by 50 m
+    sc = straight_scenario(duration_s=15.0, with_actors=False)
+    sc.roads[0].centerline = np.array([[0.0, 0.0], [60.0, 0.0]])
+    env = ReplayEnv(sc)
+    infos = run_episode(env, lambda obs, info: ZERO, seed=0)
+    assert infos[-1]["terminated"] and infos[-1]["offroad"] and not infos[-1]["crashed"]
+    end_x = env.vehicle_states()[0].x_m
+    assert 110.0 < end_x < 125.0  # past the extended end (110 m) plus at most a car length

@@ -154,3 +154,12 @@ def test_cli_export_highway_env(tmp_path):
     assert (out / "scenario.json").read_text() == path.read_text()
     assert (out / "replay.py").exists()
     assert (out / "preview.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_vehicle_seen_once_still_exports_valid_xosc(tmp_path):
+    from vid2sim.scenario import Trajectory
+
+    sc = straight_scenario(duration_s=3.0)
+    sc.actors[0].trajectory = Trajectory([1.0], [40.0], [-1.75], [0.0], [0.0])
+    xosc, _ = write_openscenario(sc, tmp_path)
+    _schema("OpenSCENARIO_1_2.xsd").validate(str(xosc))

@@ -48,6 +48,8 @@ _FINE_STEP_M = 0.25  # integration step of the curvature model [m]
 _LINE_CURVATURE = 1e-5  # |k| below this (radius > 100 km) is written as a line [1/m]
 _ARC_DCURVATURE = 1e-6  # |k1 - k0| below this is written as an arc [1/m]
 
+_SINGLE_SAMPLE_HOLD_S = 0.1  # how long a once-seen vehicle's polyline lasts [s]
+
 XOSC_NAME = "scenario.xosc"
 XODR_NAME = "road.xodr"
 
@@ -255,6 +257,10 @@ def _polyline(traj: Trajectory, t0_s: float):
     times = [float(round(t - t0_s, 4)) for t in traj.t]
     positions = [xosc.WorldPosition(float(x), float(y), 0.0, float(h), 0.0, 0.0)
                  for x, y, h in zip(traj.x, traj.y, heading, strict=True)]
+    if len(times) == 1:
+        # a polyline needs two vertices: a vehicle seen once stands where it was seen
+        times.append(times[0] + _SINGLE_SAMPLE_HOLD_S)
+        positions.append(positions[0])
     return xosc.Polyline(times, positions)
 
 
