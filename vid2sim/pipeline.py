@@ -254,7 +254,8 @@ def build(opts: BuildOptions, report: Callable[[str], None] | None = None) -> Bu
     horizon = HorizonEstimator(camera)
     tracked = stages.run("detect and track", run_detect, opts.video, detector=detector,
                          detections=imported, detect_every=opts.detect_every,
-                         progress=opts.progress, on_frame=horizon.add_frame, fps=opts.fps)
+                         progress=opts.progress,
+                         on_frame=lambda frame: horizon.add_frame(frame.image_bgr), fps=opts.fps)
     hint_px, n_votes = horizon.estimate()
     log.info("lane-marking horizon: %s px from %d votes", hint_px, n_votes)
     ranging = stages.run("monocular ranging", range_tracks, tracked, camera,
