@@ -340,7 +340,8 @@ class ReplayEnv(AbstractEnv):
     ego_mode : {"policy", "log"}
         Who drives the ego; ``reset(options={"ego_mode": ...})`` switches it per episode.
     render_mode : {"rgb_array", "human"} or None
-        ``rgb_array`` works headless (pygame's dummy video driver).
+        ``rgb_array`` works headless (SDL's offscreen video driver; highway-env's "dummy"
+        setting would skip drawing).
     config : dict, optional
         highway-env configuration overrides (e.g. ``policy_frequency`` [Hz],
         ``simulation_frequency`` [Hz], ``acceleration_range_mps2``, screen size).
@@ -455,14 +456,17 @@ class ReplayEnv(AbstractEnv):
         self.road.vehicles = [self.vehicle, *present]
 
     def _simulate(self, action=None) -> None:
-        frames = int(self.config["simulation_frequency"] // self.config["policy_frequency"])
-        dt = 1.0 / self.config["simulation_frequency"]
+        frames = max(int(self.config["simulation_frequency"]
+                         // self.config["policy_frequency"]), 1)
+        # each policy step covers exactly 1 / policy_frequency of scenario time, so the
+        # integration step is that split into whole substeps
+        dt = 1.0 / (frames * self.config["policy_frequency"])
         if action is not None:
             self.action_type.act(action)
         for frame in range(frames):
             # Actors (and a logged ego) first go to the end of the substep, then the ego
-            # integrates to it, then collisions are checked at one common time.
-            # time from the step count, not a running sum, so it does not drift
+            # integrates to it, then collisions are checked at one common time. The time comes
+            # from the step count, not a running sum, so it does not drift.
             t_next = self._ego_track.t0 + (self.steps + 1) * dt
             self._place_actors(t_next)
             if self.ego_mode == "policy":
