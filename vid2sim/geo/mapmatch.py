@@ -479,6 +479,47 @@ def _finish(net: RoadNetwork, xy: np.ndarray, t_s: np.ndarray, sigma: np.ndarray
     return result
 
 
+def signed_offsets(line_xy_m: np.ndarray, xy_m: np.ndarray,
+                   expected_s_m: np.ndarray | None = None, window_m: float = 40.0
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """Arc length along ``line_xy_m`` and signed lateral offset (positive left) of points.
+
+    With ``expected_s_m`` each point is projected only onto the part of the line within
+    ``window_m`` of where it should be, so a route that passes a place twice (a loop round a
+    block) does not project onto the wrong pass.
+
+    Returns
+    -------
+    (s_m, offset_m) per point [m]
+    """
+    line = np.asarray(line_xy_m, float)
+    pts = np.asarray(xy_m, float).reshape(-1, 2)
+    a, b = line[:-1], line[1:]
+    d = b - a
+    seg_len2 = np.maximum((d ** 2).sum(axis=1), 1e-12)
+    seg_s = np.concatenate([[0.0], np.cumsum(np.sqrt(seg_len2))])
+    s_out = np.full(len(pts), np.nan)
+    off_out = np.full(len(pts), np.nan)
+    chunk = 256
+    for k0 in range(0, len(pts), chunk):
+        p = pts[k0:k0 + chunk]
+        # (points x segments) projection parameter clipped to the segment
+        u = np.clip(((p[:, None, :] - a[None]) * d[None]).sum(-1) / seg_len2[None], 0.0, 1.0)
+        foot = a[None] + u[..., None] * d[None]
+        dist2 = ((p[:, None, :] - foot) ** 2).sum(-1)
+        if expected_s_m is not None:
+            exp = np.asarray(expected_s_m, float)[k0:k0 + chunk]
+            far = np.abs(seg_s[None, :-1] + u * np.sqrt(seg_len2)[None] - exp[:, None]) > window_m
+            dist2 = np.where(far & np.isfinite(exp)[:, None], np.inf, dist2)
+        j = np.argmin(dist2, axis=1)
+        rows = np.arange(len(p))
+        rel = p - foot[rows, j]
+        cross = d[j, 0] * rel[:, 1] - d[j, 1] * rel[:, 0]
+        s_out[k0:k0 + chunk] = seg_s[j] + u[rows, j] * np.sqrt(seg_len2[j])
+        off_out[k0:k0 + chunk] = np.sign(cross) * np.sqrt(dist2[rows, j])
+    return s_out, off_out
+
+
 def _trim(net: RoadNetwork, piece: list[int], s_m: np.ndarray, min_cover_m: float
           ) -> tuple[list[int], np.ndarray]:
     """Drop route edges before the first / after the last fix position, and a first or last
@@ -523,6 +564,11 @@ def _assign_edges(net: RoadNetwork, xy: np.ndarray, res: MatchResult) -> None:
         rel = xy[sel] - foot
         cross = tangent[:, 0] * rel[:, 1] - tangent[:, 1] * rel[:, 0]
         res.fix_offset_m[sel] = np.sign(cross) * np.hypot(rel[:, 0], rel[:, 1])
+
+
+def join_xy(net: RoadNetwork, edges: list[int]) -> np.ndarray:
+    """Edge geometries joined in travel order (the shared node written once) [m]."""
+    return np.vstack([net.edge_xy[edges[0]]] + [net.edge_xy[e][1:] for e in edges[1:]])
 
 
 #: innovations beyond 4 sigma (16 = 4^2 in variance) are rejected by the along-route filter

@@ -215,13 +215,11 @@ def _segments_from_osmnx(graph: nx.MultiDiGraph) -> _WaySegments:
             continue  # the twin osmnx added for two-way streets; we add our own
         way_id = int(data["osmid"])
         way_tags = {k: _tag(data, k) for k in KEPT_TAGS}
-        if way_tags["oneway"] in ONEWAY_REVERSE or way_tags["oneway"] == "True":
-            # osmnx already turned oneway=-1 ways round, and stores oneway as a bool; we
-            # restore the way's node order and keep the original tag semantics
-            raw = way_tags["oneway"]
-            if raw in ONEWAY_REVERSE:
-                u, v = v, u
-            way_tags["oneway"] = raw if raw in ONEWAY_REVERSE else "yes"
+        # osmnx turns oneway=-1 ways round and stores ``oneway`` as a bool, so its edges
+        # already run in the travel direction; the way's original node order is lost, which
+        # is harmless (lanes:forward/backward only matter on two-way roads)
+        if way_tags["oneway"] in ("True", *ONEWAY_FORWARD, *ONEWAY_REVERSE):
+            way_tags["oneway"] = "yes"
         elif way_tags["oneway"] == "False":
             way_tags["oneway"] = "no"
         segments[way_id].append((int(u), int(v)))
