@@ -680,7 +680,7 @@ def generate_demo_sample(out_dir: Path, *, seed: int = 7, duration_s: float = 24
                 vis = _visible(v, width, height)
                 boxes.append({"id": v.id, "box2d": _box_json(v.box_px), "visible": bool(vis),
                               "visible_fraction": v.visible_fraction,
-                              "in_image_fraction": v.in_image_fraction,
+                              "in_image_fraction": v.in_image_fraction, "in_front": v.in_front,
                               "range_m": v.range_m, "lateral_m": v.lateral_m})
                 if vis and i in keyframe_idx:
                     labels.append({

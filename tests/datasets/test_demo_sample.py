@@ -211,6 +211,10 @@ def test_keyframes_are_the_visible_truth(sample, truth):
         assert kf["timestamp"] == kf["index"] * 100
         frame = truth["frames"][kf["index"]]
         visible = {b["id"]: b for b in frame["boxes"] if b["visible"]}
+        # The rule: wholly in front of the camera, at least half in the image, at most 80%
+        # hidden (what a replay can project and a detector can see).
+        assert all(b["in_front"] and b["in_image_fraction"] >= 0.5
+                   and b["visible_fraction"] >= 0.2 for b in visible.values())
         assert {lab["id"] for lab in kf["labels"]} == set(visible)
         for lab in kf["labels"]:
             box = _xyxy(lab["box2d"])
