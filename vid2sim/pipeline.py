@@ -249,7 +249,12 @@ def build(opts: BuildOptions, report: Callable[[str], None] | None = None) -> Bu
         from vid2sim.detect.models import DEFAULT_DETECTOR
 
         name = opts.detector or DEFAULT_DETECTOR
-        detector = load_detector(name, model_dir=opts.model_dir)
+        from vid2sim.detect.tracker import TrackerConfig
+
+        # Weak boxes feed the tracker's second association stage (ByteTrack), so the
+        # detector keeps everything above the tracker's low threshold.
+        detector = load_detector(name, model_dir=opts.model_dir,
+                                 score_threshold=TrackerConfig().low_score)
         detector_label = f"detector {name}"
     horizon = HorizonEstimator(camera)
     tracked = stages.run("detect and track", run_detect, opts.video, detector=detector,
