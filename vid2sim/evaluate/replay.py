@@ -403,11 +403,7 @@ def draw_overlay(image_bgr: np.ndarray | None, camera: Camera, keyframe: Keyfram
         img = image_bgr.copy()
     scale = max(img.shape[1] / 1280.0, 0.5)
     thick = max(1, round(2 * scale))
-    for b in keyframe.boxes:
-        p1 = (round(b.box_px[0]), round(b.box_px[1]))
-        p2 = (round(b.box_px[2]), round(b.box_px[3]))
-        cv2.rectangle(img, p1, p2, _IGNORE_BGR if b.ignore else _GT_BGR,
-                      1 if b.ignore else thick, cv2.LINE_AA)
+    # Simulated boxes first and thicker, annotations on top, so both show where they agree.
     for p in boxes:
         p1 = (round(p.box_px[0]), round(p.box_px[1]))
         p2 = (round(p.box_px[2]), round(p.box_px[3]))
@@ -415,6 +411,11 @@ def draw_overlay(image_bgr: np.ndarray | None, camera: Camera, keyframe: Keyfram
         cv2.rectangle(img, p1, p2, _SIM_BGR, 1 if p.hard else thick, cv2.LINE_AA)
         cv2.putText(img, f"{p.actor_id} {p.range_m:.0f}m", (p1[0] + 2, max(p1[1] - 4, 10)),
                     cv2.FONT_HERSHEY_SIMPLEX, 0.4 * scale, _SIM_BGR, 1, cv2.LINE_AA)
+    for b in keyframe.boxes:
+        p1 = (round(b.box_px[0]), round(b.box_px[1]))
+        p2 = (round(b.box_px[2]), round(b.box_px[3]))
+        cv2.rectangle(img, p1, p2, _IGNORE_BGR if b.ignore else _GT_BGR,
+                      1 if b.ignore else max(1, thick - 1), cv2.LINE_AA)
     text = f"t={keyframe.t_s:.2f}s  annotated (green)  simulated (magenta, thin: hard)"
     if frame_stats is not None:
         text += f"  TP {frame_stats['tp']} FP {frame_stats['fp']} FN {frame_stats['fn']}"
