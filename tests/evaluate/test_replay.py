@@ -202,7 +202,8 @@ def test_run_eval_writes_contract_overlays_and_report(tmp_path, visible_scenario
     img = cv2.imread(str(pngs[0]))
     assert img.shape[:2] == (CAMERA.image_height, CAMERA.image_width)
     html = (out / "report.html").read_text()
-    assert "Keyframe metrics" in html and html.count("data:image/png;base64,") == 6
+    assert "Keyframe metrics" in html and html.count("data:image/png;base64,") == 3
+    assert html.count("data:image/jpeg;base64,") == 3  # the keyframes, compact
     assert "from the build stage" in html and "More figures" in html
 
 

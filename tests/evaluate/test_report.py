@@ -64,10 +64,11 @@ def test_report_is_self_contained_and_complete(tmp_path):
     p.feed(text)
     assert "script" not in p.tags and "link" not in p.tags and "iframe" not in p.tags
     assert not p.hrefs
-    # every image is embedded, none fetched: 2 keyframes + map + lead + 1 extra
-    assert len(p.srcs) == 5 and all(s.startswith("data:image/png;base64,") for s in p.srcs)
-    for s in p.srcs:
-        assert base64.b64decode(s.split(",", 1)[1])[:8] == b"\x89PNG\r\n\x1a\n"
+    # every image is embedded, none fetched: 2 keyframes (as JPEG) + map + lead + 1 extra
+    assert len(p.srcs) == 5 and all(s.startswith("data:image/") for s in p.srcs)
+    decoded = [base64.b64decode(s.split(",", 1)[1]) for s in p.srcs]
+    assert [d[:3] == b"\xff\xd8\xff" for d in decoded] == [True, True, False, False, False]
+    assert all(d[:8] == b"\x89PNG\r\n\x1a\n" for d in decoded[2:])
     without_data = re.sub(r"data:image/[a-z+]+;base64,[A-Za-z0-9+/=]+", "", text)
     assert not re.search(r"(https?:)?//[a-z]", without_data)
     for section in ("Warnings", "Inputs and assumptions", "Keyframe metrics", "Keyframes",

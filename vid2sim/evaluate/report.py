@@ -16,6 +16,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+import cv2
 import matplotlib
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -188,8 +189,30 @@ def _image_bytes(img: ImageLike) -> tuple[bytes, str]:
     raise InputError(None, "figure is not a PNG, JPEG or SVG image")
 
 
-def _figure_html(title: str, img: ImageLike) -> str:
+KEYFRAME_MAX_WIDTH_PX = 960
+"""Keyframe photos wider than this are downscaled in the report (the PNG files keep full size)."""
+KEYFRAME_JPEG_QUALITY = 85
+
+
+def _as_jpeg(data: bytes, mime: str) -> tuple[bytes, str]:
+    """Camera frames as JPEG (about a tenth of the PNG), at most ``KEYFRAME_MAX_WIDTH_PX``
+    wide, so a report with a hundred keyframes stays a few megabytes."""
+    if mime == "image/svg+xml":
+        return data, mime
+    img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
+    if img is None:
+        return data, mime
+    if img.shape[1] > KEYFRAME_MAX_WIDTH_PX:
+        h = round(img.shape[0] * KEYFRAME_MAX_WIDTH_PX / img.shape[1])
+        img = cv2.resize(img, (KEYFRAME_MAX_WIDTH_PX, h), interpolation=cv2.INTER_AREA)
+    ok, buf = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, KEYFRAME_JPEG_QUALITY])
+    return (buf.tobytes(), "image/jpeg") if ok else (data, mime)
+
+
+def _figure_html(title: str, img: ImageLike, photo: bool = False) -> str:
     data, mime = _image_bytes(img)
+    if photo:
+        data, mime = _as_jpeg(data, mime)
     b64 = base64.b64encode(data).decode("ascii")
     return (f'<figure><img alt="{_e(title)}" src="data:{mime};base64,{b64}">'
             f"<figcaption>{_e(title)}</figcaption></figure>")
@@ -324,7 +347,7 @@ def render_report(*, scenario: Scenario, metrics: dict | None,
     if keyframe_images:
         parts.append("<section><h2>Keyframes: annotated boxes (green), simulated vehicles "
                      "(magenta), ignore regions (grey)</h2><div class='grid'>"
-                     + "".join(_figure_html(t, img) for t, img in keyframe_images)
+                     + "".join(_figure_html(t, img, photo=True) for t, img in keyframe_images)
                      + "</div></section>")
     parts.append("<section><h2>Map and lead vehicle</h2><div class='grid'>"
                  + _figure_html("Roads, ego and actor trajectories", map_figure(scenario))
