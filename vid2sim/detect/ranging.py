@@ -186,6 +186,7 @@ class BoxFit:
     lateral_m: np.ndarray
     width_m: np.ndarray
     cov: np.ndarray  # (N, 4, 4) over (log range, lateral, width, height)
+    cov_white: np.ndarray  # the part of ``cov`` that is independent from frame to frame
     ground_ok: np.ndarray
     width_ok: np.ndarray
     valid: np.ndarray
@@ -205,6 +206,14 @@ class BoxFit:
     @property
     def range_lateral_cov_m2(self) -> np.ndarray:
         return self.cov[:, 0, 1] * self.range_m
+
+    @property
+    def range_white_var_m2(self) -> np.ndarray:
+        return self.cov_white[:, 0, 0] * self.range_m ** 2
+
+    @property
+    def lateral_white_var_m2(self) -> np.ndarray:
+        return self.cov_white[:, 1, 1]
 
 
 def fit_boxes(camera: Camera, ba: BoxArrays, width_m: np.ndarray, width_std_m: np.ndarray,
@@ -279,34 +288,54 @@ def fit_boxes(camera: Camera, ba: BoxArrays, width_m: np.ndarray, width_std_m: n
     prior_std = np.column_stack((width_std_m, prior_h_std))
     steps = np.array([1e-3, 1e-3, 1e-3, 1e-3])
 
-    def residuals(th: np.ndarray) -> np.ndarray:
-        pred = _predict_edges(camera, np.exp(th[:, 0]), th[:, 1], th[:, 2], th[:, 3], length_m)
-        r_edges = np.where(use, (obs - pred) / sig, 0.0)
-        r_prior = (prior_mean - th[:, 2:4]) / prior_std
+    def residuals(th: np.ndarray, i: np.ndarray) -> np.ndarray:
+        pred = _predict_edges(camera, np.exp(th[:, 0]), th[:, 1], th[:, 2], th[:, 3],
+                              length_m[i])
+        r_edges = np.where(use[i], (obs[i] - pred) / sig[i], 0.0)
+        r_prior = (prior_mean[i] - th[:, 2:4]) / prior_std[i]
         return np.nan_to_num(np.concatenate([r_edges, r_prior], axis=1), nan=0.0)
 
-    jac = np.zeros((n, 6, 4))
-    for _ in range(iterations):
-        r0 = residuals(theta)
+    def jacobian(th: np.ndarray, i: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        r0 = residuals(th, i)
+        jac = np.zeros((len(i), 6, 4))
         for k in range(4):
-            th = theta.copy()
-            th[:, k] += steps[k]
-            jac[:, :, k] = -(residuals(th) - r0) / steps[k]
+            th_k = th.copy()
+            th_k[:, k] += steps[k]
+            jac[:, :, k] = -(residuals(th_k, i) - r0) / steps[k]
+        return r0, jac
+
+    # Gauss-Newton; boxes leave the active set once converged (most need 3-5 steps).
+    active = np.arange(n)
+    for _ in range(iterations):
+        if active.size == 0:
+            break
+        r0, jac = jacobian(theta[active], active)
         jtj = np.einsum("nik,nil->nkl", jac, jac) + 1e-9 * np.eye(4)
         jtr = np.einsum("nik,ni->nk", jac, r0)
         delta = np.linalg.solve(jtj, jtr[..., None])[..., 0]
         delta[:, 0] = np.clip(delta[:, 0], -0.5, 0.5)
-        theta = theta + delta
-        theta[:, 0] = np.clip(theta[:, 0], 0.0, math.log(3 * config.max_range_m))
-        theta[:, 2:4] = np.maximum(theta[:, 2:4], 0.2)
-        if np.abs(delta[:, 0]).max(initial=0.0) < 1e-5:
-            break
+        th = theta[active] + delta
+        th[:, 0] = np.clip(th[:, 0], 0.0, math.log(3 * config.max_range_m))
+        th[:, 2:4] = np.maximum(th[:, 2:4], 0.2)
+        theta[active] = th
+        active = active[(np.abs(delta[:, 0]) > 1e-5) | (np.abs(delta[:, 1]) > 1e-4)]
+    _, jac = jacobian(theta, np.arange(n))
     jtj = np.einsum("nik,nil->nkl", jac, jac) + 1e-9 * np.eye(4)
     cov = np.linalg.inv(jtj)
+    # Frame-to-frame (white) part: pixel noise and body pitch jitter only. The vehicle's size
+    # and the road height under it change slowly, so their errors are common to all frames
+    # of a track: they scale the range but do not disturb its rate, and a filter that took
+    # them for white noise would trust the measurements too little and lag behind braking.
+    # Sandwich form: the same estimate, its covariance under the white noise alone,
+    # cov (J^T D J) cov with D the white share of each (scaled) residual's variance.
+    d = np.ones((n, 6))
+    d[:, 3] = (sig_v / sig_bottom) ** 2
+    d[:, 4:] = 0.0
+    cov_white = cov @ np.einsum("nik,ni,nil->nkl", jac, d, jac) @ cov
     rng = np.exp(theta[:, 0])
     # Unobservable range: the log-range spread stays near what the priors alone allow.
     valid = (np.sqrt(np.maximum(cov[:, 0, 0], 0)) < 0.5) & np.isfinite(rng)
-    return BoxFit(rng, theta[:, 1], theta[:, 2], cov, ground_ok, width_ok, valid)
+    return BoxFit(rng, theta[:, 1], theta[:, 2], cov, cov_white, ground_ok, width_ok, valid)
 
 
 # --------------------------------------------------------------------------- horizon
@@ -428,83 +457,111 @@ class SmoothedTrack:
     log_likelihood: float
 
 
-def _cv_blocks(dt: float, q: float) -> tuple[np.ndarray, np.ndarray]:
-    f = np.array([[1.0, dt], [0.0, 1.0]])
-    # Discretised continuous white-noise acceleration (Bar-Shalom, Li & Kirubarajan,
-    # Estimation with Applications to Tracking and Navigation, 2001, sec. 6.2.2).
-    qm = q * np.array([[dt ** 3 / 3, dt ** 2 / 2], [dt ** 2 / 2, dt]])
-    return f, qm
+def _kf_rts_cv(t_s: list[float], z: list[float], r: list[float], valid: list[bool], q: float,
+               v0_std: float) -> tuple[list[float], list[float], list[float], float]:
+    """Constant-velocity Kalman filter + RTS smoother on one axis, in plain floats.
+
+    The 2x2 algebra is written out: numpy's per-call overhead on 2x2 matrices would cost ten
+    times more than the arithmetic on a long video. Process noise is the discretised
+    continuous white-noise acceleration (Bar-Shalom, Li & Kirubarajan, Estimation with
+    Applications to Tracking and Navigation, 2001, sec. 6.2.2): Q = q [[dt^3/3, dt^2/2],
+    [dt^2/2, dt]]. The smoother is Rauch, Tung & Striebel (AIAA J. 3(8), 1965).
+
+    Returns smoothed position, rate, position std and the innovation log-likelihood.
+    """
+    n = len(t_s)
+    first = valid.index(True) if True in valid else 0
+    x, v = z[first], 0.0
+    pxx, pxv, pvv = r[first] * 1e4 + 1e4, 0.0, v0_std ** 2
+    # Filtered and predicted states/covariances, needed by the backward pass.
+    fx, fv, fpxx, fpxv, fpvv = [0.0] * n, [0.0] * n, [0.0] * n, [0.0] * n, [0.0] * n
+    ppxx, ppxv, ppvv, dts = [0.0] * n, [0.0] * n, [0.0] * n, [0.0] * n
+    px_, pv_ = [0.0] * n, [0.0] * n
+    loglik = 0.0
+    for k in range(n):
+        dt = t_s[k] - t_s[k - 1] if k else 0.0
+        dts[k] = dt
+        # predict: F = [[1, dt], [0, 1]]
+        x = x + dt * v
+        pxx, pxv = (pxx + 2 * dt * pxv + dt * dt * pvv + q * dt ** 3 / 3,
+                    pxv + dt * pvv + q * dt * dt / 2)
+        pvv = pvv + q * dt
+        px_[k], pv_[k], ppxx[k], ppxv[k], ppvv[k] = x, v, pxx, pxv, pvv
+        if valid[k]:
+            innov = z[k] - x
+            s = pxx + r[k]
+            nis = innov * innov / s
+            if nis > 16.0 and k > first:
+                # Robust: an innovation beyond 4 sigma inflates that frame's noise until it
+                # sits at 4 sigma, so one bad box does not throw the track.
+                s = pxx + r[k] * nis / 16.0
+            elif k > first:
+                loglik -= 0.5 * (nis + math.log(s))
+            kx, kv = pxx / s, pxv / s
+            x, v = x + kx * innov, v + kv * innov
+            pxx, pxv, pvv = pxx - kx * pxx, pxv - kx * pxv, pvv - kv * pxv
+        fx[k], fv[k], fpxx[k], fpxv[k], fpvv[k] = x, v, pxx, pxv, pvv
+    sx, sv, sxx = fx[:], fv[:], fpxx[:]
+    sxv, svv = fpxv[:], fpvv[:]
+    for k in range(n - 2, -1, -1):
+        dt = dts[k + 1]
+        # C = P_f F^T P_p^-1 with the 2x2 inverse written out.
+        a, b, d = ppxx[k + 1], ppxv[k + 1], ppvv[k + 1]
+        det = a * d - b * b
+        if det <= 0:
+            continue
+        m11, m12 = fpxx[k] + dt * fpxv[k], fpxv[k]  # P_f F^T, rows (x, v)
+        m21, m22 = fpxv[k] + dt * fpvv[k], fpvv[k]
+        c11, c12 = (m11 * d - m12 * b) / det, (m12 * a - m11 * b) / det
+        c21, c22 = (m21 * d - m22 * b) / det, (m22 * a - m21 * b) / det
+        ex, ev = sx[k + 1] - px_[k + 1], sv[k + 1] - pv_[k + 1]
+        sx[k] = fx[k] + c11 * ex + c12 * ev
+        sv[k] = fv[k] + c21 * ex + c22 * ev
+        # P_s = P_f + C (P_s,k+1 - P_p,k+1) C^T
+        dxx, dxv, dvv = sxx[k + 1] - a, sxv[k + 1] - b, svv[k + 1] - d
+        t11, t12 = c11 * dxx + c12 * dxv, c11 * dxv + c12 * dvv
+        t21, t22 = c21 * dxx + c22 * dxv, c21 * dxv + c22 * dvv
+        sxx[k] = fpxx[k] + t11 * c11 + t12 * c12
+        sxv[k] = fpxv[k] + t11 * c21 + t12 * c22
+        svv[k] = fpvv[k] + t21 * c21 + t22 * c22
+    return sx, sv, [math.sqrt(max(p, 0.0)) for p in sxx], loglik
 
 
 def smooth_track(t_s: np.ndarray, z: np.ndarray, r: np.ndarray, valid: np.ndarray,
                  q_long: float, q_lat: float, v0_std: float) -> SmoothedTrack:
     """Constant-velocity Kalman filter and RTS smoother for one track.
 
-    State (range, range rate, lateral, lateral rate); measurements (range, lateral) with a
-    2x2 covariance per frame; irregular time steps and frames without a valid measurement
-    (only predicted) are handled. Innovations beyond 4 sigma are down-weighted (their
-    covariance inflated) so one bad box does not throw the track.
+    State (range, range rate) and (lateral, lateral rate), filtered as two independent axes
+    (the range-lateral correlation of one box's fit is small next to the motion); irregular
+    time steps and frames without a valid measurement (only predicted) are handled;
+    innovations beyond 4 sigma are down-weighted.
 
     Parameters
     ----------
-    t_s : (N,) times [s], increasing
+    t_s : (N,) times [s], non-decreasing
     z : (N, 2) measured range and lateral [m]
-    r : (N, 2, 2) measurement covariances [m^2]
+    r : (N, 2, 2) measurement covariances [m^2] (the diagonal is used)
     valid : (N,) whether each measurement exists
     q_long, q_lat : white-noise acceleration spectral densities [m^2/s^3]
-    v0_std : prior spread of the rates [m/s]
+    v0_std : prior spread of the range rate [m/s] (a quarter of it for the lateral rate)
     """
-    n = len(t_s)
-    hm = np.array([[1.0, 0, 0, 0], [0, 0, 1.0, 0]])
-    xs_f = np.zeros((n, 4))
-    ps_f = np.zeros((n, 4, 4))
-    xs_p = np.zeros((n, 4))
-    ps_p = np.zeros((n, 4, 4))
-    fs = np.zeros((n, 4, 4))
-    first = int(np.argmax(valid)) if valid.any() else 0
-    x = np.array([z[first, 0], 0.0, z[first, 1], 0.0])
-    p = np.diag([r[first, 0, 0] * 1e4 + 1e4, v0_std ** 2, r[first, 1, 1] * 1e4 + 1e4,
-                 (v0_std / 4) ** 2])
-    loglik = 0.0
-    for k in range(n):
-        dt = float(t_s[k] - t_s[k - 1]) if k > 0 else 0.0
-        fl, ql = _cv_blocks(dt, q_long)
-        fa, qa = _cv_blocks(dt, q_lat)
-        fk = np.zeros((4, 4))
-        fk[:2, :2], fk[2:, 2:] = fl, fa
-        qk = np.zeros((4, 4))
-        qk[:2, :2], qk[2:, 2:] = ql, qa
-        x = fk @ x
-        p = fk @ p @ fk.T + qk
-        fs[k], xs_p[k], ps_p[k] = fk, x, p
-        if valid[k]:
-            innov = z[k] - hm @ x
-            s = hm @ p @ hm.T + r[k]
-            nis = float(innov @ np.linalg.solve(s, innov))
-            if nis > 16.0 and k > first:
-                s = s + (nis / 16.0 - 1.0) * r[k]  # robust: inflate R for an outlier
-                nis = float(innov @ np.linalg.solve(s, innov))
-            elif k > first:
-                loglik -= 0.5 * (nis + math.log(np.linalg.det(s)))
-            gain = p @ hm.T @ np.linalg.inv(s)
-            x = x + gain @ innov
-            p = (np.eye(4) - gain @ hm) @ p
-            p = (p + p.T) / 2
-        xs_f[k], ps_f[k] = x, p
-    # Rauch-Tung-Striebel backward pass (Rauch, Tung & Striebel, AIAA J. 3(8), 1965).
-    xs, ps = xs_f.copy(), ps_f.copy()
-    for k in range(n - 2, -1, -1):
-        c = ps_f[k] @ fs[k + 1].T @ np.linalg.inv(ps_p[k + 1])
-        xs[k] = xs_f[k] + c @ (xs[k + 1] - xs_p[k + 1])
-        ps[k] = ps_f[k] + c @ (ps[k + 1] - ps_p[k + 1]) @ c.T
-    return SmoothedTrack(xs[:, 0], xs[:, 1], xs[:, 2], xs[:, 3],
-                         np.sqrt(np.maximum(ps[:, 0, 0], 0)), q_long, loglik)
+    t = [float(v) for v in t_s]
+    ok = [bool(v) for v in valid]
+    zx = [float(v) if np.isfinite(v) else 0.0 for v in z[:, 0]]
+    zy = [float(v) if np.isfinite(v) else 0.0 for v in z[:, 1]]
+    rx = [max(float(v), 1e-6) if np.isfinite(v) else 1e6 for v in r[:, 0, 0]]
+    ry = [max(float(v), 1e-6) if np.isfinite(v) else 1e6 for v in r[:, 1, 1]]
+    x, vx, sdx, ll = _kf_rts_cv(t, zx, rx, ok, q_long, v0_std)
+    y, vy, _, _ = _kf_rts_cv(t, zy, ry, ok, q_lat, v0_std / 4)
+    return SmoothedTrack(np.array(x), np.array(vx), np.array(y), np.array(vy), np.array(sdx),
+                         q_long, ll)
 
 
 def smooth_track_adaptive(t_s: np.ndarray, z: np.ndarray, r: np.ndarray, valid: np.ndarray,
                           config: RangingConfig) -> SmoothedTrack:
     """Run :func:`smooth_track` for each candidate acceleration noise and keep the one whose
-    innovations are the most likely (a calm follower and a hard braker need different ones)."""
+    range innovations are the most likely (a calm follower and a hard braker need different
+    ones: maximum-likelihood choice of the process noise, as in adaptive Kalman filtering)."""
     best: SmoothedTrack | None = None
     for q in config.accel_noise_grid_mps2:
         res = smooth_track(t_s, z, r, valid, q, config.lateral_accel_noise_mps2,
@@ -615,13 +672,15 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
             continue
         z = np.column_stack((fit.range_m[members], fit.lateral_m[members]))
         r = np.zeros((len(members), 2, 2))
-        r[:, 0, 0] = fit.range_var_m2[members]
-        r[:, 1, 1] = fit.lateral_var_m2[members]
-        r[:, 0, 1] = r[:, 1, 0] = fit.range_lateral_cov_m2[members]
+        # The filter sees only the frame-to-frame noise; the common part (size prior, road
+        # height) is added back to the reported spread.
+        r[:, 0, 0] = fit.range_white_var_m2[members]
+        r[:, 1, 1] = fit.lateral_white_var_m2[members]
+        common = np.maximum(fit.range_var_m2[members] - fit.range_white_var_m2[members], 0)
         sm = smooth_track_adaptive(t_all[members], z, r, fit.valid[members], config)
         out_range[members] = sm.range_m
         out_lat[members] = sm.lateral_m
-        out_std[members] = sm.range_std_m
+        out_std[members] = np.sqrt(sm.range_std_m ** 2 + common)
         if len(members) > 1:
             out_rate[members] = sm.range_rate_mps
             out_lat_rate[members] = sm.lateral_rate_mps
