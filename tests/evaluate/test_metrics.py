@@ -125,6 +125,15 @@ def test_ignore_regions_neither_reward_nor_penalise():
     assert (s2.tp, s2.fp, s2.fn) == (0, 0, 1)
 
 
+def test_empty_denominators_give_numbers():
+    # annotations but no simulated boxes, and the reverse
+    none_simulated = score_keyframes([Keyframe(0, 0.0, "a", [ab((0, 0, 9, 9))])], [[]])
+    assert (none_simulated["precision"], none_simulated["recall"], none_simulated["f1"]) == (0, 0, 0)
+    invented = score_keyframes([Keyframe(0, 0.0, "a", [])], [[pb((0, 0, 9, 9))]])
+    assert (invented["precision"], invented["recall"], invented["f1"]) == (0, 0, 0)
+    assert invented["mean_iou"] == 0.0
+
+
 def test_hard_simulated_boxes_count_only_when_matched():
     gt = [ab((0, 0, 100, 100))]
     pred = [pb((0, 0, 100, 100), "matched_hard", hard=True), pb((300, 0, 305, 6), "tiny",
@@ -153,7 +162,8 @@ def test_score_keyframes_contract_and_totals():
     assert m["range_error"]["pairs"] == 1
     assert m["range_error"]["mean_signed_m"] == pytest.approx(1.5)
     last = m["per_keyframe"][2]
-    assert last["precision"] is None and last["recall"] is None and last["f1"] is None
+    # nothing annotated, nothing simulated: perfect, and still numbers
+    assert (last["precision"], last["recall"], last["f1"], last["mean_iou"]) == (1, 1, 1, 0)
     assert m["per_keyframe"][0]["matches"][0]["range_error_m"] == pytest.approx(1.5)
     # a list parallel to the keyframes gives the same result
     assert score_keyframes(kfs, [preds[0.0], preds[0.5], []])["f1"] == m["f1"]

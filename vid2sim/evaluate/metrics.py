@@ -15,8 +15,12 @@ Two counting rules are reported side by side (``metrics.json`` states which is w
   0.1 < IoU < 0.5 a FP, an annotated box without a pair (IoU <= 0.1) a FN; simulated boxes
   without a pair are not counted. It is more lenient on precision than the standard rule.
 
-``mean_iou`` is the mean IoU of the standard matched pairs (all >= 0.5); the reference block
-carries the mean over its own pairs (> 0.1). Ratios with a zero denominator are ``None``.
+``mean_iou`` is the mean IoU of the standard matched pairs (all >= 0.5), 0 without pairs; the
+reference block carries the mean over its own pairs (> 0.1).
+
+Every rate is a number (the metrics.json contract): where its denominator is zero it is 1.0
+when nothing went wrong (no annotation and no simulated box: nothing to find, nothing
+invented) and 0.0 otherwise (e.g. precision with annotations but no simulated boxes).
 """
 
 from __future__ import annotations
@@ -125,15 +129,13 @@ def _ignored_predictions(pred: np.ndarray, ignore: np.ndarray, unmatched: list[i
     return {unmatched[i] for i in np.flatnonzero((frac >= IGNORE_OVERLAP).any(axis=1))}
 
 
-def _ratio(num: float, den: float) -> float | None:
-    return float(num) / float(den) if den > 0 else None
-
-
-def _prf(tp: int, fp: int, fn: int) -> dict[str, float | None]:
-    precision = _ratio(tp, tp + fp)
-    recall = _ratio(tp, tp + fn)
-    f1 = _ratio(2 * tp, 2 * tp + fp + fn)
-    return {"precision": precision, "recall": recall, "f1": f1}
+def _prf(tp: int, fp: int, fn: int) -> dict[str, float]:
+    """Precision, recall and F1; empty denominators per the module docstring."""
+    perfect = 1.0 if tp + fp + fn == 0 else 0.0
+    precision = tp / (tp + fp) if tp + fp else perfect
+    recall = tp / (tp + fn) if tp + fn else perfect
+    f1 = 2 * tp / (2 * tp + fp + fn) if tp + fp + fn else 1.0
+    return {"precision": float(precision), "recall": float(recall), "f1": float(f1)}
 
 
 @dataclass(slots=True)
@@ -189,8 +191,8 @@ def score_frame(pred: Sequence[ProjectedBox], gt: Sequence[AnnotatedBox]) -> _Fr
                        matches=matches, range_errors_m=errors, range_pairs=range_pairs)
 
 
-def _mean(values: list[float]) -> float | None:
-    return float(np.mean(values)) if values else None
+def _mean(values: list[float]) -> float:
+    return float(np.mean(values)) if values else 0.0
 
 
 def range_error_summary(errors_m: list[float], pairs: list[tuple[float, float]]
@@ -222,7 +224,8 @@ DEFINITIONS = {
                        "boxes not counted",
     "range_error": "simulated minus annotated range to the vehicle's near face [m], over "
                    "standard matched pairs whose annotation carries 3D (KITTI)",
-    "null": "a ratio whose denominator is zero",
+    "empty": "a rate whose denominator is zero is 1.0 when there was nothing to find and "
+             "nothing simulated, else 0.0; mean IoU without pairs is 0.0",
 }
 
 
