@@ -174,15 +174,15 @@ def _box_faces(x0: float, x1: float, y0: float, y1: float, z0: float, z1: float
 # brightest, rears/fronts next, sides darkest (the classic three-tone look of a lit box).
 _SHADE = {"top": 1.0, "rear": 0.82, "front": 0.82, "right": 0.62, "left": 0.62, "bottom": 0.3}
 _TYRE_BGR = (28, 28, 30)
-_GLASS_BGR = (62, 52, 45)
+_GLASS_BGR = (90, 80, 72)
 _GLASS_SIDE_BGR = (80, 68, 60)
-_TAIL_LIGHT_BGR = (35, 35, 225)
+_TAIL_LIGHT_BGR = (40, 40, 170)
 _HEAD_LIGHT_BGR = (205, 235, 245)
 _PLATE_BGR = (225, 228, 230)
 # Car shape: beltline height as a share of the roof height; cabin setbacks [m] from the rear
 # and front of the body at the beltline and at the roof, and the roof's inset from the sides.
-_BELT_FRAC = 0.66
-_CABIN = (0.35, 1.35, 0.95, 2.0, 0.22)
+_BELT_FRAC = 0.6
+_CABIN = (0.3, 1.3, 1.0, 2.1, 0.28)
 _BUMPER_BGR = (45, 45, 48)
 
 
