@@ -112,6 +112,12 @@ class RangingConfig:
         Frames another ego-lane vehicle must be nearer before it takes over as lead.
     max_range_m : float
         Positions beyond this are not trusted (reported, but never a lead).
+    per_frame_pitch : bool
+        Estimate the body pitch of every frame (braking dive, bumps) from the disagreement
+        of ground and width cues of all vehicles in the frame, and correct the boxes' rows.
+    pitch_accel_noise_px : float
+        Process noise of that per-frame horizon offset (white-noise acceleration model)
+        [px^2/s^3]; about (2 pi 1 Hz)^2 * 0.15 deg of suspension pitch at 1.5 Hz.
     """
 
     priors: dict[str, VehiclePrior] = field(default_factory=lambda: dict(DEFAULT_PRIORS))
@@ -131,6 +137,8 @@ class RangingConfig:
     lane_hysteresis_m: float = 0.3
     lead_switch_frames: int = 3
     max_range_m: float = 150.0
+    per_frame_pitch: bool = True
+    pitch_accel_noise_px: float = 600.0
 
     def prior_for(self, category: str) -> VehiclePrior:
         return self.priors.get(category, self.priors["car"])
@@ -572,6 +580,71 @@ def smooth_track_adaptive(t_s: np.ndarray, z: np.ndarray, r: np.ndarray, valid: 
     return best
 
 
+def frame_horizon_offsets(boxes: list[TrackedBox], camera: Camera, ba: BoxArrays,
+                          loose: BoxFit, width_m: np.ndarray, height_m: np.ndarray,
+                          length_m: np.ndarray, config: RangingConfig) -> np.ndarray:
+    """Per-box horizon shift [px, down positive] of its frame from the body pitch.
+
+    The width cue does not care about pitch, the ground cue does: the row where a vehicle's
+    width-cue range meets the road, against its observed bottom edge, measures the horizon
+    shift of that frame (plus a constant per vehicle from its size and road height, removed
+    by subtracting the track's median). All vehicles of a frame are combined by inverse
+    variance, shrunk towards zero by the expected pitch jitter, and smoothed over time with a
+    constant-velocity Kalman/RTS smoother, since a body pitches at about 1-2 Hz.
+    """
+    n = len(boxes)
+    out = np.zeros(n)
+    sel = np.flatnonzero(loose.valid & loose.ground_ok & loose.width_ok & ~ba.cut_top
+                         & (loose.range_m < 60))
+    if sel.size == 0:
+        return out
+    sub = BoxArrays(*(getattr(ba, k)[sel] for k in ba.__dataclass_fields__))
+    tiny = np.full(sel.size, 1e-3)
+    wfit = fit_boxes(camera, sub, width_m[sel], tiny, height_m[sel], tiny, length_m[sel],
+                     config, use_ground=False, use_height=False)
+    pred = _predict_edges(camera, wfit.range_m, wfit.lateral_m, width_m[sel], height_m[sel],
+                          length_m[sel])
+    offset = sub.y2 - pred[:, 3]
+    # Noise of one offset: the width cue's frame-to-frame range noise seen as rows
+    # (d row / d ln Z = -(row - horizon)), plus the bottom edge's own pixel noise.
+    gap = np.maximum(sub.y2 - camera.horizon_y_px(), 1.0)
+    var = (gap ** 2) * wfit.cov_white[:, 0, 0] + (
+        config.edge_noise_px + config.edge_noise_frac * (sub.y2 - sub.y1)) ** 2
+    ok = np.isfinite(offset) & np.isfinite(var) & wfit.valid
+    tids = np.array([boxes[i].track_id for i in sel])
+    for tid in np.unique(tids[ok]):
+        m = ok & (tids == tid)
+        if m.sum() < 5:  # too short to know its constant part
+            ok &= ~m
+            continue
+        offset[m] -= np.median(offset[m])
+    if not ok.any():
+        return out
+    frames = np.array([boxes[i].frame for i in sel])
+    t_by_frame: dict[int, float] = {}
+    for b in boxes:
+        t_by_frame.setdefault(b.frame, b.t_s)
+    all_frames = sorted(t_by_frame)
+    info = defaultdict(float)
+    wsum = defaultdict(float)
+    for f, o, v in zip(frames[ok], offset[ok], var[ok], strict=True):
+        info[int(f)] += 1.0 / v
+        wsum[int(f)] += o / v
+    jitter_px = camera.fy * math.tan(math.radians(config.horizon_jitter_deg))
+    z = [wsum[f] / info[f] if info[f] > 0 else 0.0 for f in all_frames]
+    r = [1.0 / info[f] if info[f] > 0 else 1e6 for f in all_frames]
+    valid = [info[f] > 0 for f in all_frames]
+    # Prior: the offset is zero-mean with the jitter's spread; the smoother below has no
+    # mean reversion, so fold the prior in per frame as a shrinkage first.
+    z = [zi * jitter_px ** 2 / (jitter_px ** 2 + ri) for zi, ri in zip(z, r, strict=True)]
+    r = [ri * jitter_px ** 2 / (jitter_px ** 2 + ri) for ri in r]
+    smoothed, _, _, _ = _kf_rts_cv([t_by_frame[f] for f in all_frames], z, r, valid,
+                                   config.pitch_accel_noise_px, jitter_px * 10)
+    by_frame = dict(zip(all_frames, smoothed, strict=True))
+    out[:] = [by_frame[b.frame] for b in boxes]
+    return np.clip(out, -5 * jitter_px, 5 * jitter_px)
+
+
 # --------------------------------------------------------------------------- main entry
 
 
@@ -646,7 +719,13 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
         w_track[members], w_track_std[members] = w_est, w_sd
         width_by_track[tid] = round(w_est, 3)
 
-    # 2) Final per-frame fit with the track's width.
+    # 2) Per-frame horizon offset (body pitch), then the final per-frame fit.
+    frame_offset_px = np.zeros(len(boxes))
+    if config.per_frame_pitch:
+        frame_offset_px = frame_horizon_offsets(boxes, cam, ba, loose, w_track, h0, l0, config)
+        if np.any(frame_offset_px != 0):
+            ba = BoxArrays(ba.x1, ba.y1 - frame_offset_px, ba.x2, ba.y2 - frame_offset_px,
+                           ba.cut_left, ba.cut_right, ba.cut_top, ba.cut_bottom)
     fit = fit_boxes(cam, ba, w_track, w_track_std, h0, h0_std, l0, config)
     if (~fit.valid).any():
         warnings.append(f"{int((~fit.valid).sum())} boxes gave no usable range cue (cut by the "
