@@ -64,7 +64,7 @@ RESCALE_RATIO = 0.05
 below it the difference is taken for a crop and the intrinsics are kept."""
 TIME_TOLERANCE_S = 1e-3
 """Slack when testing whether a keyframe lies within an actor's trajectory [s]."""
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp")
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")  # as the build's video reader: same frame indices
 FOLDER_FPS = 10.0
 """Frame rate assumed for an image folder without one [frames/s]: KITTI's camera rate, the
 same default as the video reader of the build."""
