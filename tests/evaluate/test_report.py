@@ -119,9 +119,13 @@ def test_report_renders_in_headless_chromium(tmp_path):
     cmd = [_chromium(), "--headless", "--no-sandbox", "--disable-gpu",
            "--disable-background-networking", "--disable-component-update", "--disable-sync",
            "--no-first-run", f"--user-data-dir={tmp_path / 'profile'}",
+           "--enable-logging=stderr", "--v=0",
            "--window-size=1280,2200", f"--screenshot={shot}", out.as_uri()]
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120, check=False)
     assert proc.returncode == 0, proc.stderr[-2000:]
+    # The page logged nothing to its console (no script errors, blocked or failed loads).
+    console = [line for line in proc.stderr.splitlines() if ":CONSOLE" in line]
+    assert not console, console
     img = cv2.imread(str(shot))
     assert img is not None and img.shape[:2] == (2200, 1280)
     # Something was drawn: the dark header band at the top, and varied content below it
