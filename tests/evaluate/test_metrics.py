@@ -165,6 +165,8 @@ def test_score_keyframes_contract_and_totals():
     # nothing annotated, nothing simulated: perfect, and still numbers
     assert (last["precision"], last["recall"], last["f1"], last["mean_iou"]) == (1, 1, 1, 0)
     assert m["per_keyframe"][0]["matches"][0]["range_error_m"] == pytest.approx(1.5)
+    assert m["per_keyframe"][0]["false_positive_actors"] == ["x"]
+    assert m["per_keyframe"][0]["missed_annotations"] == [None]  # the box without an id
     # a list parallel to the keyframes gives the same result
     assert score_keyframes(kfs, [preds[0.0], preds[0.5], []])["f1"] == m["f1"]
     with pytest.raises(ValueError):

@@ -150,6 +150,8 @@ class _FrameScore:
     ref_ious: list[float]
     ignored: int
     matches: list[dict]
+    false_positives: list[str]
+    missed: list[str | None]
     range_errors_m: list[float]
     range_pairs: list[tuple[float, float]]
 
@@ -173,7 +175,7 @@ def score_frame(pred: Sequence[ProjectedBox], gt: Sequence[AnnotatedBox]) -> _Fr
     matches, errors, range_pairs = [], [], []
     for i, j, iou in pairs:
         p, g = pred[i], care[j]
-        entry = {"actor_id": p.actor_id, "annotation_id": g.id, "iou": iou,
+        entry = {"actor_id": p.actor_id, "annotation_id": g.id, "iou": iou, "hard": p.hard,
                  "range_m_simulated": p.range_m, "range_m_annotated": g.range_m}
         if g.range_m is not None and math.isfinite(p.range_m):
             entry["range_error_m"] = p.range_m - g.range_m
@@ -188,7 +190,11 @@ def score_frame(pred: Sequence[ProjectedBox], gt: Sequence[AnnotatedBox]) -> _Fr
     return _FrameScore(tp=tp, fp=fp, fn=fn, ious=[v for _, _, v in pairs],
                        ref_tp=ref_tp, ref_fp=ref_fp, ref_fn=ref_fn,
                        ref_ious=[v for _, _, v in ref_pairs], ignored=len(ignored),
-                       matches=matches, range_errors_m=errors, range_pairs=range_pairs)
+                       matches=matches,
+                       false_positives=[pred[i].actor_id for i in unmatched if i not in ignored],
+                       missed=[care[j].id for j in range(len(care))
+                               if j not in {jj for _, jj, _ in pairs}],
+                       range_errors_m=errors, range_pairs=range_pairs)
 
 
 def _mean(values: list[float]) -> float:
@@ -280,6 +286,7 @@ def score_keyframes(keyframes: Sequence[Keyframe],
                                 **_prf(s.ref_tp, s.ref_fp, s.ref_fn)},
             "range_error": range_error_summary(s.range_errors_m, s.range_pairs),
             "matches": s.matches,
+            "false_positive_actors": s.false_positives, "missed_annotations": s.missed,
         })
     return {
         "keyframes": len(keyframes), "tp": tp, "fp": fp, "fn": fn, **_prf(tp, fp, fn),
