@@ -47,7 +47,7 @@ th,td{border:1px solid #dde1e8;padding:4px 8px;text-align:right;vertical-align:t
 th{background:#eef1f5} td.l,th.l{text-align:left}
 .warn{background:#fff6e0;border-color:#f0c36d}
 .warn li{margin:3px 0}
-.grid{display:grid;grid-template-columns:repeat(auto-fill,minmax(440px,1fr));gap:12px}
+.grid{display:grid;grid-template-columns:repeat(auto-fill,minmax(380px,1fr));gap:12px}
 figure{margin:0;min-width:0}
 figure img{width:100%;height:auto;border:1px solid #dde1e8;display:block}
 figcaption{font-size:12px;color:#4a5468;margin-top:3px}
