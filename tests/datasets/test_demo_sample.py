@@ -17,6 +17,7 @@ from datasets.demo_sample import (
     KEYFRAME_OFFSET_S,
     VIDEO_START_UTC,
     DemoSample,
+    compare_to_truth,
     demo_camera,
     generate_demo_sample,
     gps_noise_enu,
@@ -316,3 +317,31 @@ def test_ego_drives_the_right_hand_lane(truth, route):
     d2 = ((xy[:, None, :] - line[None, ::2, :]) ** 2).sum(axis=2)
     dist = np.sqrt(d2.min(axis=1))
     assert np.allclose(dist, abs(EGO_LANE_OFFSET_M), atol=0.1)
+
+
+def test_compare_to_truth_measures_errors(sample):
+    """Truth against itself scores zero; moved to another origin and shifted 2 m north it
+    scores the shift (the origin change is undone through WGS-84)."""
+    from dataclasses import replace
+
+    truth = truth_scenario(sample.truth)
+    same = compare_to_truth(truth, sample.truth)
+    assert same["ego"]["along_m"] < 1e-3 and same["ego"]["cross_m"] < 1e-3
+    assert all(a["id"] == a["truth_id"] and a["mean_m"] < 1e-3 for a in same["actors"])
+
+    old = EnuFrame(truth.origin)
+    new_origin = Origin(truth.origin.lat + 0.001, truth.origin.lon - 0.002, 0.0)
+    new = EnuFrame(new_origin)
+
+    def moved(tr):
+        lat, lon, _ = old.to_geodetic(np.column_stack((tr.x, tr.y + 2.0)))
+        p = new.to_enu(lat, lon)
+        return replace(tr, x=p[:, 0], y=p[:, 1])
+
+    shifted = replace(truth, origin=new_origin,
+                      ego=replace(truth.ego, trajectory=moved(truth.ego.trajectory)),
+                      actors=[replace(a, trajectory=moved(a.trajectory)) for a in truth.actors])
+    res = compare_to_truth(shifted, sample.truth)
+    ego_err = np.hypot(res["ego"]["along_m"], res["ego"]["cross_m"])
+    assert ego_err == pytest.approx(2.0, abs=0.01)
+    assert all(a["mean_m"] == pytest.approx(2.0, abs=0.01) for a in res["actors"])
