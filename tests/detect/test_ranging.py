@@ -395,3 +395,30 @@ def test_lane_names_and_hysteresis():
     idx = lane_indices(y, 3.6, 0.3)
     # leaves the ego lane only past 1.8 + 0.3 m, comes back only below 3.6 - 2.1 = 1.5 m
     assert idx.tolist() == [0, 0, 0, 0, 1, 1, 1, 0]
+
+
+def test_braking_nose_dive_is_corrected_per_frame():
+    # The ego body pitches 1 deg down for 2 s (braking dive): every bottom edge moves 17 px,
+    # which fools the ground cue of every vehicle at once while their widths do not change.
+    rng = np.random.default_rng(11)
+    vehicles = [Vehicle(k, lambda t, x0=x0: x0, lambda t, y0=y0: y0, lambda t: 0.0,
+                        width_m=float(rng.normal(1.8, 0.08)))
+                for k, (x0, y0) in enumerate([(12, 3.6), (20, 0.0), (28, -3.6), (35, 3.6),
+                                              (45, 0.0)])]
+    boxes, truth = [], {}
+    for k in range(80):
+        t = k * 0.1
+        dive = 1.0 if 3.0 <= t < 5.0 else 0.0
+        b, tr = simulate(CAM.with_pitch(dive), vehicles, duration_s=0.1, seed=k)
+        boxes += [TrackedBox(k, round(t, 6), x.track_id, x.category, x.score, x.x1, x.y1,
+                             x.x2, x.y2) for x in b]
+        truth.update({(k, tid): v for (_, tid), v in tr.items()})
+    in_dive = np.array([3.0 <= b.t_s < 5.0 for b in boxes])
+    on, off = (range_tracks(boxes, CAM, config=RangingConfig(per_frame_pitch=flag))
+               for flag in (True, False))
+    rel_on, _ = _errors(on, truth)
+    rel_off, _ = _errors(off, truth)
+    print(f"nose dive: median |rel err| in the dive {np.median(rel_on[in_dive]):.2%} with the "
+          f"per-frame pitch, {np.median(rel_off[in_dive]):.2%} without")
+    assert np.median(rel_on[in_dive]) < 0.05
+    assert np.median(rel_on[in_dive]) < 0.5 * np.median(rel_off[in_dive])

@@ -69,3 +69,18 @@ def test_every_nth_frame_and_no_markings():
     est2 = HorizonEstimator(CAM, every=1)
     row = est2.add_frame(small)
     assert row == pytest.approx(CAM.with_pitch(1.0).horizon_y_px(), abs=5.0)
+
+
+def test_camera_yaw_from_vanishing_column():
+    from dataclasses import replace
+
+    from vid2sim.detect.lanes import yaw_for_vanishing_column
+
+    true_cam = replace(CAM.with_pitch(1.0), yaw_deg=2.0)  # mounted turned 2 deg to the left
+    est = HorizonEstimator(CAM.with_pitch(1.0), every=1)
+    for k in range(5):
+        est.add_frame(road_image(true_cam, seed=20 + k, dash_phase_m=2.0 * k))
+    column, votes = est.estimate_column()
+    assert votes >= 4
+    yaw = yaw_for_vanishing_column(CAM.with_pitch(1.0), column)
+    assert yaw == pytest.approx(2.0, abs=0.3)

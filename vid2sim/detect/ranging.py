@@ -842,6 +842,12 @@ def _row_to_box(row: dict[str, str]) -> RangedBox:
 
 # --------------------------------------------------------------------------- vid2sim track
 
+# The lane vanishing point moves on curves; a median over this many sampled frames (every
+# 5th video frame: 2 s at 25 fps) is needed before it is trusted as straight ahead.
+MIN_LANE_FRAMES_FOR_YAW = 10
+# A windscreen mount turned more than this is implausible: more likely a long curve.
+MAX_YAW_CORRECTION_DEG = 5.0
+
 
 def _camera_for_video(camera_path: Path | None, width: int, height: int
                       ) -> tuple[Camera, list[str]]:
@@ -917,7 +923,7 @@ def run_track(video: str | Path, camera_path: str | Path | None, *, detector_nam
     """
     from vid2sim.detect.detector import load_detector
     from vid2sim.detect.external import read_detections
-    from vid2sim.detect.lanes import HorizonEstimator
+    from vid2sim.detect.lanes import HorizonEstimator, yaw_for_vanishing_column
     from vid2sim.detect.pipeline import run_detect
     from vid2sim.detect.tracker import TrackerConfig
     from vid2sim.detect.video import video_info
@@ -938,6 +944,18 @@ def run_track(video: str | Path, camera_path: str | Path | None, *, detector_nam
     boxes = run_detect(video, detector=detector, detections=imported,
                        detect_every=detect_every, progress=progress,
                        on_frame=lambda frame: horizon_est.add_frame(frame.image_bgr))
+    # Lane markings also say where straight ahead is: correct the camera's yaw so the ego
+    # corridor runs along the lane rather than along a slightly turned camera axis.
+    column, n_col = horizon_est.estimate_column()
+    if column is not None and n_col >= MIN_LANE_FRAMES_FOR_YAW:
+        yaw = yaw_for_vanishing_column(camera, column)
+        if abs(yaw - camera.yaw_deg) <= MAX_YAW_CORRECTION_DEG:
+            notes.append(f"camera yaw {yaw:+.2f} deg from the lane markings' vanishing point "
+                         f"({n_col} frames; camera file said {camera.yaw_deg:+.2f})")
+            camera = replace(camera, yaw_deg=yaw)
+        else:
+            notes.append(f"lane markings point {yaw - camera.yaw_deg:+.1f} deg off the camera "
+                         "axis: implausible for a mounting, yaw not changed")
     result = range_tracks(boxes, camera, horizon_hints_px=horizon_est.rows_px, config=config)
     write_tracks_csv(result.boxes, out_path)
     lines = [f"{video}: {info.n_frames} frames, boxes from {source}"]
