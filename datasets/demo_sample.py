@@ -18,7 +18,9 @@ other way and three cars stand in the parking strip along the right kerb. The ge
 - ``sample.json``: a manifest describing the above.
 
 Only the noise (GPS, detections, pixel grain) depends on the seed; the drive itself is fixed.
-``python -m datasets.demo_sample OUT_DIR`` writes the sample.
+``python -m datasets.demo_sample OUT_DIR`` writes the sample; :func:`truth_scenario` reads the
+truth back as a :class:`~vid2sim.scenario.Scenario` and :func:`compare_to_truth` scores a
+built scenario against it.
 """
 
 from __future__ import annotations
