@@ -57,6 +57,8 @@ class MatchConfig:
     :param accel_sigma_mps2: process noise of the along-route smoother [m/s^2]
     :param stationary_mps: below this speed the car is taken as standing still, and a
         projection that moves backwards on the same edge costs no more than one forwards
+    :param turn_m_per_rad: turning at a junction counts as this many extra metres of route
+        per radian (prefers the straighter of two nearly equal routes) [m/rad]
     :param min_cover_m: a first/last edge the fixes cover less than this is dropped from the
         route (GPS noise at the start would otherwise add the way behind the start) [m]
     """
@@ -74,7 +76,8 @@ class MatchConfig:
     max_speed_mps: float = 60.0
     accel_sigma_mps2: float = 1.5
     stationary_mps: float = 1.5
-    min_cover_m: float = 5.0
+    min_cover_m: float = 3.5
+    turn_m_per_rad: float = 10.0
 
 
 @dataclass(slots=True)
@@ -184,6 +187,12 @@ def _lines(coords: list[np.ndarray]) -> np.ndarray:
     return shapely.linestrings(np.vstack(coords), indices=idx)
 
 
+def _end_heading(xy: np.ndarray, first: bool) -> float:
+    """Heading [rad] of a polyline's first or last segment."""
+    a, b = (xy[0], xy[1]) if first else (xy[-2], xy[-1])
+    return math.atan2(b[1] - a[1], b[0] - a[0])
+
+
 def _wrap(a: np.ndarray) -> np.ndarray:
     return (a + np.pi) % (2 * np.pi) - np.pi
 
@@ -199,7 +208,8 @@ class _EdgeDistances:
     cutoff or unreachable.
     """
 
-    def __init__(self, net: RoadNetwork, cutoff_m: float, uturn_m: float):
+    def __init__(self, net: RoadNetwork, cutoff_m: float, uturn_m: float,
+                 turn_m_per_rad: float = 0.0):
         n = net.n_edges
         extra: list[float] = []
         out_by_node: dict[int, list[int]] = {}
@@ -218,11 +228,17 @@ class _EdgeDistances:
                 rows.extend([e] * len(nxt))
                 cols.extend(nxt)
                 extra.extend([uturn_m] * len(nxt))
-        # arc weight = length of the edge entered; zero-length edges would vanish from a
-        # sparse matrix, so they get a millimetre
-        weight = np.maximum(net.edge_length_m[np.asarray(cols, dtype=np.int64)], 1e-3)
-        weight = weight + np.asarray(extra)
-        self.graph = csr_matrix((weight, (rows, cols)), shape=(n, n))
+        # arc weight = length of the edge entered + a cost per radian of turning at the
+        # junction (a noisy fix beside a junction should not pull the route through a
+        # zig-zag of short ways when a straight way is as close); zero-length edges would
+        # vanish from a sparse matrix, so they get a millimetre
+        rows_a, cols_a = np.asarray(rows, dtype=np.int64), np.asarray(cols, dtype=np.int64)
+        head_out = np.array([_end_heading(xy, first=False) for xy in net.edge_xy])
+        head_in = np.array([_end_heading(xy, first=True) for xy in net.edge_xy])
+        turn = np.abs(_wrap(head_in[cols_a] - head_out[rows_a])) if rows else np.zeros(0)
+        weight = np.maximum(net.edge_length_m[cols_a], 1e-3) + np.asarray(extra)
+        weight = weight + turn_m_per_rad * turn
+        self.graph = csr_matrix((weight, (rows_a, cols_a)), shape=(n, n))
         self.length = net.edge_length_m
         self.limit = cutoff_m + float(net.edge_length_m.max(initial=0.0))
         self.rows: dict[int, dict[int, float]] = {}
@@ -291,8 +307,13 @@ def match(net: RoadNetwork, x_m: np.ndarray, y_m: np.ndarray, t_s: np.ndarray, *
     index = _EdgeIndex(net)
     cands = index.candidates(xy, radius, cfg.max_geometries)
     emis = []
-    for k, (_, _, d, h) in enumerate(cands):
+    for k, (edges_k, s_k, d, h) in enumerate(cands):
         e = -0.5 * (d / sigma[k]) ** 2
+        # a projection clamped to an edge's end means the fix lies beyond it: the next or
+        # previous edge holds the fix, and must win the tie at the shared node (this decides
+        # the first and last way of the route)
+        clamped = (s_k <= 1e-6) | (s_k >= net.edge_length_m[edges_k] - 1e-6)
+        e = e - CLAMP_LOGP * clamped
         if np.isfinite(heading[k]):
             e = e + np.maximum(-0.5 * (_wrap(h - heading[k]) / cfg.heading_sigma_rad) ** 2,
                                cfg.heading_cap_logp)
@@ -305,7 +326,8 @@ def match(net: RoadNetwork, x_m: np.ndarray, y_m: np.ndarray, t_s: np.ndarray, *
     step = np.hypot(*np.diff(xy, axis=0).T) if n > 1 else np.zeros(0)
     window_gc = max(float(step.max()) if step.size else 0.0, 1.0) * (cfg.max_skip + 1)
     dist = _EdgeDistances(net, cutoff_m=min(2 * window_gc + 2 * radius + 50.0, 5000.0),
-                          uturn_m=-cfg.uturn_logp * cfg.beta_m)
+                          uturn_m=-cfg.uturn_logp * cfg.beta_m,
+                          turn_m_per_rad=cfg.turn_m_per_rad)
     dist.prefetch(np.concatenate([c[0] for c in cands]) if n else np.zeros(0, np.int64))
     length = net.edge_length_m
     twin = net.edge_twin
@@ -571,6 +593,9 @@ def join_xy(net: RoadNetwork, edges: list[int]) -> np.ndarray:
     return np.vstack([net.edge_xy[edges[0]]] + [net.edge_xy[e][1:] for e in edges[1:]])
 
 
+#: emission cost of a projection clamped to an edge end (a tie-breaker, see match())
+CLAMP_LOGP = 0.2
+
 #: innovations beyond 4 sigma (16 = 4^2 in variance) are rejected by the along-route filter
 GATE = 16.0
 
@@ -646,12 +671,14 @@ class SimulatedDrive:
 def simulate_drive(net: RoadNetwork, rng: np.random.Generator, *, min_length_m: float = 1000.0,
                    max_length_m: float = 3000.0, noise_m: float = 5.0,
                    outlier_share: float = 0.02, stop_s: float = 0.0,
-                   rate_hz: float = 1.0) -> SimulatedDrive:
+                   rate_hz: float = 1.0, random_phase: bool = True) -> SimulatedDrive:
     """Drive the shortest path between two random junctions of ``net`` and record noisy fixes.
 
     Speed: a cruise speed drawn from 7-13 m/s (25-47 km/h, urban), 4 m/s through turns
     sharper than 45 degrees, accelerating and braking at most 1.5 m/s^2; with ``stop_s`` > 0
-    the car stops halfway and stands still that long. Noise: Gaussian, ``noise_m`` per axis; ``outlier_share`` of the fixes are
+    the car stops halfway and stands still that long. The first fix falls at a random point
+    of the first second of driving (``random_phase``), not exactly on the start junction.
+    Noise: Gaussian, ``noise_m`` per axis; ``outlier_share`` of the fixes are
     instead displaced 30-80 m in a random direction.
     """
     graph = net.graph()
@@ -688,7 +715,10 @@ def simulate_drive(net: RoadNetwork, rng: np.random.Generator, *, min_length_m: 
         for k in range(1, v.size):
             v[k] = min(v[k], math.sqrt(v[k - 1] ** 2 + 2 * 1.5 * 1.0))
     dt = 1.0 / rate_hz
-    s, t, s_list, t_list = 0.0, 0.0, [], []
+    # the receiver's 1 Hz clock does not know where the route begins: the first fix falls
+    # anywhere within the first second of driving
+    s = float(rng.uniform(0.0, v_grid[0] * dt)) if random_phase else 0.0
+    t, s_list, t_list = 0.0, [], []
     stopped = stop_s <= 0
     while s < total:
         s_list.append(s)
