@@ -422,3 +422,15 @@ def test_braking_nose_dive_is_corrected_per_frame():
           f"per-frame pitch, {np.median(rel_off[in_dive]):.2%} without")
     assert np.median(rel_on[in_dive]) < 0.05
     assert np.median(rel_on[in_dive]) < 0.5 * np.median(rel_off[in_dive])
+
+
+def test_lead_survives_a_missed_detection():
+    # The lead (20 m) is not detected in frames 30 and 31; a car 45 m ahead in the same lane
+    # stands in for those frames only, and the lead is back at once, with no switch delay.
+    vehicles = [Vehicle(1, lambda t: 20.0, lambda t: 0.0, lambda t: 0.0),
+                Vehicle(2, lambda t: 45.0, lambda t: 0.3, lambda t: 0.0)]
+    boxes, _ = simulate(CAM, vehicles, duration_s=6.0, seed=12)
+    boxes = [b for b in boxes if not (b.track_id == 1 and b.frame in (30, 31))]
+    res = range_tracks(boxes, CAM)
+    lead_by_frame = {b.frame: b.track_id for b in res.boxes if b.is_lead}
+    assert [lead_by_frame[k] for k in range(60)] == [1] * 30 + [2, 2] + [1] * 28

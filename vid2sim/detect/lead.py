@@ -21,6 +21,10 @@ if TYPE_CHECKING:  # pragma: no cover
 # A rival must be nearer than the current lead by this much to count as nearer at all
 # [m]: two cars in one lane are a car length apart, so this only ignores range noise.
 LEAD_SWITCH_MARGIN_M = 0.5
+# Nearer than the lead by more than this (2 m + 10 %, beyond range noise at any distance)
+# is a different situation, not noise: the lead changes without waiting.
+CLEARLY_NEARER_M = 2.0
+CLEARLY_NEARER_FRAC = 0.10
 
 
 def lane_name(index: int) -> str:
@@ -54,11 +58,12 @@ def assign_lanes_and_lead(boxes: list[TrackedBox], range_m: np.ndarray, lateral_
                           config: RangingConfig) -> tuple[list[str], np.ndarray]:
     """Lane of every box and whether it is the lead vehicle in its frame.
 
-    The lead is the nearest vehicle in the ego lane. A different ego-lane vehicle takes over
-    only after it has been nearer for ``config.lead_switch_frames`` consecutive frames, or at
-    once when the current lead leaves the ego lane or is lost (a cut-out), so the lead does
-    not flicker between two similar candidates while a cut-in still switches within a few
-    frames of the vehicle entering the lane.
+    The lead is the nearest vehicle in the ego lane. Another ego-lane vehicle that is only a
+    little nearer (within 2 m + 10 %) takes over after it has been nearer for
+    ``config.lead_switch_frames`` consecutive frames, so the lead does not flicker between
+    two similar candidates; one clearly nearer (a cut-in, once the lane hysteresis has put it
+    in the ego lane) takes over at once, and so does the nearest when the lead leaves the
+    lane (a cut-out) or is lost for longer than ``config.lead_switch_frames`` frames.
 
     Parameters
     ----------
@@ -90,31 +95,39 @@ def assign_lanes_and_lead(boxes: list[TrackedBox], range_m: np.ndarray, lateral_
     for i, b in enumerate(boxes):
         by_frame[b.frame].append(i)
     lead_track: int | None = None
+    lead_seen_frame = -(10 ** 9)
     challenger: int | None = None
     challenge_frames = 0
     for frame in sorted(by_frame):
         cands = [i for i in by_frame[frame] if lane_idx[i] == 0 and np.isfinite(range_m[i])
                  and 0 < range_m[i] <= config.max_range_m]
         if not cands:
-            lead_track, challenger, challenge_frames = None, None, 0
             continue
         nearest = min(cands, key=lambda i: range_m[i])
         current = next((i for i in cands if boxes[i].track_id == lead_track), None)
         if current is None:
-            chosen = nearest
+            is_lead[nearest] = True
+            # A lead missing for a frame or two (a missed detection) keeps its title: the
+            # nearest stands in, and the lead takes over again as soon as it is back.
+            if frame - lead_seen_frame > config.lead_switch_frames:
+                lead_track, lead_seen_frame = boxes[nearest].track_id, frame
             challenger, challenge_frames = None, 0
-        elif (boxes[nearest].track_id != lead_track
-              and range_m[nearest] < range_m[current] - LEAD_SWITCH_MARGIN_M):
-            tid = boxes[nearest].track_id
-            challenge_frames = challenge_frames + 1 if tid == challenger else 1
-            challenger = tid
-            if challenge_frames >= config.lead_switch_frames:
+            continue
+        chosen = current
+        gap_m = range_m[current] - range_m[nearest]
+        if boxes[nearest].track_id != lead_track and gap_m > LEAD_SWITCH_MARGIN_M:
+            if gap_m > CLEARLY_NEARER_M + CLEARLY_NEARER_FRAC * range_m[current]:
+                # Clearly nearer (a cut-in: its lane change was already debounced by the
+                # lane hysteresis): switch at once.
                 chosen, challenger, challenge_frames = nearest, None, 0
             else:
-                chosen = current
+                tid = boxes[nearest].track_id
+                challenge_frames = challenge_frames + 1 if tid == challenger else 1
+                challenger = tid
+                if challenge_frames >= config.lead_switch_frames:
+                    chosen, challenger, challenge_frames = nearest, None, 0
         else:
-            chosen = current
             challenger, challenge_frames = None, 0
         is_lead[chosen] = True
-        lead_track = boxes[chosen].track_id
+        lead_track, lead_seen_frame = boxes[chosen].track_id, frame
     return lanes, is_lead
