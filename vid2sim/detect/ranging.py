@@ -940,7 +940,8 @@ def run_track(video: str | Path, camera_path: str | Path | None, *, detector_nam
         detector = load_detector(detector_name, Path(model_dir) if model_dir else None,
                                  score_threshold=TrackerConfig().low_score)
         source = str(detector_name)
-    horizon_est = HorizonEstimator(camera)
+    # Only every detect_every-th frame is decoded: look at about every 5th video frame.
+    horizon_est = HorizonEstimator(camera, every=max(1, round(5 / detect_every)))
     boxes = run_detect(video, detector=detector, detections=imported,
                        detect_every=detect_every, progress=progress,
                        on_frame=lambda frame: horizon_est.add_frame(frame.image_bgr))
