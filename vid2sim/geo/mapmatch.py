@@ -516,29 +516,46 @@ def signed_offsets(line_xy_m: np.ndarray, xy_m: np.ndarray,
     """
     line = np.asarray(line_xy_m, float)
     pts = np.asarray(xy_m, float).reshape(-1, 2)
-    a, b = line[:-1], line[1:]
-    d = b - a
-    seg_len2 = np.maximum((d ** 2).sum(axis=1), 1e-12)
-    seg_s = np.concatenate([[0.0], np.cumsum(np.sqrt(seg_len2))])
+    a, d = line[:-1], np.diff(line, axis=0)
+    seg_len = np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-9)
+    seg_s = np.concatenate([[0.0], np.cumsum(seg_len)])
+    n_seg = len(a)
+    if expected_s_m is None or not len(pts):
+        first = np.zeros(len(pts), dtype=np.int64)
+        width = n_seg
+    else:
+        exp = np.asarray(expected_s_m, float).reshape(-1)
+        known = np.isfinite(exp)
+        lo = np.where(known, np.searchsorted(seg_s, exp - window_m, side="right") - 1, 0)
+        hi = np.where(known, np.searchsorted(seg_s, exp + window_m, side="left"), n_seg)
+        first = np.clip(lo, 0, n_seg - 1)
+        width = int(max(1, (np.clip(hi, 1, n_seg) - first).max()))
     s_out = np.full(len(pts), np.nan)
     off_out = np.full(len(pts), np.nan)
-    chunk = 256
+    chunk = max(1, 200_000 // max(width, 1))  # bounds the (points x segments) work arrays
     for k0 in range(0, len(pts), chunk):
         p = pts[k0:k0 + chunk]
-        # (points x segments) projection parameter clipped to the segment
-        u = np.clip(((p[:, None, :] - a[None]) * d[None]).sum(-1) / seg_len2[None], 0.0, 1.0)
-        foot = a[None] + u[..., None] * d[None]
+        # candidate segments of each point: a window of ``width`` from ``first``
+        j = np.minimum(first[k0:k0 + chunk, None] + np.arange(width)[None], n_seg - 1)
+        rel0 = p[:, None, :] - a[j]
+        u = np.clip((rel0 * d[j]).sum(-1) / seg_len[j] ** 2, 0.0, 1.0)
+        foot = a[j] + u[..., None] * d[j]
         dist2 = ((p[:, None, :] - foot) ** 2).sum(-1)
         if expected_s_m is not None:
-            exp = np.asarray(expected_s_m, float)[k0:k0 + chunk]
-            far = np.abs(seg_s[None, :-1] + u * np.sqrt(seg_len2)[None] - exp[:, None]) > window_m
-            dist2 = np.where(far & np.isfinite(exp)[:, None], np.inf, dist2)
-        j = np.argmin(dist2, axis=1)
+            exp_k = np.asarray(expected_s_m, float)[k0:k0 + chunk]
+            far = np.abs(seg_s[j] + u * seg_len[j] - exp_k[:, None]) > window_m
+            dist2 = np.where(far & np.isfinite(exp_k)[:, None] & (dist2 < np.inf), np.inf,
+                             dist2)
+            # no segment inside the window (an expectation off the line): take the nearest
+            none = ~np.isfinite(dist2).any(axis=1)
+            dist2[none] = ((p[none, None, :] - foot[none]) ** 2).sum(-1)
+        best = np.argmin(dist2, axis=1)
         rows = np.arange(len(p))
-        rel = p - foot[rows, j]
-        cross = d[j, 0] * rel[:, 1] - d[j, 1] * rel[:, 0]
-        s_out[k0:k0 + chunk] = seg_s[j] + u[rows, j] * np.sqrt(seg_len2[j])
-        off_out[k0:k0 + chunk] = np.sign(cross) * np.sqrt(dist2[rows, j])
+        jj = j[rows, best]
+        rel = p - foot[rows, best]
+        cross = d[jj, 0] * rel[:, 1] - d[jj, 1] * rel[:, 0]
+        s_out[k0:k0 + chunk] = seg_s[jj] + u[rows, best] * seg_len[jj]
+        off_out[k0:k0 + chunk] = np.sign(cross) * np.sqrt(dist2[rows, best])
     return s_out, off_out
 
 

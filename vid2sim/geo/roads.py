@@ -349,8 +349,13 @@ def build_road(trace: GpsTrace, ego: EgoTrack, map_path: Path | None, *,
 def _trajectory_result(trace: GpsTrace, ego: EgoTrack, fix_xy: np.ndarray, t_fix: np.ndarray,
                        warnings: list[str]) -> RoadResult:
     road = trajectory_road(ego)
-    _, fix_off = signed_offsets(road.centerline, fix_xy)
-    _, ego_off = signed_offsets(road.centerline, np.column_stack([ego.x_m, ego.y_m]))
+    ego_xy = np.column_stack([ego.x_m, ego.y_m])
+    # the road was resampled from the ego path, so each sample's place on it is known: the
+    # distance driven (keeps the projection local and linear in the trace length)
+    driven = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(ego_xy, axis=0).T))])
+    expected_fix = np.interp(t_fix, ego.t_s, driven) if len(ego.t_s) else None
+    _, fix_off = signed_offsets(road.centerline, fix_xy, expected_fix)
+    _, ego_off = signed_offsets(road.centerline, ego_xy, driven if len(ego.t_s) else None)
     matches = [{"t": float(t), "osm_way_id": None, "offset_m": float(o)}
                for t, o in zip(t_fix, fix_off, strict=True)]
     length = float(np.hypot(*np.diff(road.centerline, axis=0).T).sum())
