@@ -192,3 +192,24 @@ def test_helsinki_accuracy_regression_floor(helsinki_eval):
 def test_helsinki_accuracy_issue_bar(helsinki_eval):
     assert helsinki_eval["fix_accuracy"] >= 0.98
     assert helsinki_eval["exact_routes"] >= 0.90
+
+
+def test_a_run_of_off_map_fixes_breaks_the_chain(town):
+    t, x, y, _ = drive([(-280, 0), (280, 0)], noise_m=2.0, seed=7)
+    gap = np.flatnonzero((x > -60) & (x < 60))
+    assert gap.size > MatchConfig().max_skip
+    y = y.copy()
+    y[gap] = 900.0  # far from every road, for longer than the matcher may skip
+    res = match(town, x, y, t)
+    assert res.n_breaks == 1 and len(res.route_edges) == 2 and res.warnings
+    assert np.all(res.fix_way_id[gap] == -1) and np.all(res.fix_piece[gap] == -1)
+    assert np.all(res.fix_way_id[x < -80] == 101) and np.all(res.fix_way_id[x > 80] == 102)
+    assert res.way_sequence() == [101, 102]
+
+
+def test_a_gps_outage_is_bridged_by_the_route(town):
+    # no fixes at all for 20 s (a tunnel): one continuous route through the gap
+    t, x, y, _ = drive([(-280, 0), (0, 0), (0, 180)], noise_m=2.0, seed=8)
+    keep = (t < 20) | (t > 40)
+    res = match(town, x[keep], y[keep], t[keep])
+    assert res.n_breaks == 0 and res.way_sequence() == [101, 104]

@@ -102,7 +102,6 @@ class RoadNetwork:
         nodes the shortest is kept (its index in attribute ``edge``)."""
         if self._graph is None:
             g = nx.DiGraph()
-            g.add_nodes_from(self.node_xy)
             for i in np.argsort(-self.edge_length_m, kind="stable"):
                 # longest first, so the shortest of parallel edges overwrites the others
                 g.add_edge(int(self.edge_u[i]), int(self.edge_v[i]),
@@ -400,11 +399,6 @@ def load_network(path: str | Path, origin: Origin, *,
     raise InputError(path, f"the trace area ({format_bbox(bbox_lonlat)}) lies outside the map's "
                      f"drivable roads ({format_bbox(whole.bbox_lonlat)})",
                      "pass a map that covers the drive")
-
-
-def map_bbox_lonlat(ways_or_net: RoadNetwork) -> tuple[float, float, float, float]:
-    """(west, south, east, north) of a network's drivable ways [deg]."""
-    return ways_or_net.bbox_lonlat
 
 
 def format_bbox(bbox: Iterable[float]) -> str:
