@@ -11,6 +11,7 @@ files (and does not clobber an earlier build's files).
 
 from __future__ import annotations
 
+import json
 import logging
 import shutil
 import tempfile
@@ -24,7 +25,7 @@ import numpy as np
 from vid2sim import __version__
 from vid2sim.camera import Camera, load_camera
 from vid2sim.errors import InputError
-from vid2sim.fileio import sha256_path
+from vid2sim.fileio import sha256_path, write_text_atomic
 from vid2sim.records import EgoTrack, Origin, RangedBox
 
 log = logging.getLogger(__name__)
@@ -303,20 +304,26 @@ def build(opts: BuildOptions, report: Callable[[str], None] | None = None) -> Bu
 
         figures = _stage_figures(staging / "figures", road_result, trace, ego, ranging.boxes)
         metrics = None
-        keyframe_images: list = []
         if opts.keyframes is not None:
             from vid2sim.evaluate.replay import run_eval
 
+            # run_eval writes metrics.json, the keyframe overlays and the one report.html,
+            # with this build's figures, warnings and inputs added.
             metrics, _ = stages.run("replay evaluation", run_eval, staging / "scenario.json",
                                     opts.keyframes, video=Path(opts.video), out_dir=staging,
-                                    fps=opts.fps)
+                                    fps=opts.fps, extra_figures=figures,
+                                    extra_warnings=warnings, report_inputs=inputs)
+            # Name the scenario as the user will find it, not by the staging folder's
+            # random name, so the same inputs give the same metrics.json.
+            metrics.setdefault("inputs", {})["scenario"] = str(out_dir / "scenario.json")
+            write_text_atomic(staging / "metrics.json",
+                              json.dumps(metrics, indent=1, allow_nan=False) + "\n")
             files["metrics"] = Path("metrics.json")
-            keyframe_images = [(p.stem, p) for p in sorted((staging / "keyframes").glob("*.png"))]
-        from vid2sim.evaluate.report import write_report
+        else:
+            from vid2sim.evaluate.report import write_report
 
-        write_report(staging / "report.html", scenario=scenario, metrics=metrics,
-                     keyframe_images=keyframe_images, extra_figures=figures,
-                     warnings=warnings, inputs=inputs)
+            write_report(staging / "report.html", scenario=scenario, metrics=None,
+                         extra_figures=figures, warnings=warnings, inputs=inputs)
         files["report"] = Path("report.html")
         out_dir.mkdir(parents=True, exist_ok=True)
         for child in staging.iterdir():
