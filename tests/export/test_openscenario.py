@@ -163,3 +163,24 @@ def test_vehicle_seen_once_still_exports_valid_xosc(tmp_path):
     sc.actors[0].trajectory = Trajectory([1.0], [40.0], [-1.75], [0.0], [0.0])
     xosc, _ = write_openscenario(sc, tmp_path)
     _schema("OpenSCENARIO_1_2.xsd").validate(str(xosc))
+
+
+def test_fit_refines_only_where_needed_and_jacobian_is_exact():
+    from vid2sim.export.openscenario import _ClothoidModel
+
+    knots = np.linspace(0.0, 100.0, 6)
+    model = _ClothoidModel(1.0, 2.0, knots, np.linspace(0.0, 100.0, 51))
+    p = np.r_[0.3, np.random.default_rng(0).normal(0.0, 0.01, 6)]
+    eps = 1e-7
+    numeric = np.column_stack([
+        ((model.positions(p + eps * e) - model.positions(p - eps * e)) / (2 * eps)).ravel()
+        for e in np.eye(7)])
+    np.testing.assert_allclose(model.jacobian(p), numeric, atol=1e-5)
+    # 1 km straight then a 30 m-radius quarter turn: only the turn gets short pieces
+    th = np.linspace(0.0, math.pi / 2, 48)[1:]
+    pts = np.vstack((np.column_stack((np.linspace(0, 1000, 1001), np.zeros(1001))),
+                     np.column_stack((1000 + 30 * np.sin(th), 30 - 30 * np.cos(th)))))
+    line, err = fit_reference_line(pts)
+    assert err <= 0.2
+    lengths = np.diff(line.knots_s_m)
+    assert lengths.max() >= 19.0 and len(lengths) < 70

@@ -26,6 +26,8 @@ uses only elements common to 1.7 and 1.8 (the ASAM checker validates it against 
 
 from __future__ import annotations
 
+import contextlib
+import logging
 import math
 import os
 import shutil
@@ -40,11 +42,15 @@ from scipy.optimize import least_squares
 from vid2sim.geo.frames import EnuFrame
 from vid2sim.scenario import Road, Scenario, Trajectory
 
+log = logging.getLogger(__name__)
+
 KNOT_SPACING_M = 20.0
 MIN_KNOT_SPACING_M = 4.0
 FIT_TOLERANCE_M = 0.2
 _SMOOTHING = 0.05  # weight of the curvature-change penalty (dimensionless)
 _FINE_STEP_M = 0.25  # integration step of the curvature model [m]
+_MAX_GRID = 8000  # integration steps of a fit (memory: grid x knots doubles)
+_MAX_KNOTS = 500  # knots of a fit at most (long roads get a coarser minimum spacing)
 _LINE_CURVATURE = 1e-5  # |k| below this (radius > 100 km) is written as a line [1/m]
 _ARC_DCURVATURE = 1e-6  # |k1 - k0| below this is written as an arc [1/m]
 
@@ -117,14 +123,79 @@ def _resample(points_m: np.ndarray, step_m: float) -> tuple[np.ndarray, np.ndarr
     return s_new, np.column_stack((np.interp(s_new, s, p[:, 0]), np.interp(s_new, s, p[:, 1])))
 
 
+def _single_blas_thread():
+    """One BLAS thread for the fit: the per-iteration SVD of a few-hundred-column Jacobian takes
+    0.2 s on one thread but 10 s when OpenBLAS spreads it over busy cores (measured on the
+    2-core CI machine)."""
+    try:
+        from threadpoolctl import threadpool_limits  # installed with scikit-learn
+    except ImportError:  # pragma: no cover
+        return contextlib.nullcontext()
+    return threadpool_limits(limits=1, user_api="blas")
+
+
+class _ClothoidModel:
+    """Positions of a clothoid chain at given arc lengths and their exact Jacobian.
+
+    Parameters are ``[heading0, curvature at each knot]``. On a grid of at most
+    :data:`_MAX_GRID` steps the heading is the trapezoid integral of the piecewise-linear
+    curvature (``h = h0 + H @ k`` with ``H`` the integrated hat functions) and positions are
+    sums of ``(cos, sin)`` of the midpoint headings, as in :func:`_integrate`. The Jacobian
+    follows by the chain rule (``dx/dk = -sum sin(h_mid) H_mid ds``), so a fit costs a few
+    matrix products per iteration instead of one integration per parameter.
+    """
+
+    def __init__(self, x0: float, y0: float, knots: np.ndarray, s_query: np.ndarray):
+        self.x0, self.y0, self.knots = x0, y0, knots
+        n = int(min(max(math.ceil(knots[-1] / _FINE_STEP_M), 1), _MAX_GRID))
+        s = np.linspace(0.0, knots[-1], n + 1)
+        self.ds = np.diff(s)
+        i = np.clip(np.searchsorted(knots, s, side="right") - 1, 0, len(knots) - 2)
+        w = (s - knots[i]) / (knots[i + 1] - knots[i])
+        hat = np.zeros((s.size, len(knots)))
+        rows = np.arange(s.size)
+        hat[rows, i] = 1.0 - w
+        hat[rows, i + 1] += w
+        h_of_k = np.vstack((np.zeros(len(knots)),
+                            np.cumsum(0.5 * (hat[1:] + hat[:-1]) * self.ds[:, None], axis=0)))
+        self.hm_of_k = 0.5 * (h_of_k[1:] + h_of_k[:-1])  # d(midpoint heading)/d(curvature)
+        q = np.clip(np.searchsorted(s, s_query, side="right") - 1, 0, n - 1)
+        self.q, self.qw = q, ((s_query - s[q]) / (s[q + 1] - s[q]))[:, None]
+
+    def _at_query(self, grid: np.ndarray) -> np.ndarray:
+        return (1.0 - self.qw) * grid[self.q] + self.qw * grid[self.q + 1]
+
+    def _midpoint_heading(self, params: np.ndarray) -> np.ndarray:
+        return params[0] + self.hm_of_k @ params[1:]
+
+    def positions(self, params: np.ndarray) -> np.ndarray:
+        hm = self._midpoint_heading(params)
+        x = self.x0 + np.r_[0.0, np.cumsum(np.cos(hm) * self.ds)]
+        y = self.y0 + np.r_[0.0, np.cumsum(np.sin(hm) * self.ds)]
+        return np.column_stack((self._at_query(x[:, None])[:, 0], self._at_query(y[:, None])[:, 0]))
+
+    def jacobian(self, params: np.ndarray) -> np.ndarray:
+        """d(positions)/d(params), rows ordered like ``positions(...).ravel()``."""
+        hm = self._midpoint_heading(params)
+        dh = np.column_stack((np.ones_like(hm), self.hm_of_k))  # d(hm)/d(params)
+        zero = np.zeros((1, dh.shape[1]))
+        dx = np.vstack((zero, np.cumsum((-np.sin(hm) * self.ds)[:, None] * dh, axis=0)))
+        dy = np.vstack((zero, np.cumsum((np.cos(hm) * self.ds)[:, None] * dh, axis=0)))
+        jac = np.empty((2 * self.q.size, dh.shape[1]))
+        jac[0::2], jac[1::2] = self._at_query(dx), self._at_query(dy)
+        return jac
+
+
 def fit_reference_line(centerline_m: np.ndarray, tolerance_m: float = FIT_TOLERANCE_M,
                        knot_spacing_m: float = KNOT_SPACING_M) -> tuple[ReferenceLine, float]:
     """Fit a continuous-curvature clothoid chain to a polyline.
 
     The start point is kept; start heading and knot curvatures are fitted by least squares on
-    the positions (1 m samples), so heading errors do not accumulate into drift. Knot spacing is
-    halved until the largest deviation is within ``tolerance_m`` (or the spacing reaches
-    :data:`MIN_KNOT_SPACING_M`). Near-zero and near-constant curvatures are then snapped to
+    the positions (1 m samples; exact Jacobian), so heading errors do not accumulate into drift.
+    Knot intervals holding samples farther than ``tolerance_m`` are halved and the fit repeated
+    (warm-started) until all samples are within tolerance or the intervals reach
+    :data:`MIN_KNOT_SPACING_M` (a sharp polyline corner cannot be followed by any curve of
+    finite curvature). Near-zero and near-constant curvatures are then snapped to
     lines and arcs if the fit stays within tolerance.
 
     Returns
@@ -140,31 +211,44 @@ def fit_reference_line(centerline_m: np.ndarray, tolerance_m: float = FIT_TOLERA
     x0, y0 = p_data[0]
     d = np.diff(p_data, axis=0)
     seg_h = np.unwrap(np.arctan2(d[:, 1], d[:, 0]))
-    spacing = knot_spacing_m
+    min_spacing = max(MIN_KNOT_SPACING_M, length / _MAX_KNOTS)
+    n_int = max(math.ceil(length / max(knot_spacing_m, min_spacing)), 1)
+    knots = np.linspace(0.0, length, n_int + 1)
+    # initial guess: curvature from the heading slope between knots
+    h_knots = np.interp(knots, 0.5 * (s_data[1:] + s_data[:-1]), seg_h)
+    params = np.r_[seg_h[0], np.gradient(h_knots, knots) if n_int > 1 else np.zeros(2)]
     best: tuple[ReferenceLine, float] | None = None
     while True:
-        n_int = max(math.ceil(length / spacing), 1)
-        knots = np.linspace(0.0, length, n_int + 1)
-        # initial guess: curvature from the heading slope between knots
-        h_knots = np.interp(knots, 0.5 * (s_data[1:] + s_data[:-1]), seg_h)
-        k0 = np.gradient(h_knots, knots) if n_int > 1 else np.zeros(2)
-        params0 = np.r_[seg_h[0], k0]
+        model = _ClothoidModel(float(x0), float(y0), knots, s_data)
+        # a weak penalty on curvature changes [1/m] * (interval length [m])^2 -> metres: damps
+        # the oscillation a free fit shows on straights next to curves
+        w_smooth = _SMOOTHING * np.diff(knots) ** 2
+        diff_op = np.diff(np.eye(len(knots)), axis=0)
+        smooth_jac = np.column_stack((np.zeros(len(knots) - 1), w_smooth[:, None] * diff_op))
 
-        def residual(params, knots=knots, spacing=length / n_int):
-            pts = _integrate(x0, y0, params[0], knots, params[1:], s_data)
-            # a weak penalty on curvature changes [1/m] * spacing^2 [m^2] -> metres: damps
-            # the oscillation a free fit shows on straights next to curves
-            smooth = _SMOOTHING * np.diff(params[1:]) * spacing**2
-            return np.r_[(pts - p_data).ravel(), smooth]
+        def residual(params, model=model, w_smooth=w_smooth):
+            return np.r_[(model.positions(params) - p_data).ravel(),
+                         w_smooth * np.diff(params[1:])]
 
-        sol = least_squares(residual, params0, method="trf", x_scale="jac")
+        def jacobian(params, model=model, smooth_jac=smooth_jac):
+            return np.vstack((model.jacobian(params), smooth_jac))
+
+        with _single_blas_thread():
+            sol = least_squares(residual, params, jac=jacobian, method="trf", x_scale="jac")
         line = ReferenceLine(float(x0), float(y0), float(sol.x[0]), knots, sol.x[1:].copy())
-        err = float(np.max(np.linalg.norm(line.sample(s_data) - p_data, axis=1)))
+        dev = np.linalg.norm(line.sample(s_data) - p_data, axis=1)
+        err = float(dev.max())
         if best is None or err < best[1]:
             best = (line, err)
-        if err <= tolerance_m or spacing / 2 < MIN_KNOT_SPACING_M:
+        # refine only where the fit misses: split the knot intervals holding bad samples
+        bad = np.unique(np.clip(np.searchsorted(knots, s_data[dev > tolerance_m], "right") - 1,
+                                0, len(knots) - 2))
+        bad = bad[np.diff(knots)[bad] / 2.0 >= min_spacing]
+        if err <= tolerance_m or bad.size == 0:
             break
-        spacing /= 2
+        new_knots = np.sort(np.r_[knots, 0.5 * (knots[bad] + knots[bad + 1])])
+        params = np.r_[sol.x[0], np.interp(new_knots, knots, sol.x[1:])]  # warm start
+        knots = new_knots
     line, err = best
     snapped = _snap(line)
     snapped_err = float(np.max(np.linalg.norm(snapped.sample(s_data) - p_data, axis=1)))
@@ -188,7 +272,10 @@ def _snap(line: ReferenceLine) -> ReferenceLine:
 def _xodr_road(road: Road, road_id: int):
     from scenariogeneration import xodr
 
-    line, _ = fit_reference_line(road.centerline)
+    line, err_m = fit_reference_line(road.centerline)
+    if err_m > FIT_TOLERANCE_M:
+        log.warning("road %s: reference line within %.2f m of the centerline (sharp corners); "
+                    "tolerance %.2f m", road.id, err_m, FIT_TOLERANCE_M)
     planview = xodr.PlanView(line.x0_m, line.y0_m, line.heading0_rad)
     for kind, k0, k1, length in line.pieces():
         if kind == "line":
