@@ -671,7 +671,7 @@ class SimulatedDrive:
     :param t_s, x_m, y_m: noisy 1 Hz fixes [s, m]
     :param true_way_id: way under the true position of each fix
     :param is_outlier: fixes displaced by 30-80 m
-    :param true_s_m: true distance driven at each fix [m]
+    :param true_s_m: true position of each fix along ``route_edges`` [m]
     """
 
     route_edges: list[int]
@@ -765,4 +765,6 @@ def simulate_drive(net: RoadNetwork, rng: np.random.Generator, *, min_length_m: 
     # entered after its last fix was recorded cannot be known
     driven = edges[int(pos[0]):int(pos[-1]) + 1]
     ways = _merge_ways([], [driven], net.edge_way_id)
-    return SimulatedDrive(driven, ways, np.array(t_list), x, y, true_way, out, total, s_true)
+    driven_start = float(ends[int(pos[0])] - net.edge_length_m[edges[int(pos[0])]])
+    return SimulatedDrive(driven, ways, np.array(t_list), x, y, true_way, out, total,
+                          s_true - driven_start)
