@@ -52,7 +52,9 @@ class AssembleConfig:
     max_gap_s: float = 1.0
     min_seen_s: float = 0.5
     smooth_sigma_s: float = 0.3
-    stationary_speed_mps: float = 0.5
+    stationary_speed_mps: float = 1.0
+    """Below this speed the heading is held: monocular range noise on a parked car gives
+    motion of a few tenths of a m/s in random directions."""
     camera_ahead_m: float = 0.0
     camera_left_m: float = 0.0
     ego_length_m: float = 4.5
