@@ -184,3 +184,20 @@ def test_fit_refines_only_where_needed_and_jacobian_is_exact():
     assert err <= 0.2
     lengths = np.diff(line.knots_s_m)
     assert lengths.max() >= 19.0 and len(lengths) < 70
+
+
+def test_asam_quality_checker_passes(tmp_path):
+    """Runs .ci/asam_qc.sh when a checker venv exists (it pins old numpy/lxml, so it is never
+    installed into the project's environment by the tests)."""
+    import os
+    import subprocess
+
+    venv = Path(os.environ.get("VID2SIM_QC_VENV", "/tmp/vid2sim-qcvenv"))
+    if not (venv / "bin" / "qc_opendrive").exists():
+        pytest.skip(f"no ASAM checker venv at {venv} (create one with .ci/asam_qc.sh DIR {venv})")
+    write_openscenario(left_turn_scenario(), tmp_path)
+    script = Path(__file__).resolve().parents[2] / ".ci" / "asam_qc.sh"
+    run = subprocess.run(["bash", str(script), str(tmp_path), str(venv)], capture_output=True,
+                         text=True, timeout=600, check=False)
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert "xodrBundle" in run.stdout and "xoscBundle" in run.stdout
