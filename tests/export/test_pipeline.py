@@ -46,3 +46,15 @@ def test_camera_relative_scenario_replays_and_exports(tmp_path):
 
     xosc, xodr = write_openscenario(sc, tmp_path)
     assert xosc.exists() and xodr.exists()
+
+
+def test_scenario_without_roads_gets_a_straight_road_everywhere(tmp_path):
+    from .scenarios import straight_scenario
+
+    sc = straight_scenario(duration_s=3.0)
+    sc.roads = []
+    env = ReplayEnv(sc, ego_mode="log")
+    infos = run_episode(env, lambda obs, info: np.zeros(1, np.float32), seed=0)
+    assert not any(i["offroad"] for i in infos)
+    _, xodr = write_openscenario(sc, tmp_path)
+    assert "<road " in xodr.read_text()
