@@ -146,3 +146,32 @@ def test_heading_held_while_slow():
     vy = np.array([0.0, 0.0, 5.0, 0.0, 0.0, 0.0])
     h = heading_from_motion(vx, vy, np.full(6, 2.0), AssembleConfig().stationary_speed_mps)
     np.testing.assert_allclose(h, [math.pi / 4, math.pi / 4, math.pi / 4, 0.0, 0.0, 0.0])
+
+
+def test_heading_regularised_by_the_road_axis():
+    from vid2sim.export.assemble import heading_along_road
+
+    cfg = AssembleConfig()  # 15 deg, oncoming below -1 m/s, hold below 1 m/s
+    axis = np.full(4, 0.5)
+    # a "parked" car whose noisy range rate makes it drift at 3 m/s, 60 deg off the road
+    vx = np.full(4, 3 * math.cos(0.5 + math.radians(60)))
+    vy = np.full(4, 3 * math.sin(0.5 + math.radians(60)))
+    np.testing.assert_allclose(heading_along_road(vx, vy, axis, cfg), 0.5 + math.radians(15))
+    # oncoming traffic: the reversed axis, plus its small real yaw (5 deg to its left)
+    h_true = 0.5 + math.pi + math.radians(5)
+    v = np.full(4, 10.0)
+    np.testing.assert_allclose(
+        heading_along_road(v * math.cos(h_true), v * math.sin(h_true), axis, cfg), h_true)
+    # standing still: the road axis
+    np.testing.assert_allclose(heading_along_road(np.zeros(4), np.zeros(4), axis, cfg), 0.5)
+
+
+def test_road_axis_follows_a_curved_centerline():
+    from vid2sim.export.assemble import road_axis_heading
+
+    from .scenarios import left_turn_centerline
+
+    road = straight_road_for(ego_track())
+    road.centerline = left_turn_centerline()
+    h = road_axis_heading([road], np.array([40.0, 120.0]), np.array([2.0, 100.0]))
+    np.testing.assert_allclose(h, [0.0, math.pi / 2], atol=0.03)

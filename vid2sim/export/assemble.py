@@ -17,7 +17,10 @@ Track rows are split where the track is unseen for ``max_gap_s`` or more (separa
 ``ID-2``, ...), shorter gaps are bridged by the trajectory's linear interpolation, pieces seen
 for less than ``min_seen_s`` are dropped. Positions are smoothed with a Gaussian-weighted local
 linear fit in time (handles irregular sampling and gaps, no lag at the ends); speed is the
-fit's slope, heading the direction of motion, held while slower than ``stationary_speed_mps``.
+fit's slope, heading the direction of motion, held while slower than ``stationary_speed_mps``
+and kept within ``max_yaw_from_road_deg`` of the road axis (or its reverse for oncoming
+traffic): a monocular range rate error turns a parked car's motion tens of degrees sideways,
+and a yawed box projects wider than the car it stands for.
 """
 
 from __future__ import annotations
@@ -60,6 +63,12 @@ class AssembleConfig:
     ego_length_m: float = 4.5
     ego_width_m: float = 1.8
     ego_height_m: float = 1.5
+    max_yaw_from_road_deg: float = 15.0
+    """Largest angle between a vehicle's heading and the road axis (or its reverse, for
+    oncoming traffic) [deg]. Monocular range rates are noisy, so the raw direction of motion of
+    a slow or parked car is often tens of degrees off; 180 gives pure direction of motion."""
+    oncoming_speed_mps: float = 1.0
+    """A track whose median speed along the road axis is below minus this is oncoming."""
     width_ratio_bounds: tuple[float, float] = (0.6, 1.4)
     """Measured widths are clipped to these fractions of the class prior width."""
     class_priors_m: dict[str, tuple[float, float, float]] = field(
@@ -122,6 +131,53 @@ def heading_from_motion(vx_mps: np.ndarray, vy_mps: np.ndarray, fallback_rad: np
     idx = np.maximum.accumulate(idx)
     idx[idx < 0] = int(np.argmax(moving))
     return heading[idx]
+
+
+def road_axis_heading(roads: list[Road], x_m: np.ndarray, y_m: np.ndarray) -> np.ndarray:
+    """Heading of the nearest road centerline's tangent (travel order) at ENU points [rad]."""
+    from scipy.spatial import cKDTree
+
+    pts, heads = [], []
+    for road in roads:
+        c = np.asarray(road.centerline, float)
+        seg = np.diff(c, axis=0)
+        length = np.linalg.norm(seg, axis=1)
+        keep = length > 1e-9
+        if not keep.any():
+            continue
+        # points every <= 2 m along each segment, each with its segment's heading
+        for p0, d, n in zip(c[:-1][keep], seg[keep], np.ceil(length[keep] / 2.0).astype(int),
+                            strict=True):
+            f = np.arange(n)[:, None] / n
+            pts.append(p0 + f * d)
+            heads.append(np.full(n, math.atan2(d[1], d[0])))
+    if not pts:
+        raise ValueError("roads without centerlines")
+    _, idx = cKDTree(np.vstack(pts)).query(np.column_stack((x_m, y_m)))
+    return np.concatenate(heads)[idx]
+
+
+def heading_along_road(vx_mps: np.ndarray, vy_mps: np.ndarray, axis_rad: np.ndarray,
+                       cfg: AssembleConfig) -> np.ndarray:
+    """Heading from motion, regularised by the road axis [rad, CCW from east].
+
+    The track is oncoming when its median velocity along the axis is below
+    ``-oncoming_speed_mps`` (then its base heading is the reversed axis). While it moves forward
+    along its base direction faster than ``stationary_speed_mps`` the heading is the direction
+    of motion, clipped to ``max_yaw_from_road_deg`` either side of the base; slower samples hold
+    the last moving offset (zero before any).
+    """
+    ca, sa = np.cos(axis_rad), np.sin(axis_rad)
+    v_along = vx_mps * ca + vy_mps * sa
+    v_left = -vx_mps * sa + vy_mps * ca
+    sign = -1.0 if np.median(v_along) < -cfg.oncoming_speed_mps else 1.0
+    u, w = sign * v_along, sign * v_left  # forward and leftward in the vehicle's own direction
+    moving = u >= cfg.stationary_speed_mps
+    max_yaw = math.radians(cfg.max_yaw_from_road_deg)
+    offset = np.where(moving, np.clip(np.arctan2(w, np.maximum(u, 1e-9)), -max_yaw, max_yaw), 0.0)
+    idx = np.maximum.accumulate(np.where(moving, np.arange(u.size), -1))
+    held = np.where(idx >= 0, offset[np.maximum(idx, 0)], 0.0)
+    return axis_rad + (math.pi if sign < 0 else 0.0) + held
 
 
 def _ego_pose_at(ego: EgoTrack, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -199,7 +255,7 @@ def _dimensions(rows: list[RangedBox], cfg: AssembleConfig, warnings: list[str],
 
 
 def _actor_from_rows(rows: list[RangedBox], actor_id: str, ego: EgoTrack, cfg: AssembleConfig,
-                     warnings: list[str]) -> Actor:
+                     warnings: list[str], roads: list[Road] | None = None) -> Actor:
     category, length, width, height = _dimensions(rows, cfg, warnings, actor_id)
     t = np.array([r.t_s for r in rows], float)
     xe, ye, he = _ego_pose_at(ego, t)
@@ -210,15 +266,22 @@ def _actor_from_rows(rows: list[RangedBox], actor_id: str, ego: EgoTrack, cfg: A
     y = ye + np.sin(he) * fwd + np.cos(he) * lft
     xs, vx = local_linear_smooth(t, x, cfg.smooth_sigma_s)
     ys, vy = local_linear_smooth(t, y, cfg.smooth_sigma_s)
-    heading = heading_from_motion(vx, vy, he, cfg.stationary_speed_mps)
+    if roads and cfg.max_yaw_from_road_deg < 180.0:
+        heading = heading_along_road(vx, vy, road_axis_heading(roads, xs, ys), cfg)
+    else:
+        heading = heading_from_motion(vx, vy, he, cfg.stationary_speed_mps)
     speed = np.hypot(vx, vy)
     return Actor(id=actor_id, category=category, length_m=length, width_m=width,
                  height_m=height, trajectory=Trajectory(t, xs, ys, heading, speed))
 
 
 def actors_from_tracks(tracks: list[RangedBox], ego: EgoTrack,
-                       config: AssembleConfig | None = None) -> tuple[list[Actor], list[str]]:
-    """World trajectories of tracked vehicles (see the module docstring); also warnings."""
+                       config: AssembleConfig | None = None, roads: list[Road] | None = None
+                       ) -> tuple[list[Actor], list[str]]:
+    """World trajectories of tracked vehicles (see the module docstring); also warnings.
+
+    With ``roads``, headings are regularised by the road axis (:func:`heading_along_road`);
+    without, they are the plain direction of motion (:func:`heading_from_motion`)."""
     cfg = config or AssembleConfig()
     warnings: list[str] = []
     by_id: dict[int, list[RangedBox]] = defaultdict(list)
@@ -242,7 +305,7 @@ def actors_from_tracks(tracks: list[RangedBox], ego: EgoTrack,
             if rows[0].t_s < t_lo - 0.5 or rows[-1].t_s > t_hi + 0.5:
                 warnings.append(f"track {actor_id}: seen outside the ego trajectory's time span "
                                 f"[{t_lo:.1f}, {t_hi:.1f}] s; ego pose held at the ends")
-            actors.append(_actor_from_rows(rows, actor_id, ego, cfg, warnings))
+            actors.append(_actor_from_rows(rows, actor_id, ego, cfg, warnings, roads))
     if n_short:
         warnings.append(f"{n_short} track pieces seen for less than {cfg.min_seen_s:g} s dropped")
     return actors, warnings
@@ -302,7 +365,7 @@ def assemble_scenario(ego: EgoTrack, roads: list[Road], tracks: list[RangedBox] 
         warnings.append(note)
     actors: list[Actor] = []
     if tracks:
-        actors, track_warnings = actors_from_tracks(tracks, ego, cfg)
+        actors, track_warnings = actors_from_tracks(tracks, ego, cfg, roads)
         warnings.extend(track_warnings)
         assumptions.append(
             f"actor dimensions from class priors {sorted(cfg.class_priors_m)} (length, height) "
