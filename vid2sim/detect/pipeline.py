@@ -63,7 +63,7 @@ def run_detect(source: Path, *, detector: Detector | None,
     if detect_every < 1:
         raise InputError(None, f"--detect-every must be >= 1, got {detect_every}")
     info = video_info(source, fps=fps)
-    tracker = Tracker(tracker_config)
+    tracker = Tracker(tracker_config, image_size_px=(info.width, info.height))
     rows: list[TrackedBox] = []
     # Imported boxes need no pixels: decode only if someone looks at the image.
     decode_every = detect_every if (detector is not None or on_frame is not None) else 0

@@ -6,6 +6,22 @@ weak ones (which are often partly occluded vehicles) are matched to the tracks s
 unmatched, so a vehicle fading behind another keeps its track instead of spawning false
 ones. Matching is a min-cost assignment on 1 - IoU (scipy's Hungarian solver) with a gate.
 
+Sparse input (a 2 frames/s video, ``--detect-every`` with long gaps, a track lost for a
+while) breaks IoU: a car 8 m away beside a camera moving at 10 m/s grows by half and slides
+hundreds of pixels in 0.5 s. Two additions handle it without changing dense-video behaviour:
+
+* a last association stage (:func:`expansion_cost`) for what IoU left unmatched, on the
+  motion a forward-moving camera causes: a vehicle that is parked or drives parallel to the
+  ego keeps its lateral offset and height, so its image box scales about the focus of
+  expansion (FOE) by the range ratio. The cost is a chi-square over the box edges after the
+  best scale ratio and a small translation (the vehicle's own lateral motion), each with a
+  prior that grows with the elapsed time; edges cut by the image border are left out.
+* confirmation that knows the detection rate: a tentative track is deleted as a false
+  detection only when a detected frame less than ``sparse_interval_s`` after its birth fails
+  to see it again (at 10 frames/s a real car is seen in the next frame; at 2 frames/s it may
+  already have left the view). A track born in sparse input, or on the last detected frame
+  of the video, that is never seen again is thus kept with its one confident box.
+
 The Kalman state is (cx, cy, a, h, vcx, vcy, va, vh): box centre [px], aspect w/h, height
 [px] and their rates per frame, with noise proportional to the box height (as in SORT and
 ByteTrack), so a 20 px far car and a 200 px near car are filtered alike.
@@ -34,7 +50,23 @@ class TrackerConfig:
         boxes are noisier)
     :param iou_tentative: minimum IoU to match a not yet confirmed track
     :param max_lost_s: a track unmatched for longer than this is ended [s]
-    :param min_hits: detections needed before a track is confirmed
+    :param min_hits: detections needed before a track is confirmed (in dense input; see
+        ``sparse_interval_s``)
+    :param sparse_interval_s: a tentative track is dropped when a detected frame less than
+        this long after its birth misses it; after longer intervals it is kept [s]
+    :param edge_noise_ratio: one-sigma error of a detected box edge as a fraction of the box
+        height (localisation noise of the detector)
+    :param lateral_speed_mps: one-sigma speed of a vehicle across the camera's line of sight
+        not explained by the ego's forward motion (drift in lane, a slow lane change) [m/s]
+    :param vehicle_height_m: typical vehicle height, converts lateral speed to box heights
+        per second [m]
+    :param growth_rate_per_s: one-sigma rate of growth of the log box size, i.e. closing
+        speed over range (10 m/s at 10 m gives 1/s) [1/s]
+    :param shrink_rate_per_s: the same for shrinking boxes: with the camera moving forward
+        the static world grows, a box shrinks only behind a vehicle faster than the ego, and
+        by little (3 m/s faster at 10 m gives 0.3/s) [1/s]
+    :param border_margin_px: a box edge this close to the image border is taken as cut by it
+        (detectors stop the box of a cut vehicle a few pixels short of the border)
     """
 
     high_score: float = 0.45
@@ -45,6 +77,13 @@ class TrackerConfig:
     iou_tentative: float = 0.3
     max_lost_s: float = 1.2
     min_hits: int = 2
+    sparse_interval_s: float = 0.2
+    edge_noise_ratio: float = 0.1
+    lateral_speed_mps: float = 0.5
+    vehicle_height_m: float = 1.5
+    growth_rate_per_s: float = 1.0
+    shrink_rate_per_s: float = 0.3
+    border_margin_px: float = 8.0
 
 
 # --------------------------------------------------------------------------- geometry
@@ -108,6 +147,124 @@ def match(cost: np.ndarray, max_cost: float) -> tuple[list[tuple[int, int]], lis
     used_c = {c for _, c in pairs}
     return (pairs, [r for r in range(n_rows) if r not in used_r],
             [c for c in range(n_cols) if c not in used_c])
+
+
+# 99 % quantiles of the chi-square distribution by degrees of freedom (the gate of
+# :func:`expansion_cost`; DeepSORT gates its Mahalanobis distance the same way)
+_CHI2_99 = {2: 9.210, 3: 11.345, 4: 13.277}
+
+
+def border_cut(boxes_px: np.ndarray, image_size_px: tuple[int, int] | None,
+               margin_px: float) -> np.ndarray:
+    """Which edges (x1, y1, x2, y2) of each box lie on the image border, shape (n, 4)."""
+    b = np.asarray(boxes_px, dtype=float).reshape(-1, 4)
+    if image_size_px is None:
+        return np.zeros(b.shape, dtype=bool)
+    w, h = image_size_px
+    return np.stack([b[:, 0] <= margin_px, b[:, 1] <= margin_px,
+                     b[:, 2] >= w - margin_px, b[:, 3] >= h - margin_px], axis=1)
+
+
+def expansion_cost(prev_px: np.ndarray, dt_s: np.ndarray, dets_px: np.ndarray, *,
+                   foe_px: tuple[float, float] | None, image_size_px: tuple[int, int] | None,
+                   config: TrackerConfig, n_grid: int = 61) -> np.ndarray:
+    """Gated cost of continuing each last-seen box with each detection under ego motion.
+
+    A camera moving forward sees a vehicle at lateral offset X, height Y and range Z at
+    x - x_foe = f X / Z, y - y_foe = f Y / Z: when X and Y stay put (a parked car, a car in
+    another lane), every box edge e moves to ``foe + r (e - foe)`` with r = Z_before / Z_now
+    the same for all four edges. Each pair is scored by
+
+        J = min over r, t of  sum_edges (e_det - foe - r (e_prev - foe) - t)^2 / s_edge^2
+                              + |t|^2 / s_t^2 + (ln r)^2 / s_lnr^2
+
+    with s_edge the detector's edge noise (``edge_noise_ratio`` box heights), t a translation
+    for the vehicle's own lateral motion (s_t = ``lateral_speed_mps`` dt in vehicle heights)
+    and ln r the log scale change (s_lnr = ``growth_rate_per_s`` dt when growing,
+    ``shrink_rate_per_s`` dt when shrinking): the priors grow with the
+    time since the track was last seen, so the gate opens for sparse input and stays tight
+    for dense video. An edge on the image border (a vehicle cut by the frame) only bounds
+    where the true edge is: it adds a one-sided residual, and none when cut in both boxes;
+    a pair needs one edge per axis seen in both boxes.
+
+    Parameters
+    ----------
+    prev_px : ndarray (n, 4)
+        Last detected box of each track (x1, y1, x2, y2) [px].
+    dt_s : ndarray (n,)
+        Time since each track's last detection [s].
+    dets_px : ndarray (m, 4)
+        Detection boxes [px].
+    foe_px : (float, float) or None
+        Focus of expansion [px] (the image centre serves for a forward camera); None scales
+        each box about its own centre.
+    image_size_px : (int, int) or None
+        Image width and height [px], to find edges cut by the border.
+    config : TrackerConfig
+        Noise and prior parameters.
+    n_grid : int
+        Samples of ln r over +-3 s_lnr.
+
+    Returns
+    -------
+    ndarray (n, m)
+        J divided by its 99 % chi-square gate (number of usable edges as degrees of freedom):
+        at most 1 for a plausible pair; inf where the pair is impossible.
+    """
+    prev = np.asarray(prev_px, dtype=float).reshape(-1, 4)
+    dets = np.asarray(dets_px, dtype=float).reshape(-1, 4)
+    n, m = len(prev), len(dets)
+    if n == 0 or m == 0:
+        return np.full((n, m), np.inf)
+    dt = np.maximum(np.asarray(dt_s, dtype=float).reshape(-1), 1e-3)
+    if foe_px is None:
+        centre_p = np.stack([(prev[:, 0] + prev[:, 2]) / 2, (prev[:, 1] + prev[:, 3]) / 2], 1)
+        foe = np.broadcast_to(np.tile(centre_p, 2)[:, None, :], (n, m, 4))
+    else:
+        foe = np.broadcast_to(np.array([foe_px[0], foe_px[1]] * 2, float), (n, m, 4))
+    a = (prev[:, None, :] - foe)[:, :, None, :]                      # (n, m, 1, 4)
+    b = (dets[None, :, :] - foe)[:, :, None, :]
+    cut_prev = border_cut(prev, image_size_px, config.border_margin_px)[:, None, :]
+    cut_det = border_cut(dets, image_size_px, config.border_margin_px)[None, :, :]
+    both = ~cut_prev & ~cut_det                                      # (n, m, 4) two-sided
+    # One edge cut: the true edge lies further out than the box says, so the prediction
+    # only bounds it (one-sided residual); both cut: no information.
+    prev_only = (cut_prev & ~cut_det)[:, :, None, :]
+    det_only = (~cut_prev & cut_det)[:, :, None, :]
+    outward = np.array([-1.0, -1.0, 1.0, 1.0])                       # x1, y1 out = smaller
+    h_prev = np.maximum(prev[:, 3] - prev[:, 1], 1.0)
+    h_det = np.maximum(dets[:, 3] - dets[:, 1], 1.0)
+    scale = np.sqrt(h_prev[:, None] * h_det[None, :])                # (n, m) [px]
+    s_edge = (config.edge_noise_ratio * scale + 1.0)[:, :, None]
+    s_t = ((config.lateral_speed_mps / config.vehicle_height_m) * dt[:, None] * scale
+           + 1e-3)[:, :, None]
+    u = np.linspace(-3.0, 3.0, n_grid)                               # ln r in units of s_lnr
+    rate = np.where(u > 0, config.growth_rate_per_s, config.shrink_rate_per_s)
+    r = np.exp(u[None, :] * rate[None, :] * dt[:, None])[:, None, :, None]  # (n, 1, G, 1)
+    res = b - r * a                                                  # (n, m, G, 4)
+    v = both[:, :, None, :]
+    k = (s_edge / s_t) ** 2                                          # ridge of the t prior
+    j = np.zeros(res.shape[:3])
+    t = np.zeros(res.shape)
+    for axis in (slice(0, 4, 2), slice(1, 4, 2)):                     # x edges, y edges
+        ra, va = res[..., axis], v[..., axis]
+        t_axis = (ra * va).sum(-1) / (va.sum(-1) + k)
+        t[..., axis] = t_axis[..., None]
+        j += t_axis ** 2 / s_t ** 2
+    e = res - t                                                      # observed - predicted
+    j += ((e * v) ** 2).sum(-1) / s_edge ** 2
+    # prev cut: the observed edge must lie at or beyond the prediction; det cut: within it
+    over = np.where(prev_only, np.maximum(0.0, -outward * e), 0.0)
+    over += np.where(det_only, np.maximum(0.0, outward * e), 0.0)
+    j += (over ** 2).sum(-1) / s_edge ** 2
+    j += u[None, None, :] ** 2
+    j_min = j.min(axis=2)
+    n_x = both[:, :, 0::2].sum(-1)
+    n_y = both[:, :, 1::2].sum(-1)
+    dof = n_x + n_y + (cut_prev ^ cut_det).sum(-1)
+    gate = np.vectorize(lambda d: _CHI2_99.get(int(d), np.inf), otypes=[float])(dof)
+    ok = (n_x >= 1) & (n_y >= 1)
+    return np.where(ok, j_min / gate, np.inf)
 
 
 # --------------------------------------------------------------------------- Kalman filter
@@ -182,6 +339,9 @@ class _Track:
     frame: int
     last_seen_t_s: float
     score: float
+    last_box_px: np.ndarray
+    last_seen_frame: int
+    born_t_s: float
     hits: int = 1
     state: str = "tracked"  # "tracked" (matched last detected frame) or "lost"
     votes: dict[str, float] = field(default_factory=lambda: defaultdict(float))
@@ -195,22 +355,36 @@ class Tracker:
     """Online multi-vehicle tracker.
 
     Call :meth:`update` once per frame in order; it returns the boxes of the tracks alive in
-    that frame. Tracks start tentative and are confirmed after ``min_hits`` detections;
-    :meth:`finalize` drops the never-confirmed ones (mostly false detections) from the
-    collected rows and fixes each track's category to its score-weighted majority vote.
+    that frame. Tracks start tentative and are confirmed after ``min_hits`` detections. A
+    tentative track missed by a detected frame is deleted (a false detection) when that
+    frame came less than ``sparse_interval_s`` after the track's birth, else confirmed (a
+    vehicle seen once in sparse input, which may have left the view since). :meth:`finalize`
+    drops the never-confirmed tracks from the collected rows, except those born on the last
+    detected frame (they had no chance of a second look), and fixes each track's category to
+    its score-weighted majority vote.
 
     Parameters
     ----------
     config : TrackerConfig, optional
         Thresholds.
+    image_size_px : (int, int), optional
+        Frame width and height [px]: the focus of expansion is taken at the image centre and
+        box edges on the border are recognised as cut. Without it each box scales about its
+        own centre in the ego-motion stage.
     """
 
-    def __init__(self, config: TrackerConfig | None = None):
+    def __init__(self, config: TrackerConfig | None = None,
+                 image_size_px: tuple[int, int] | None = None):
         self.config = config or TrackerConfig()
+        self.image_size_px = image_size_px
+        self.foe_px = (None if image_size_px is None
+                       else (image_size_px[0] / 2.0, image_size_px[1] / 2.0))
         self._tracks: list[_Track] = []
         self._next_id = 1
         self._hits: dict[int, int] = {}
+        self._confirmed: set[int] = set()
         self._votes: dict[int, dict[str, float]] = {}
+        self._last_detect_t_s: float | None = None
 
     # ----------------------------------------------------------------- public
 
@@ -223,7 +397,7 @@ class Tracker:
         frame : int
             Frame index; must increase from call to call.
         t_s : float
-            Frame time [s], used for the lost-track timeout.
+            Frame time [s], used for the lost-track timeout and the ego-motion gate.
         detections : list of Detection or None
             Boxes found in this frame, or None when the detector did not run on it: tracks
             are then only predicted and carried with their last score.
@@ -242,35 +416,66 @@ class Tracker:
                     for t in self._tracks if t.state == "tracked"]
 
         cfg = self.config
+        self._last_detect_t_s = t_s
         dets = [d for d in detections if d.score >= cfg.low_score]
         high = [d for d in dets if d.score >= cfg.high_score]
         low = [d for d in dets if d.score < cfg.high_score]
         rows: list[TrackedBox] = []
+        matched: set[int] = set()
 
-        confirmed = [t for t in self._tracks if self._hits[t.track_id] >= cfg.min_hits]
-        tentative = [t for t in self._tracks if self._hits[t.track_id] < cfg.min_hits]
+        def hit(track: _Track, det: Detection, restart: bool = False) -> None:
+            rows.append(self._hit(track, det, frame, t_s, restart))
+            matched.add(id(track))
+
+        confirmed = [t for t in self._tracks if t.track_id in self._confirmed]
+        tentative = [t for t in self._tracks if t.track_id not in self._confirmed]
 
         # Stage 1: confident detections against all confirmed tracks, tracked or lost.
         pairs, free_tracks, free_high = self._associate(confirmed, high, cfg.iou_high)
         for ti, di in pairs:
-            rows.append(self._hit(confirmed[ti], high[di], frame, t_s))
+            hit(confirmed[ti], high[di])
         # Stage 2: weak detections only against tracks seen on the previous detected frame;
         # a weak box is not trusted to revive a lost track.
         remaining = [confirmed[i] for i in free_tracks if confirmed[i].state == "tracked"]
-        pairs, free2, _ = self._associate(remaining, low, cfg.iou_low)
+        pairs, _, free_low = self._associate(remaining, low, cfg.iou_low)
         for ti, di in pairs:
-            rows.append(self._hit(remaining[ti], low[di], frame, t_s))
-        for i in free2:
-            remaining[i].state = "lost"
+            hit(remaining[ti], low[di])
         # Stage 3: tentative tracks get one chance with the leftover confident detections.
         left_high = [high[i] for i in free_high]
-        pairs, free_t, free_new = self._associate(tentative, left_high, cfg.iou_tentative)
+        pairs, _, free_new = self._associate(tentative, left_high, cfg.iou_tentative)
         for ti, di in pairs:
-            rows.append(self._hit(tentative[ti], left_high[di], frame, t_s))
-        dead = {id(tentative[i]) for i in free_t}
+            hit(tentative[ti], left_high[di])
+        left_high = [left_high[i] for i in free_new]
+        # Stage 4: what IoU could not join, on the ego-motion model (large image motion
+        # between sparse detections, or after a gap); weak boxes again only for tracks seen
+        # on the previous detected frame.
+        unmatched = [t for t in self._tracks if id(t) not in matched]
+        pairs, _, free_new = self._associate_motion(unmatched, left_high, t_s)
+        for ti, di in pairs:
+            hit(unmatched[ti], left_high[di], restart=True)
+        left_high = [left_high[i] for i in free_new]
+        unmatched = [t for t in unmatched if id(t) not in matched and t.state == "tracked"
+                     and t.track_id in self._confirmed]
+        left_low = [low[i] for i in free_low]
+        pairs, _, _ = self._associate_motion(unmatched, left_low, t_s)
+        for ti, di in pairs:
+            hit(unmatched[ti], left_low[di], restart=True)
+
+        # Misses: a confirmed track goes lost; a tentative one is a false detection if the
+        # vehicle, were it real, should have been seen again by now, else it is kept.
+        dead: set[int] = set()
+        for track in self._tracks:
+            if id(track) in matched:
+                continue
+            if track.track_id in self._confirmed:
+                track.state = "lost"
+            elif t_s - track.born_t_s < cfg.sparse_interval_s:
+                dead.add(id(track))
+            else:
+                self._confirmed.add(track.track_id)
+                track.state = "lost"
         # New tracks from confident leftovers.
-        for i in free_new:
-            det = left_high[i]
+        for det in left_high:
             if det.score >= cfg.new_track_score:
                 track = self._start(det, frame, t_s)
                 rows.append(self._row(track, frame, t_s, np.asarray(det.box_px), det.score))
@@ -282,11 +487,13 @@ class Tracker:
     def finalize(self, rows: list[TrackedBox]) -> list[TrackedBox]:
         """Clean the rows collected from :meth:`update` over a whole video.
 
-        Drops rows of tracks never confirmed, sets every row's category to its track's
-        score-weighted majority vote, and renumbers track ids 1, 2, ... in order of first
-        appearance.
+        Drops rows of tracks never confirmed, except tracks born on the last detected frame
+        (seen once with a confident score and never given a second look), sets every row's
+        category to its track's score-weighted majority vote, and renumbers track ids 1, 2,
+        ... in order of first appearance.
         """
-        keep = {tid for tid, n in self._hits.items() if n >= self.config.min_hits}
+        keep = set(self._confirmed)
+        keep |= {t.track_id for t in self._tracks if t.born_t_s == self._last_detect_t_s}
         new_id: dict[int, int] = {}
         out = []
         for r in sorted(rows, key=lambda r: (r.frame, r.track_id)):
@@ -312,24 +519,53 @@ class Tracker:
                          for t in tracks])
         return match(1.0 - iou, 1.0 - min_iou)
 
+    def _associate_motion(self, tracks: list[_Track], dets: list[Detection], t_s: float):
+        if not tracks or not dets:
+            return [], list(range(len(tracks))), list(range(len(dets)))
+        cost = expansion_cost(np.array([t.last_box_px for t in tracks]),
+                              np.array([t_s - t.last_seen_t_s for t in tracks]),
+                              np.array([d.box_px for d in dets], dtype=float),
+                              foe_px=self.foe_px, image_size_px=self.image_size_px,
+                              config=self.config)
+        return match(np.where(np.isfinite(cost), cost, 1e6), 1.0)
+
     def _start(self, det: Detection, frame: int, t_s: float) -> _Track:
-        track = _Track(track_id=self._next_id, kf=BoxKalman(np.asarray(det.box_px)),
-                       frame=frame, last_seen_t_s=t_s, score=det.score)
+        box = np.asarray(det.box_px, dtype=float)
+        track = _Track(track_id=self._next_id, kf=BoxKalman(box), frame=frame,
+                       last_seen_t_s=t_s, score=det.score, last_box_px=box, last_seen_frame=frame,
+                       born_t_s=t_s)
         track.votes[det.category] += det.score
         self._next_id += 1
         self._hits[track.track_id] = 1
+        if self.config.min_hits <= 1:
+            self._confirmed.add(track.track_id)
         self._votes[track.track_id] = track.votes
         self._tracks.append(track)
         return track
 
-    def _hit(self, track: _Track, det: Detection, frame: int, t_s: float) -> TrackedBox:
+    def _hit(self, track: _Track, det: Detection, frame: int, t_s: float,
+             restart: bool = False) -> TrackedBox:
         box = np.asarray(det.box_px, dtype=float)
-        track.kf.update(box)
+        if restart:
+            # joined by the ego-motion stage, typically far from the constant-velocity
+            # prediction: restart the filter at the new box with the velocity of the jump
+            # rather than let a stale state pull the estimate back
+            dt_frames = max(frame - track.last_seen_frame, 1)
+            velocity = (xyxy_to_xyah(box) - xyxy_to_xyah(track.last_box_px)) / dt_frames
+            track.kf = BoxKalman(box)
+            track.kf.mean[4:] = velocity
+            track.kf.mean[6] = 0.0
+        else:
+            track.kf.update(box)
         track.state = "tracked"
         track.last_seen_t_s = t_s
+        track.last_box_px = box
+        track.last_seen_frame = frame
         track.score = det.score
         track.votes[det.category] += det.score
         self._hits[track.track_id] += 1
+        if self._hits[track.track_id] >= self.config.min_hits:
+            self._confirmed.add(track.track_id)
         return self._row(track, frame, t_s, box, det.score)
 
     @staticmethod
