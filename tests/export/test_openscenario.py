@@ -201,3 +201,12 @@ def test_asam_quality_checker_passes(tmp_path):
                          text=True, timeout=600, check=False)
     assert run.returncode == 0, run.stdout + run.stderr
     assert "xodrBundle" in run.stdout and "xoscBundle" in run.stdout
+
+
+def test_same_scenario_gives_byte_identical_files(tmp_path):
+    sc = left_turn_scenario()
+    a = write_openscenario(sc, tmp_path / "a")
+    b = write_openscenario(sc, tmp_path / "b")
+    for pa, pb in zip(a, b, strict=True):
+        assert pa.read_bytes() == pb.read_bytes()
+    _schema("OpenSCENARIO_1_2.xsd").validate(str(a[0]))  # the fixed date is a valid dateTime

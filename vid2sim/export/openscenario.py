@@ -20,6 +20,9 @@ time 0 with a FollowTrajectoryAction along a Polyline of timed WorldPositions (a
 ego log). Actors whose log starts later or ends earlier are made invisible
 (VisibilityAction) outside their span. The storyboard stops at the ego log's end.
 
+Output is reproducible: header dates come from ``SOURCE_DATE_EPOCH`` (default the Unix epoch)
+and numbers are written with 12 significant digits.
+
 scenariogeneration ships the OpenSCENARIO 1.2 schema and OpenDRIVE 1.7 schemas; the road file
 uses only elements common to 1.7 and 1.8 (the ASAM checker validates it against 1.8).
 """
@@ -34,6 +37,7 @@ import shutil
 import tempfile
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
+from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
@@ -456,7 +460,17 @@ def _set_header_bounds(root: ET.Element, roads: list[Road]) -> None:
     header.set("west", format(float(pts[:, 0].min() - margin), ".6f"))
 
 
+def _header_date() -> str:
+    """The files' header date: SOURCE_DATE_EPOCH (the reproducible-builds convention) when set,
+    else the Unix epoch, so the same scenario always gives byte-identical files."""
+    epoch_s = int(os.environ.get("SOURCE_DATE_EPOCH", "0") or 0)
+    return datetime.fromtimestamp(epoch_s, tz=UTC).strftime("%Y-%m-%dT%H:%M:%S")
+
+
 def _write_xml(root: ET.Element, path: Path) -> None:
+    header = root.find("FileHeader") if root.find("FileHeader") is not None else root.find("header")
+    if header is not None:
+        header.set("date", _header_date())
     _tidy_numbers(root)
     ET.indent(root, space="    ")
     ET.ElementTree(root).write(path, encoding="utf-8", xml_declaration=True)
