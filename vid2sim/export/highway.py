@@ -214,8 +214,10 @@ def lane_centerlines_enu(road: Road, extension_m: float = ROAD_EXTENSION_M) -> l
 def _line_types(k: int, lanes: int) -> tuple[int, int]:
     # (left, right) in travel direction: highway-env draws line_types[0] at lateral -w/2, which
     # after the y flip is the ENU left side. Dashed lines are drawn once, on the right of a lane.
-    left = LineType.CONTINUOUS_LINE if k == 0 else LineType.NONE
-    right = LineType.CONTINUOUS_LINE if k == lanes - 1 else LineType.STRIPED
+    # Solid edges are CONTINUOUS (drawn piecewise along the curve): CONTINUOUS_LINE is drawn
+    # as one straight segment and cuts across curved roads.
+    left = LineType.CONTINUOUS if k == 0 else LineType.NONE
+    right = LineType.CONTINUOUS if k == lanes - 1 else LineType.STRIPED
     return left, right
 
 
