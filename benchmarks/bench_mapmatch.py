@@ -25,7 +25,14 @@ from pathlib import Path
 import numpy as np
 
 from vid2sim.geo.frames import EnuFrame
-from vid2sim.geo.mapmatch import MatchConfig, match, simulate_drive
+from vid2sim.geo.mapmatch import (
+    MatchConfig,
+    _rts_along,
+    join_xy,
+    match,
+    signed_offsets,
+    simulate_drive,
+)
 from vid2sim.geo.osm import RoadNetwork, load_network
 from vid2sim.records import Origin
 
@@ -104,6 +111,32 @@ def leuven_match(lmap, seg_edge, net, x, y):
     return fix_way, ways, last
 
 
+# --------------------------------------------------------------------------- oracle
+
+
+def oracle_smoother(net: RoadNetwork, drives, n_fix: int) -> None:
+    """What the matcher's along-route smoother reaches when the route is *given*: the fixes
+    projected onto the true route, the true outliers left out, the same constant-velocity
+    RTS smoother. Its fix share bounds any matcher that smooths along the route this way;
+    its "ends" count is how often the first and last fix land on the true first / last way
+    (the route is clipped to the true one, so it never adds a way: an optimistic bound)."""
+    cfg = MatchConfig()
+    hits = ends_ok = 0
+    for d in drives:
+        line = join_xy(net, d.route_edges)
+        s_m, _ = signed_offsets(line, np.column_stack([d.x_m, d.y_m]), d.true_s_m, 60.0)
+        s_m = np.where(d.is_outlier, np.nan, s_m)
+        sigma = np.full(s_m.size, cfg.sigma_m)
+        smooth = np.maximum.accumulate(_rts_along(d.t_s, s_m, sigma, cfg.accel_sigma_mps2))
+        edge_end = np.cumsum(net.edge_length_m[d.route_edges])
+        pos = np.clip(np.searchsorted(edge_end, smooth, side="right"), 0, len(edge_end) - 1)
+        way = net.edge_way_id[np.asarray(d.route_edges)[pos]]
+        hits += int((way == d.true_way_id).sum())
+        ends_ok += bool(way[0] == d.true_way_id[0] and way[-1] == d.true_way_id[-1])
+    print(f"oracle (true route given, same along-route smoother): fixes on true way "
+          f"{hits / n_fix:.2%}, first and last way right on {ends_ok}/{len(drives)} drives")
+
+
 # --------------------------------------------------------------------------- pipeline
 
 
@@ -174,6 +207,7 @@ def main() -> None:
         ceiling.append(f"{sig} m -> {hits / n_fix:.1%}")
     print(f"ways change every {runs:.0f} m on these routes; true route + along-track error "
           f"{', '.join(ceiling)} of fixes on the true way")
+    oracle_smoother(full, drives, n_fix)
 
     frame = EnuFrame(ORIGIN)
     ok = exact = 0
