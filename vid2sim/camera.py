@@ -25,6 +25,7 @@ import numpy as np
 import yaml
 
 from vid2sim.errors import InputError
+from vid2sim.fileio import read_input_text
 
 # Camera axes expressed in the vehicle frame at zero mounting angles (columns: cam x, y, z).
 _B_VEH_FROM_CAM = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
@@ -80,9 +81,9 @@ class Camera:
             image_width=int(width), image_height=int(height), fx=f, fy=f,
             cx=(width - 1) / 2.0, cy=(height - 1) / 2.0, height_m=DEFAULT_HEIGHT_M,
             assumptions=(
-                f"no camera file: default pinhole for {width}x{height} with {hfov_deg:g} deg "
-                f"horizontal field of view, no distortion, {DEFAULT_HEIGHT_M} m above the road, "
-                "level mounting",
+                (f"no camera file: default pinhole for {width}x{height} with {hfov_deg:g} deg "
+                 f"horizontal field of view, no distortion, {DEFAULT_HEIGHT_M} m above the road, "
+                 "level mounting"),
             ),
         )
 
@@ -131,11 +132,11 @@ class Camera:
     # ----------------------------------------------------------------- geometry
 
     @property
-    def K(self) -> np.ndarray:  # noqa: N802 - the usual name of the intrinsic matrix
+    def K(self) -> np.ndarray:  # the usual name of the intrinsic matrix
         return np.array([[self.fx, 0, self.cx], [0, self.fy, self.cy], [0, 0, 1]], dtype=float)
 
     @property
-    def R_veh_from_cam(self) -> np.ndarray:  # noqa: N802
+    def R_veh_from_cam(self) -> np.ndarray:
         return (_rot_z(math.radians(self.yaw_deg)) @ _rot_y(math.radians(self.pitch_deg))
                 @ _rot_x(math.radians(self.roll_deg)) @ _B_VEH_FROM_CAM)
 
@@ -249,12 +250,7 @@ class Camera:
 def load_camera(path: str | Path) -> Camera:
     """Read a camera YAML file (the project's format) or a KITTI calibration file."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError(path, "no such file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(path, f"cannot read: {exc}") from None
+    text = read_input_text(path)
     if re.search(r"^(P_rect_0\d|P\d)\s*:", text, flags=re.MULTILINE):
         return _kitti_camera(text, path)
     try:

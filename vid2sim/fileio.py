@@ -63,3 +63,24 @@ def sha256_path(path: str | Path) -> str:
         digest.update(str(child.relative_to(path)).encode())
         digest.update(sha256_file(child).encode())
     return digest.hexdigest()
+
+
+def read_input_text(path: str | Path) -> str:
+    """Text of a user's input file (UTF-8, a leading BOM dropped).
+
+    Raises :class:`~vid2sim.errors.InputError` naming the file for a missing, unreadable or
+    non-UTF-8 file, so every reader reports these the same way.
+    """
+    from vid2sim.errors import InputError
+
+    path = Path(path)
+    try:
+        return path.read_text(encoding="utf-8").lstrip("\ufeff")
+    except FileNotFoundError:
+        raise InputError(path, "no such file") from None
+    except IsADirectoryError:
+        raise InputError(path, "is a folder, not a file") from None
+    except UnicodeDecodeError as exc:
+        raise InputError(path, f"not UTF-8 text (byte {exc.start})") from None
+    except OSError as exc:
+        raise InputError(path, f"cannot read: {exc.strerror or exc}") from None

@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from vid2sim.errors import InputError, ScenarioError
-from vid2sim.fileio import write_text_atomic
+from vid2sim.fileio import read_input_text, write_text_atomic
 from vid2sim.records import Origin
 
 SCHEMA = "vid2sim.scenario"
@@ -348,12 +348,7 @@ def from_json(data: dict[str, Any], path: str | Path | None = None) -> Scenario:
 def load(path: str | Path) -> Scenario:
     """Read and validate a scenario.json; errors name the file and the field."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError(path, "no such file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(path, f"cannot read: {exc}") from None
+    text = read_input_text(path)
     try:
         data = json.loads(text)
     except json.JSONDecodeError as exc:
