@@ -24,7 +24,7 @@ def demo_result(tmp_path_factory):
 
 
 def test_demo_without_weights_reaches_the_keyframe_bar(demo_result):
-    out, result = demo_result
+    out, _ = demo_result
     metrics = json.loads((out / "build" / "metrics.json").read_text())
     assert CONTRACT_KEYS <= metrics.keys()
     print(f"demo (imported detections): P {metrics['precision']:.3f} R {metrics['recall']:.3f} "
