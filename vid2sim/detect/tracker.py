@@ -67,6 +67,13 @@ class TrackerConfig:
         by little (3 m/s faster at 10 m gives 0.3/s) [1/s]
     :param border_margin_px: a box edge this close to the image border is taken as cut by it
         (detectors stop the box of a cut vehicle a few pixels short of the border)
+    :param moving_penalty: extra chi-square cost of explaining a pair as a moving vehicle
+        rather than a static one approached at the ego speed common to the frame (2 ln of
+        the odds static : moving, 2 for odds of about 3 : 1)
+    :param closing_time_constant_s: time constant of the filter on each track's closing
+        rate (box growth) [s]
+    :param max_static_rate_per_s: largest ego-motion hypothesis searched, as closing speed
+        over range for a box 100 px high (30 m/s at 10 m: 3/s) [1/s]
     """
 
     high_score: float = 0.45
@@ -84,6 +91,9 @@ class TrackerConfig:
     growth_rate_per_s: float = 1.0
     shrink_rate_per_s: float = 0.3
     border_margin_px: float = 8.0
+    moving_penalty: float = 2.0
+    closing_time_constant_s: float = 0.3
+    max_static_rate_per_s: float = 4.0
 
 
 # --------------------------------------------------------------------------- geometry
@@ -141,8 +151,19 @@ def match(cost: np.ndarray, max_cost: float) -> tuple[list[tuple[int, int]], lis
     n_rows, n_cols = cost.shape
     if n_rows == 0 or n_cols == 0:
         return [], list(range(n_rows)), list(range(n_cols))
-    rows, cols = linear_sum_assignment(cost)
-    pairs = [(int(r), int(c)) for r, c in zip(rows, cols, strict=True) if cost[r, c] <= max_cost]
+    # Leaving a row or a column unmatched costs half the gate, so a pair is made only if it
+    # is cheaper than leaving both sides alone, and pairs beyond the gate never steer the
+    # solution: the square problem [[cost, unmatched rows], [unmatched columns, 0]].
+    big = 1e6
+    half = max_cost / 2.0
+    full = np.full((n_rows + n_cols, n_cols + n_rows), big)
+    full[:n_rows, :n_cols] = np.where(cost <= max_cost, cost, big)
+    full[:n_rows, n_cols:][np.diag_indices(n_rows)] = half
+    full[n_rows:, :n_cols][np.diag_indices(n_cols)] = half
+    full[n_rows:, n_cols:] = 0.0
+    rows, cols = linear_sum_assignment(full)
+    pairs = [(int(r), int(c)) for r, c in zip(rows, cols, strict=True)
+             if r < n_rows and c < n_cols and cost[r, c] <= max_cost]
     used_r = {r for r, _ in pairs}
     used_c = {c for _, c in pairs}
     return (pairs, [r for r in range(n_rows) if r not in used_r],
@@ -152,6 +173,9 @@ def match(cost: np.ndarray, max_cost: float) -> tuple[list[tuple[int, int]], lis
 # 99 % quantiles of the chi-square distribution by degrees of freedom (the gate of
 # :func:`expansion_cost`; DeepSORT gates its Mahalanobis distance the same way)
 _CHI2_99 = {2: 9.210, 3: 11.345, 4: 13.277}
+# Fraction of its range a vehicle has closed (closing rate x time) when it counts as passed
+# by the camera: its box would have grown tenfold.
+PASSED_CLOSING = 0.9
 
 
 def border_cut(boxes_px: np.ndarray, image_size_px: tuple[int, int] | None,
@@ -167,7 +191,9 @@ def border_cut(boxes_px: np.ndarray, image_size_px: tuple[int, int] | None,
 
 def expansion_cost(prev_px: np.ndarray, dt_s: np.ndarray, dets_px: np.ndarray, *,
                    foe_px: tuple[float, float] | None, image_size_px: tuple[int, int] | None,
-                   config: TrackerConfig, n_grid: int = 61) -> np.ndarray:
+                   config: TrackerConfig, n_grid: int = 61,
+                   static_rates_per_px_s: np.ndarray | None = None,
+                   closing_rate_per_s: np.ndarray | None = None) -> np.ndarray:
     """Gated cost of continuing each last-seen box with each detection under ego motion.
 
     A camera moving forward sees a vehicle at lateral offset X, height Y and range Z at
@@ -204,10 +230,21 @@ def expansion_cost(prev_px: np.ndarray, dt_s: np.ndarray, dets_px: np.ndarray, *
         Noise and prior parameters.
     n_grid : int
         Samples of ln r over +-3 s_lnr.
+    static_rates_per_px_s : ndarray (k,), optional
+        Ego-motion hypotheses: closing speed over (focal length x vehicle height), so that
+        a static vehicle of box height h [px] is approached at ``rate * h`` ranges per
+        second [1/(px s)]. Under each, a pair costs the lesser of the static fit (r fixed by
+        the rate and the last box height, no prior) and the free fit plus
+        ``moving_penalty``: one ego speed must explain every parked car, which tells a row
+        of parked cars grown by the ego's approach from the same row shifted by one car.
+    closing_rate_per_s : ndarray (n,), optional
+        Each track's own measured closing speed over range [1/s] (NaN: unknown): the free
+        fit's scale prior is centred on the ratio it predicts, and a track it carries past
+        the camera (``closing dt >= 0.9``) matches nothing.
 
     Returns
     -------
-    ndarray (n, m)
+    ndarray (n, m), or (k, n, m) with ``static_rates_per_px_s``
         J divided by its 99 % chi-square gate (number of usable edges as degrees of freedom):
         at most 1 for a plausible pair; inf where the pair is impossible.
     """
@@ -238,33 +275,68 @@ def expansion_cost(prev_px: np.ndarray, dt_s: np.ndarray, dets_px: np.ndarray, *
     s_edge = (config.edge_noise_ratio * scale + 1.0)[:, :, None]
     s_t = ((config.lateral_speed_mps / config.vehicle_height_m) * dt[:, None] * scale
            + 1e-3)[:, :, None]
+    # A track's own closing rate (1/Z dynamics: r = 1 / (1 - c dt)) centres its scale prior;
+    # a track whose own approach has carried it past the camera cannot be continued.
+    own = (np.zeros(n) if closing_rate_per_s is None
+           else np.nan_to_num(np.asarray(closing_rate_per_s, dtype=float).reshape(-1)) * dt)
+    passed = own >= PASSED_CLOSING
+    ln_r0 = -np.log(1.0 - np.clip(own, -10.0, PASSED_CLOSING))      # (n,)
     u = np.linspace(-3.0, 3.0, n_grid)                               # ln r in units of s_lnr
     rate = np.where(u > 0, config.growth_rate_per_s, config.shrink_rate_per_s)
-    r = np.exp(u[None, :] * rate[None, :] * dt[:, None])[:, None, :, None]  # (n, 1, G, 1)
-    res = b - r * a                                                  # (n, m, G, 4)
-    v = both[:, :, None, :]
+    r = np.exp(ln_r0[:, None] + u[None, :] * rate[None, :] * dt[:, None])[:, None, :, None]
+    # The inner edge of a box off to one side of the FOE (the edge nearer to it) is the far
+    # end of the vehicle's visible side, up to a car length deeper than the rear face that
+    # sets the outer edges, so it scales by anything between 1 and r.
+    same_side = (a[..., 0::2].prod(-1) > 0)[..., 0], (a[..., 1::2].prod(-1) > 0)[..., 0]
+    inner = np.zeros(both.shape, dtype=bool)
+    for axis, side in zip((0, 1), same_side, strict=True):
+        first_inner = np.abs(a[:, :, 0, axis]) < np.abs(a[:, :, 0, axis + 2])
+        inner[..., axis] = side & first_inner
+        inner[..., axis + 2] = side & ~first_inner
+    inner &= both
+    v = (both & ~inner)[:, :, None, :]                               # edges fitted exactly
+    vi = inner[:, :, None, :]
     k = (s_edge / s_t) ** 2                                          # ridge of the t prior
-    j = np.zeros(res.shape[:3])
-    t = np.zeros(res.shape)
-    for axis in (slice(0, 4, 2), slice(1, 4, 2)):                     # x edges, y edges
-        ra, va = res[..., axis], v[..., axis]
-        t_axis = (ra * va).sum(-1) / (va.sum(-1) + k)
-        t[..., axis] = t_axis[..., None]
-        j += t_axis ** 2 / s_t ** 2
-    e = res - t                                                      # observed - predicted
-    j += ((e * v) ** 2).sum(-1) / s_edge ** 2
-    # prev cut: the observed edge must lie at or beyond the prediction; det cut: within it
-    over = np.where(prev_only, np.maximum(0.0, -outward * e), 0.0)
-    over += np.where(det_only, np.maximum(0.0, outward * e), 0.0)
-    j += (over ** 2).sum(-1) / s_edge ** 2
-    j += u[None, None, :] ** 2
-    j_min = j.min(axis=2)
+
+    def edge_cost(r: np.ndarray) -> np.ndarray:
+        """Edge misfit plus translation prior for scale ratios r (n, 1, G, 1) -> (n, m, G)."""
+        res = b - r * a                                              # (n, m, G, 4)
+        j = np.zeros(res.shape[:3])
+        t = np.zeros(res.shape)
+        for axis in (slice(0, 4, 2), slice(1, 4, 2)):                 # x edges, y edges
+            ra, va = res[..., axis], v[..., axis]
+            t_axis = (ra * va).sum(-1) / (va.sum(-1) + k)
+            t[..., axis] = t_axis[..., None]
+            j += t_axis ** 2 / s_t ** 2
+        e = res - t                                                  # observed - predicted
+        j += ((e * v) ** 2).sum(-1) / s_edge ** 2
+        e_unscaled = b - a - t                                       # the inner edge at r = 1
+        e_inner = np.where(e * e_unscaled <= 0, 0.0,
+                           np.sign(e) * np.minimum(np.abs(e), np.abs(e_unscaled)))
+        j += ((e_inner * vi) ** 2).sum(-1) / s_edge ** 2
+        # prev cut: the observed edge must lie at or beyond the prediction; det cut: within
+        over = np.where(prev_only, np.maximum(0.0, -outward * e), 0.0)
+        over += np.where(det_only, np.maximum(0.0, outward * e), 0.0)
+        return j + (over ** 2).sum(-1) / s_edge ** 2
+
+    j_free = (edge_cost(r) + u[None, None, :] ** 2).min(axis=2)
     n_x = both[:, :, 0::2].sum(-1)
     n_y = both[:, :, 1::2].sum(-1)
     dof = n_x + n_y + (cut_prev ^ cut_det).sum(-1)
     gate = np.vectorize(lambda d: _CHI2_99.get(int(d), np.inf), otypes=[float])(dof)
-    ok = (n_x >= 1) & (n_y >= 1)
-    return np.where(ok, j_min / gate, np.inf)
+    ok = (n_x >= 1) & (n_y >= 1) & ~passed[:, None]
+    if static_rates_per_px_s is None:
+        return np.where(ok, j_free / gate, np.inf)
+    out = []
+    for rate_px in static_rates_per_px_s:
+        # a static object at range Z = f H / h closes by v dt: r = 1 / (1 - v dt / Z)
+        closing = rate_px * dt * h_prev                              # v dt / Z, (n,)
+        r_static = 1.0 / np.maximum(1.0 - closing, 1e-3)
+        j_static = np.where((closing < 0.9)[:, None],
+                            edge_cost(r_static[:, None, None, None])[:, :, 0], np.inf)
+        j = np.minimum(j_static, j_free + config.moving_penalty)
+        out.append(np.where(ok, j / gate, np.inf))
+    return np.array(out).reshape(len(out), n, m)
 
 
 # --------------------------------------------------------------------------- Kalman filter
@@ -342,6 +414,7 @@ class _Track:
     last_box_px: np.ndarray
     last_seen_frame: int
     born_t_s: float
+    closing_rate_per_s: float = float("nan")  # own approach speed over range, from boxes
     hits: int = 1
     state: str = "tracked"  # "tracked" (matched last detected frame) or "lost"
     votes: dict[str, float] = field(default_factory=lambda: defaultdict(float))
@@ -416,6 +489,9 @@ class Tracker:
                     for t in self._tracks if t.state == "tracked"]
 
         cfg = self.config
+        # Sparse input: boxes move too far between detected frames for IoU to come first.
+        sparse = (self._last_detect_t_s is not None
+                  and t_s - self._last_detect_t_s >= cfg.sparse_interval_s)
         self._last_detect_t_s = t_s
         dets = [d for d in detections if d.score >= cfg.low_score]
         high = [d for d in dets if d.score >= cfg.high_score]
@@ -427,39 +503,55 @@ class Tracker:
             rows.append(self._hit(track, det, frame, t_s, restart))
             matched.add(id(track))
 
-        confirmed = [t for t in self._tracks if t.track_id in self._confirmed]
-        tentative = [t for t in self._tracks if t.track_id not in self._confirmed]
+        # A track whose own approach has since carried it past the camera (range down to a
+        # tenth) has left the view: no box may revive it.
+        self._tracks = [t for t in self._tracks if not (
+            t.state == "lost"
+            and t.closing_rate_per_s * (t_s - t.last_seen_t_s) >= PASSED_CLOSING)]
 
-        # Stage 1: confident detections against all confirmed tracks, tracked or lost.
-        pairs, free_tracks, free_high = self._associate(confirmed, high, cfg.iou_high)
-        for ti, di in pairs:
-            hit(confirmed[ti], high[di])
-        # Stage 2: weak detections only against tracks seen on the previous detected frame;
-        # a weak box is not trusted to revive a lost track.
-        remaining = [confirmed[i] for i in free_tracks if confirmed[i].state == "tracked"]
-        pairs, _, free_low = self._associate(remaining, low, cfg.iou_low)
-        for ti, di in pairs:
-            hit(remaining[ti], low[di])
-        # Stage 3: tentative tracks get one chance with the leftover confident detections.
-        left_high = [high[i] for i in free_high]
-        pairs, _, free_new = self._associate(tentative, left_high, cfg.iou_tentative)
-        for ti, di in pairs:
-            hit(tentative[ti], left_high[di])
-        left_high = [left_high[i] for i in free_new]
-        # Stage 4: what IoU could not join, on the ego-motion model (large image motion
-        # between sparse detections, or after a gap); weak boxes again only for tracks seen
-        # on the previous detected frame.
-        unmatched = [t for t in self._tracks if id(t) not in matched]
-        pairs, _, free_new = self._associate_motion(unmatched, left_high, t_s)
-        for ti, di in pairs:
-            hit(unmatched[ti], left_high[di], restart=True)
-        left_high = [left_high[i] for i in free_new]
-        unmatched = [t for t in unmatched if id(t) not in matched and t.state == "tracked"
-                     and t.track_id in self._confirmed]
-        left_low = [low[i] for i in free_low]
-        pairs, _, _ = self._associate_motion(unmatched, left_low, t_s)
-        for ti, di in pairs:
-            hit(unmatched[ti], left_low[di], restart=True)
+        def iou_stages(high: list[Detection], low: list[Detection]):
+            confirmed = [t for t in self._tracks
+                         if id(t) not in matched and t.track_id in self._confirmed]
+            tentative = [t for t in self._tracks
+                         if id(t) not in matched and t.track_id not in self._confirmed]
+            # Stage 1: confident detections against all confirmed tracks, tracked or lost.
+            pairs, free_tracks, free_high = self._associate(confirmed, high, cfg.iou_high)
+            for ti, di in pairs:
+                hit(confirmed[ti], high[di])
+            # Stage 2: weak detections only against tracks seen on the previous detected
+            # frame; a weak box is not trusted to revive a lost track.
+            remaining = [confirmed[i] for i in free_tracks if confirmed[i].state == "tracked"]
+            pairs, _, free_low = self._associate(remaining, low, cfg.iou_low)
+            for ti, di in pairs:
+                hit(remaining[ti], low[di])
+            # Stage 3: tentative tracks get one chance with the leftover confident detections.
+            left_high = [high[i] for i in free_high]
+            pairs, _, free_new = self._associate(tentative, left_high, cfg.iou_tentative)
+            for ti, di in pairs:
+                hit(tentative[ti], left_high[di])
+            return [left_high[i] for i in free_new], [low[i] for i in free_low]
+
+        def motion_stage(high: list[Detection], low: list[Detection]):
+            # The ego-motion model (large image motion between sparse detections, or after a
+            # gap); weak boxes again only for confirmed tracks seen on the previous frame.
+            unmatched = [t for t in self._tracks if id(t) not in matched]
+            pairs, _, free_high, rate = self._associate_motion(unmatched, high, t_s)
+            for ti, di in pairs:
+                hit(unmatched[ti], high[di], restart=True)
+            unmatched = [t for t in unmatched if id(t) not in matched and t.state == "tracked"
+                         and t.track_id in self._confirmed]
+            pairs, _, free_low, _ = self._associate_motion(unmatched, low, t_s, rate)
+            for ti, di in pairs:
+                hit(unmatched[ti], low[di], restart=True)
+            return [high[i] for i in free_high], [low[i] for i in free_low]
+
+        # Dense video: IoU on the Kalman prediction first, the motion model for what is left.
+        # Sparse input: the motion model first (IoU would join a row of parked cars shifted
+        # by one car), IoU on the prediction for what is left (e.g. crossing traffic).
+        stages = (motion_stage, iou_stages) if sparse else (iou_stages, motion_stage)
+        left_high, left_low = high, low
+        for stage in stages:
+            left_high, left_low = stage(left_high, left_low)
 
         # Misses: a confirmed track goes lost; a tentative one is a false detection if the
         # vehicle, were it real, should have been seen again by now, else it is kept.
@@ -519,15 +611,37 @@ class Tracker:
                          for t in tracks])
         return match(1.0 - iou, 1.0 - min_iou)
 
-    def _associate_motion(self, tracks: list[_Track], dets: list[Detection], t_s: float):
+    def _associate_motion(self, tracks: list[_Track], dets: list[Detection], t_s: float,
+                          rate_per_px_s: float | None = None):
+        """Match on :func:`expansion_cost`, searching the ego-motion rate shared by all
+        static vehicles (or using ``rate_per_px_s``): the rate whose assignment costs least,
+        counting each pair left unmatched at the gate's cost of 1, wins.
+
+        Returns pairs, unmatched tracks, unmatched detections and the rate used.
+        """
         if not tracks or not dets:
-            return [], list(range(len(tracks))), list(range(len(dets)))
-        cost = expansion_cost(np.array([t.last_box_px for t in tracks]),
-                              np.array([t_s - t.last_seen_t_s for t in tracks]),
-                              np.array([d.box_px for d in dets], dtype=float),
-                              foe_px=self.foe_px, image_size_px=self.image_size_px,
-                              config=self.config)
-        return match(np.where(np.isfinite(cost), cost, 1e6), 1.0)
+            return [], list(range(len(tracks))), list(range(len(dets))), rate_per_px_s
+        if rate_per_px_s is None:
+            # reference box height 100 px; 81 hypotheses from a standing ego upwards
+            rates = np.linspace(0.0, self.config.max_static_rate_per_s, 81) / 100.0
+        else:
+            rates = np.array([rate_per_px_s])
+        costs = expansion_cost(np.array([t.last_box_px for t in tracks]),
+                               np.array([t_s - t.last_seen_t_s for t in tracks]),
+                               np.array([d.box_px for d in dets], dtype=float),
+                               foe_px=self.foe_px, image_size_px=self.image_size_px,
+                               config=self.config, static_rates_per_px_s=rates,
+                               closing_rate_per_s=np.array([t.closing_rate_per_s
+                                                            for t in tracks]))
+        n_pairs = min(len(tracks), len(dets))
+        best = None
+        for rate, cost in zip(rates, costs, strict=True):
+            found = match(np.where(np.isfinite(cost), cost, 1e6), 1.0)
+            total = sum(cost[r, c] for r, c in found[0]) + (n_pairs - len(found[0]))
+            if best is None or total < best[0] - 1e-9:
+                best = (total, found, float(rate))
+        pairs, free_tracks, free_dets = best[1]
+        return pairs, free_tracks, free_dets, best[2]
 
     def _start(self, det: Detection, frame: int, t_s: float) -> _Track:
         box = np.asarray(det.box_px, dtype=float)
@@ -557,6 +671,14 @@ class Tracker:
             track.kf.mean[6] = 0.0
         else:
             track.kf.update(box)
+        dt_s = t_s - track.last_seen_t_s
+        measured = self._closing_rate(track.last_box_px, box, dt_s)
+        if np.isfinite(measured):
+            # first-order filter: box noise over 0.1 s makes single ratios jumpy
+            alpha = dt_s / (dt_s + self.config.closing_time_constant_s)
+            previous = track.closing_rate_per_s
+            track.closing_rate_per_s = (measured if not np.isfinite(previous)
+                                        else previous + alpha * (measured - previous))
         track.state = "tracked"
         track.last_seen_t_s = t_s
         track.last_box_px = box
@@ -567,6 +689,23 @@ class Tracker:
         if self._hits[track.track_id] >= self.config.min_hits:
             self._confirmed.add(track.track_id)
         return self._row(track, frame, t_s, box, det.score)
+
+    def _closing_rate(self, before_px: np.ndarray, after_px: np.ndarray, dt_s: float
+                      ) -> float:
+        """Closing speed over the latest range [1/s] from the growth of two boxes (size ~
+        1/range, so v / Z_after = (h_after / h_before - 1) / dt), from heights, else widths,
+        when not cut by the border; NaN when not measurable."""
+        if dt_s <= 0:
+            return float("nan")
+        cut = border_cut(np.array([before_px, after_px]), self.image_size_px,
+                         self.config.border_margin_px)
+        for lo, hi in ((1, 3), (0, 2)):
+            if not cut[:, [lo, hi]].any():
+                size_before = before_px[hi] - before_px[lo]
+                size_after = after_px[hi] - after_px[lo]
+                if size_before > 0 and size_after > 0:
+                    return float((size_after / size_before - 1.0) / dt_s)
+        return float("nan")
 
     @staticmethod
     def _row(track: _Track, frame: int, t_s: float, box: np.ndarray, score: float
