@@ -3,9 +3,10 @@
     python benchmarks/bench_ranging.py [--clips 6] [--seconds 30] [--kitti] [--video]
 
 1. Synthetic clips with known truth (generated here): a pitched dash-cam whose camera file
-   says "level", body pitch on the suspension and braking nose-dives, a lead that speeds up and brakes at random,
-   traffic in the neighbouring lanes (cars of random widths, trucks), a cut-in, box noise and
-   missed detections. Reported: median |relative range error| (lead, all), lead range-rate
+   says "level", body pitch on the suspension and braking nose-dives, a road that is not a
+   plane (a grade change ahead, cross-fall), a lead that speeds up and brakes at random,
+   traffic in the neighbouring lanes (cars of fleet-spread widths and lengths, trucks), a
+   cut-in, box noise and missed detections. Reported: median |relative range error| (lead, all), lead range-rate
    RMSE, share of frames with a true lead where the lead chosen is the right vehicle.
 2. ``--kitti``: single-frame ranging of the labelled boxes of every 10th frame of all KITTI
    tracking sequences in ``../shared/data/kitti_tracking`` (median |rel. error| per range bin).
@@ -18,6 +19,7 @@ from __future__ import annotations
 import argparse
 import math
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -45,9 +47,28 @@ def _random_profile(rng, duration_s: float, dt: float, x0: float, lo: float, hi:
     return x, v
 
 
-def synthetic_clip(seed: int, duration_s: float = 30.0, dt: float = 0.1):
+def _car_size(rng) -> tuple[float, float]:
+    """Width and length [m] of a passenger car drawn from the fleet: body widths 1.60-1.90 m
+    about a 1.75 m mean, lengths 3.6-5.0 m (see DEFAULT_PRIORS in ranging.py)."""
+    return (float(np.clip(rng.normal(1.75, 0.12), 1.55, 2.0)),
+            float(np.clip(rng.normal(4.4, 0.45), 3.5, 5.2)))
+
+
+def road_height_m(x_m: float, y_m: float, grade_change: float, grade_start_m: float) -> float:
+    """Height of the road [m] at (x, y) relative to the plane under the ego wheels: a change
+    of grade ``grade_change`` (e.g. a sag or crest ahead) from ``grade_start_m`` on, and a
+    2.5 % cross-fall from the crown at the centre line (y = +1.8 m) down to the kerbs."""
+    return (grade_change * max(x_m - grade_start_m, 0.0)
+            - 0.025 * (abs(y_m - 1.8) - 1.8))
+
+
+def synthetic_clip(seed: int, duration_s: float = 30.0, dt: float = 0.1, flat: bool = False,
+                   pitching: bool = True):
     """Boxes, truth {(frame, id): (range, lateral, rate)}, true lead id per frame, camera file,
-    true mean pitch [deg] and lane-marking horizon hints [px] (emulated)."""
+    true mean pitch [deg] and lane-marking horizon hints [px] (emulated).
+
+    Unless ``flat``, the road is not a plane: a grade change of N(0, 2 %) begins 15-60 m
+    ahead and the lanes have cross-fall (:func:`road_height_m`)."""
     rng = np.random.default_rng(seed)
     hfov = float(rng.uniform(70, 100))
     cam_file = Camera.default_for(1280, 720, hfov_deg=hfov)
@@ -56,17 +77,15 @@ def synthetic_clip(seed: int, duration_s: float = 30.0, dt: float = 0.1):
     vehicles = []  # (id, x[n], y[n], v[n], W, L, H, category)
     x_lead, v_lead = _random_profile(rng, duration_s, dt, float(rng.uniform(20, 40)), 20, 70)
     x, v = x_lead, v_lead
-    vehicles.append((1, x, np.full(n, rng.normal(0, 0.3)), v, float(rng.normal(1.8, 0.1)),
-                     4.5, 1.5, "car"))
+    vehicles.append((1, x, np.full(n, rng.normal(0, 0.3)), v, *_car_size(rng), 1.5, "car"))
     tid = 2
     for lane_y in (3.6, -3.6, 7.2):
         for _ in range(2):
             x, v = _random_profile(rng, duration_s, dt, float(rng.uniform(10, 70)), 6, 90)
             truck = rng.random() < 0.25
-            vehicles.append((tid, x, np.full(n, lane_y + rng.normal(0, 0.3)), v,
-                             2.5 if truck else float(rng.normal(1.8, 0.1)),
-                             10.0 if truck else 4.5, 3.4 if truck else 1.5,
-                             "truck" if truck else "car"))
+            w_m, l_m = (2.5, 10.0) if truck else _car_size(rng)
+            vehicles.append((tid, x, np.full(n, lane_y + rng.normal(0, 0.3)), v, w_m, l_m,
+                             3.4 if truck else 1.5, "truck" if truck else "car"))
             tid += 1
     # A cut-in from the right at a random time, ending in the ego lane.
     t_cut = int(rng.uniform(0.3, 0.7) * n)
@@ -78,17 +97,19 @@ def synthetic_clip(seed: int, duration_s: float = 30.0, dt: float = 0.1):
     gap = 11.0 + 4.0 * np.sin(w * t_all + phase)
     gap_rate = 4.0 * w * np.cos(w * t_all + phase)
     x, v = x_lead - gap, v_lead - gap_rate
-    vehicles.append((tid, x, y_cut, v, float(rng.normal(1.8, 0.1)), 4.5, 1.5, "car"))
+    vehicles.append((tid, x, y_cut, v, *_car_size(rng), 1.5, "car"))
+    grade_change = 0.0 if flat else float(rng.normal(0, 0.02))
+    grade_start_m = float(rng.uniform(15, 60))
 
     # Body pitch on the suspension: AR(1) with 0.5 s correlation and 0.15 deg spread, plus
     # two braking nose-dives of 0.8 deg for 2 s (ramps of 0.3 s).
     a = math.exp(-dt / 0.5)
     body = np.zeros(n)
     for k in range(1, n):
-        body[k] = a * body[k - 1] + math.sqrt(1 - a * a) * 0.15 * float(rng.normal())
+        body[k] = a * body[k - 1] + math.sqrt(1 - a * a) * 0.15 * float(rng.normal()) * pitching
     t = np.arange(n) * dt
     for t0 in rng.uniform(2, duration_s - 4, 2):
-        body += 0.8 * np.clip(np.minimum(t - t0, t0 + 2.0 - t) / 0.3, 0, 1)
+        body += 0.8 * pitching * np.clip(np.minimum(t - t0, t0 + 2.0 - t) / 0.3, 0, 1)
 
     boxes, truth, true_lead, hints = [], {}, {}, []
     lim = np.array([0, 0, 1279, 719], dtype=float)
@@ -98,7 +119,10 @@ def synthetic_clip(seed: int, duration_s: float = 30.0, dt: float = 0.1):
             hints.append(cam.horizon_y_px() + float(rng.normal(0, 2.0)))
         in_lane = []
         for vid, xs, ys, vs, w, length, h, cat in vehicles:
-            box = cam.project_box(np.array([xs[k] + length / 2, ys[k]]), length, w, h)
+            # A vehicle dz above the ego's road plane looks like a camera dz lower.
+            dz = 0.0 if flat else road_height_m(xs[k], ys[k], grade_change, grade_start_m)
+            box = replace(cam, height_m=cam.height_m - dz).project_box(
+                np.array([xs[k] + length / 2, ys[k]]), length, w, h)
             if box is None:
                 continue
             if abs(ys[k]) < 1.8:

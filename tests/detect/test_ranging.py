@@ -19,6 +19,7 @@ from hypothesis import strategies as st
 from vid2sim.camera import Camera
 from vid2sim.detect.lead import lane_indices, lane_name
 from vid2sim.detect.ranging import (
+    DEFAULT_PRIORS,
     BoxArrays,
     RangingConfig,
     fit_boxes,
@@ -34,7 +35,8 @@ from vid2sim.records import TrackedBox
 
 CAM = Camera(image_width=1280, image_height=720, fx=1000.0, fy=1000.0, cx=639.5, cy=359.5,
              height_m=1.3)
-CAR_W, CAR_L, CAR_H = 1.8, 4.4, 1.5
+# The simulated fleet is the prior's mean car: these tests check geometry, not the prior.
+CAR_W, CAR_L, CAR_H = DEFAULT_PRIORS["car"].width_m, 4.4, 1.5
 
 
 @dataclass
@@ -402,7 +404,7 @@ def test_braking_nose_dive_is_corrected_per_frame():
     # which fools the ground cue of every vehicle at once while their widths do not change.
     rng = np.random.default_rng(11)
     vehicles = [Vehicle(k, lambda t, x0=x0: x0, lambda t, y0=y0: y0, lambda t: 0.0,
-                        width_m=float(rng.normal(1.8, 0.08)))
+                        width_m=float(rng.normal(CAR_W, 0.08)))
                 for k, (x0, y0) in enumerate([(12, 3.6), (20, 0.0), (28, -3.6), (35, 3.6),
                                               (45, 0.0)])]
     boxes, truth = [], {}

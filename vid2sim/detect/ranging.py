@@ -48,21 +48,26 @@ class VehiclePrior:
     length_m: float
     height_m: float
     height_std_m: float
+    length_std_m: float = 0.5
 
 
-# Why these numbers: European passenger cars are 1.70-1.85 m wide without mirrors and a
-# detector's box usually takes in the mirrors as well when they are visible, so 1.80 +- 0.12 m
-# covers the fleet (ISO 612 body width; Euro NCAP car dimensions). Vans (Transit/Sprinter
+# Why these numbers: the body width (ISO 612) of European passenger cars runs from about
+# 1.60 m (city cars) to 1.90 m (large saloons, SUVs); new registrations average 1.77-1.80 m
+# since 2015 and about 1.70 m around 2000 (ICCT European Vehicle Market Statistics), and the
+# fleet on the road is on average 10-12 years old, so its mean is near 1.75 m with a spread
+# of 0.12 m (segment mix), which also covers mirrors that a box takes in or not. Vans (Transit/Sprinter
 # class) are about 2.0 m, trucks and buses are legally at most 2.55 m wide (EU 96/53/EC) and
 # mostly near that limit; motorcycles with rider about 0.8 m. Heights: cars 1.45-1.65 m,
 # vans about 2 m, trucks/buses 3-4 m. Lengths only matter for the side of a laterally offset
-# vehicle that shows in its box.
+# vehicle that shows in its box; they are unknowns of the fit with the class spread (cars
+# 3.6 m city cars to 5.0 m saloons, vans 4.5-6 m, rigid trucks 6-12 m, buses 12-18 m), so
+# a car far to the side, whose box is mostly its flank, does not read as a near one.
 DEFAULT_PRIORS: dict[str, VehiclePrior] = {
-    "car": VehiclePrior(1.80, 0.12, 4.4, 1.50, 0.12),
-    "van": VehiclePrior(2.00, 0.12, 5.2, 2.10, 0.30),
-    "truck": VehiclePrior(2.45, 0.12, 8.0, 3.20, 0.60),
-    "bus": VehiclePrior(2.55, 0.06, 12.0, 3.10, 0.30),
-    "motorcycle": VehiclePrior(0.80, 0.15, 2.1, 1.40, 0.20),
+    "car": VehiclePrior(1.75, 0.12, 4.4, 1.50, 0.12, 0.45),
+    "van": VehiclePrior(2.00, 0.12, 5.2, 2.10, 0.30, 0.6),
+    "truck": VehiclePrior(2.45, 0.12, 8.0, 3.20, 0.60, 2.0),
+    "bus": VehiclePrior(2.55, 0.06, 12.0, 3.10, 0.30, 2.0),
+    "motorcycle": VehiclePrior(0.80, 0.15, 2.1, 1.40, 0.20, 0.2),
 }
 
 
@@ -112,6 +117,10 @@ class RangingConfig:
         Frames another ego-lane vehicle must be nearer before it takes over as lead.
     max_range_m : float
         Positions beyond this are not trusted (reported, but never a lead).
+    width_tail_sigmas : float
+        A box wider than the width prior by more than this many sigmas is more likely a
+        vehicle turned off the ego axis (its side in the box) than a wide one: beyond it the
+        width prior is Cauchy rather than Gaussian; ``inf`` for a Gaussian prior.
     per_frame_pitch : bool
         Estimate the body pitch of every frame (braking dive, bumps) from the disagreement
         of ground and width cues of all vehicles in the frame, and correct the boxes' rows.
@@ -137,6 +146,7 @@ class RangingConfig:
     lane_hysteresis_m: float = 0.3
     lead_switch_frames: int = 3
     max_range_m: float = 150.0
+    width_tail_sigmas: float = 2.0
     per_frame_pitch: bool = True
     pitch_accel_noise_px: float = 600.0
 
@@ -193,11 +203,12 @@ class BoxFit:
     range_m: np.ndarray
     lateral_m: np.ndarray
     width_m: np.ndarray
-    cov: np.ndarray  # (N, 4, 4) over (log range, lateral, width, height)
+    cov: np.ndarray  # (N, 5, 5) over (log range, lateral, width, height, length)
     cov_white: np.ndarray  # the part of ``cov`` that is independent from frame to frame
     ground_ok: np.ndarray
     width_ok: np.ndarray
     valid: np.ndarray
+    length_m: np.ndarray
 
     @property
     def range_var_m2(self) -> np.ndarray:
@@ -227,7 +238,7 @@ class BoxFit:
 def fit_boxes(camera: Camera, ba: BoxArrays, width_m: np.ndarray, width_std_m: np.ndarray,
               prior_h: np.ndarray, prior_h_std: np.ndarray, length_m: np.ndarray,
               config: RangingConfig, *, use_ground: bool = True, use_height: bool = True,
-              iterations: int = 12) -> BoxFit:
+              length_std_m: np.ndarray | None = None, iterations: int = 12) -> BoxFit:
     """Fuse the cues of each box into a position by weighted least squares.
 
     The unknowns per box are (log range, lateral, width, height); the residuals are the
@@ -252,6 +263,9 @@ def fit_boxes(camera: Camera, ba: BoxArrays, width_m: np.ndarray, width_std_m: n
         Noise settings.
     use_ground, use_height : bool
         Switch the ground and height cues off (for the horizon estimate from widths).
+    length_std_m : ndarray, optional
+        Spread of the length prior [m]; the length is then a fifth unknown (it sets how much
+        of a laterally offset vehicle's side shows). None keeps ``length_m`` fixed.
 
     Returns
     -------
@@ -291,22 +305,39 @@ def fit_boxes(camera: Camera, ba: BoxArrays, width_m: np.ndarray, width_std_m: n
     rng0 = np.clip(rng0, 1.0, 3 * config.max_range_m)
     rays = camera.pixel_rays_veh(np.column_stack(((ba.x1 + ba.x2) / 2, np.full(n, horizon))))
     lat0 = rays[:, 1] / np.maximum(rays[:, 0], 1e-6) * (rng0 + length_m / 2)
-    theta = np.column_stack((np.log(rng0), lat0, width_m, prior_h))
-    prior_mean = np.column_stack((width_m, prior_h))
-    prior_std = np.column_stack((width_std_m, prior_h_std))
-    steps = np.array([1e-3, 1e-3, 1e-3, 1e-3])
+    if length_std_m is None:
+        length_std_m = np.full(n, 1e-4)
+    theta = np.column_stack((np.log(rng0), lat0, width_m, prior_h, length_m))
+    prior_mean = np.column_stack((width_m, prior_h, length_m))
+    prior_std = np.column_stack((width_std_m, prior_h_std, length_std_m))
+    n_par = 5
+    steps = np.full(n_par, 1e-3)
+
+    # Apparent width is heavy-tailed upwards: a vehicle turned away from the ego axis (at a
+    # junction, parked across or at an angle, changing lanes) shows part of its side, and its
+    # box is W cos(yaw) + L sin(yaw) wide, never narrower than its rear. So a width far above
+    # the class prior is more likely a turned vehicle than a wide one: its width prior is
+    # Cauchy beyond ``config.width_tail_sigmas`` (iteratively reweighted), and the range
+    # then rests on the ground cue instead of a box width inflated by the vehicle's side.
+    w_prior_weight = np.ones(n)
+    c_tail = config.width_tail_sigmas
+
+    def update_weights(th: np.ndarray, i: np.ndarray) -> None:
+        s = (th[:, 2] - prior_mean[i, 0]) / prior_std[i, 0]
+        w_prior_weight[i] = np.where(s > 0, 1.0 / (1.0 + (s / c_tail) ** 2), 1.0)
 
     def residuals(th: np.ndarray, i: np.ndarray) -> np.ndarray:
         pred = _predict_edges(camera, np.exp(th[:, 0]), th[:, 1], th[:, 2], th[:, 3],
-                              length_m[i])
+                              th[:, 4])
         r_edges = np.where(use[i], (obs[i] - pred) / sig[i], 0.0)
-        r_prior = (prior_mean[i] - th[:, 2:4]) / prior_std[i]
+        r_prior = (prior_mean[i] - th[:, 2:5]) / prior_std[i]
+        r_prior[:, 0] *= np.sqrt(w_prior_weight[i])
         return np.nan_to_num(np.concatenate([r_edges, r_prior], axis=1), nan=0.0)
 
     def jacobian(th: np.ndarray, i: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         r0 = residuals(th, i)
-        jac = np.zeros((len(i), 6, 4))
-        for k in range(4):
+        jac = np.zeros((len(i), 4 + 3, n_par))
+        for k in range(n_par):
             th_k = th.copy()
             th_k[:, k] += steps[k]
             jac[:, :, k] = -(residuals(th_k, i) - r0) / steps[k]
@@ -317,18 +348,20 @@ def fit_boxes(camera: Camera, ba: BoxArrays, width_m: np.ndarray, width_std_m: n
     for _ in range(iterations):
         if active.size == 0:
             break
+        if math.isfinite(c_tail):
+            update_weights(theta[active], active)
         r0, jac = jacobian(theta[active], active)
-        jtj = np.einsum("nik,nil->nkl", jac, jac) + 1e-9 * np.eye(4)
+        jtj = np.einsum("nik,nil->nkl", jac, jac) + 1e-9 * np.eye(n_par)
         jtr = np.einsum("nik,ni->nk", jac, r0)
         delta = np.linalg.solve(jtj, jtr[..., None])[..., 0]
         delta[:, 0] = np.clip(delta[:, 0], -0.5, 0.5)
         th = theta[active] + delta
         th[:, 0] = np.clip(th[:, 0], 0.0, math.log(3 * config.max_range_m))
-        th[:, 2:4] = np.maximum(th[:, 2:4], 0.2)
+        th[:, 2:5] = np.maximum(th[:, 2:5], 0.2)
         theta[active] = th
         active = active[(np.abs(delta[:, 0]) > 1e-5) | (np.abs(delta[:, 1]) > 1e-4)]
     _, jac = jacobian(theta, np.arange(n))
-    jtj = np.einsum("nik,nil->nkl", jac, jac) + 1e-9 * np.eye(4)
+    jtj = np.einsum("nik,nil->nkl", jac, jac) + 1e-9 * np.eye(n_par)
     cov = np.linalg.inv(jtj)
     # Frame-to-frame (white) part: pixel noise and body pitch jitter only. The vehicle's size
     # and the road height under it change slowly, so their errors are common to all frames
@@ -336,14 +369,15 @@ def fit_boxes(camera: Camera, ba: BoxArrays, width_m: np.ndarray, width_std_m: n
     # them for white noise would trust the measurements too little and lag behind braking.
     # Sandwich form: the same estimate, its covariance under the white noise alone,
     # cov (J^T D J) cov with D the white share of each (scaled) residual's variance.
-    d = np.ones((n, 6))
+    d = np.ones((n, 4 + 3))
     d[:, 3] = (sig_v / sig_bottom) ** 2
     d[:, 4:] = 0.0
     cov_white = cov @ np.einsum("nik,ni,nil->nkl", jac, d, jac) @ cov
     rng = np.exp(theta[:, 0])
     # Unobservable range: the log-range spread stays near what the priors alone allow.
     valid = (np.sqrt(np.maximum(cov[:, 0, 0], 0)) < 0.5) & np.isfinite(rng)
-    return BoxFit(rng, theta[:, 1], theta[:, 2], cov, cov_white, ground_ok, width_ok, valid)
+    return BoxFit(rng, theta[:, 1], theta[:, 2], cov, cov_white, ground_ok, width_ok, valid,
+                  theta[:, 4])
 
 
 # --------------------------------------------------------------------------- horizon
@@ -388,9 +422,9 @@ def horizon_from_vehicles(boxes: list[TrackedBox], camera: Camera, config: Rangi
     ones = np.ones(len(idx))
     fit = fit_boxes(camera, sub, p.width_m * ones, p.width_std_m * ones, p.height_m * ones,
                     p.height_std_m * ones, p.length_m * ones, config, use_ground=False,
-                    use_height=False)
+                    use_height=False, length_std_m=p.length_std_m * ones)
     pred = _predict_edges(camera, fit.range_m, fit.lateral_m, fit.width_m, p.height_m * ones,
-                          p.length_m * ones)
+                          fit.length_m)
     offset = sub.y2 - pred[:, 3]
     keep = fit.valid & (fit.range_m > 5) & (fit.range_m < 60) & np.isfinite(offset)
     by_track: dict[int, list[float]] = defaultdict(list)
@@ -582,7 +616,8 @@ def smooth_track_adaptive(t_s: np.ndarray, z: np.ndarray, r: np.ndarray, valid: 
 
 def frame_horizon_offsets(boxes: list[TrackedBox], camera: Camera, ba: BoxArrays,
                           loose: BoxFit, width_m: np.ndarray, height_m: np.ndarray,
-                          length_m: np.ndarray, config: RangingConfig) -> np.ndarray:
+                          length_m: np.ndarray, config: RangingConfig,
+                          length_std_m: np.ndarray | None = None) -> np.ndarray:
     """Per-box horizon shift [px, down positive] of its frame from the body pitch.
 
     The width cue does not care about pitch, the ground cue does: the row where a vehicle's
@@ -601,9 +636,10 @@ def frame_horizon_offsets(boxes: list[TrackedBox], camera: Camera, ba: BoxArrays
     sub = BoxArrays(*(getattr(ba, k)[sel] for k in ba.__dataclass_fields__))
     tiny = np.full(sel.size, 1e-3)
     wfit = fit_boxes(camera, sub, width_m[sel], tiny, height_m[sel], tiny, length_m[sel],
-                     config, use_ground=False, use_height=False)
+                     config, use_ground=False, use_height=False,
+                     length_std_m=None if length_std_m is None else length_std_m[sel])
     pred = _predict_edges(camera, wfit.range_m, wfit.lateral_m, width_m[sel], height_m[sel],
-                          length_m[sel])
+                          wfit.length_m)
     offset = sub.y2 - pred[:, 3]
     # Noise of one offset: the width cue's frame-to-frame range noise seen as rows
     # (d row / d ln Z = -(row - horizon)), plus the bottom edge's own pixel noise.
@@ -691,11 +727,13 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
     h0 = np.array([p.height_m for p in priors])
     h0_std = np.array([p.height_std_m for p in priors])
     l0 = np.array([p.length_m for p in priors])
+    l0_std = np.array([p.length_std_m for p in priors])
     track_ids = np.array([b.track_id for b in boxes])
 
     # 1) Each track's own width: fit with a loose width prior on frames where the ground cue
     # is sharp and no side is cut, then combine with the class prior (Gaussian product).
-    loose = fit_boxes(cam, ba, w0, np.full(len(boxes), 1.0), h0, h0_std, l0, config)
+    loose = fit_boxes(cam, ba, w0, np.full(len(boxes), 1.0), h0, h0_std, l0, config,
+                      length_std_m=l0_std)
     learn = (loose.valid & loose.ground_ok & loose.width_ok
              & (loose.range_m < config.width_learning_max_range_m))
     w_track = w0.copy()
@@ -722,11 +760,13 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
     # 2) Per-frame horizon offset (body pitch), then the final per-frame fit.
     frame_offset_px = np.zeros(len(boxes))
     if config.per_frame_pitch:
-        frame_offset_px = frame_horizon_offsets(boxes, cam, ba, loose, w_track, h0, l0, config)
+        frame_offset_px = frame_horizon_offsets(boxes, cam, ba, loose, w_track, h0, l0, config,
+                                                l0_std)
         if np.any(frame_offset_px != 0):
             ba = BoxArrays(ba.x1, ba.y1 - frame_offset_px, ba.x2, ba.y2 - frame_offset_px,
                            ba.cut_left, ba.cut_right, ba.cut_top, ba.cut_bottom)
-    fit = fit_boxes(cam, ba, w_track, w_track_std, h0, h0_std, l0, config)
+    fit = fit_boxes(cam, ba, w_track, w_track_std, h0, h0_std, l0, config,
+                    length_std_m=l0_std)
     if (~fit.valid).any():
         warnings.append(f"{int((~fit.valid).sum())} boxes gave no usable range cue (cut by the "
                         "border on too many sides); their range comes from the track filter")
