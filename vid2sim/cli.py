@@ -44,6 +44,27 @@ def show_progress() -> bool:
     obj = ctx.find_object(_Context) if ctx else None
     return not (obj is not None and obj.quiet)
 
+def detector_options(fn):
+    """The options shared by every command that detects vehicles (detect, track, build)."""
+    options = [
+        click.option("--detector", "detector_name", default="yolox-nano", show_default=True,
+                     help="Registry name (yolox-nano, picodet-s; see `vid2sim models list`) or "
+                          "path to an .onnx file."),
+        click.option("--model-dir", type=EXISTING_PATH, default=None, envvar="VID2SIM_MODEL_DIR",
+                     help="Folder with detector weights [env VID2SIM_MODEL_DIR; else the user "
+                          "cache]."),
+        click.option("--detections", "detections_path", type=EXISTING_PATH, default=None,
+                     help="Import boxes (MOT-challenge CSV or Scalabel/BDD100K JSON) instead of "
+                          "running a detector."),
+        click.option("--detect-every", type=click.IntRange(min=1), default=1, show_default=True,
+                     help="Run the detector on every N-th frame; the tracker carries boxes "
+                          "between."),
+    ]
+    for option in reversed(options):
+        fn = option(fn)
+    return fn
+
+
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
 @click.version_option(__version__, "--version", prog_name="vid2sim")
@@ -117,15 +138,7 @@ def road(gps_file: Path, map_path: Path | None, out_path: Path, plot_path: Path 
 
 @cli.command()
 @click.argument("source", type=EXISTING_PATH)
-@click.option("--detector", "detector_name", default="yolox-nano", show_default=True,
-              help="Registry name (yolox-nano, picodet-s) or path to an .onnx file.")
-@click.option("--model-dir", type=EXISTING_PATH, default=None,
-              help="Folder with detector weights (else $VID2SIM_MODEL_DIR, then the user cache).")
-@click.option("--detections", "detections_path", type=EXISTING_PATH, default=None,
-              help="Import boxes (MOT-challenge CSV or Scalabel/BDD100K JSON) instead of "
-                   "running a detector.")
-@click.option("--detect-every", type=click.IntRange(min=1), default=1, show_default=True,
-              help="Run the detector on every N-th frame; the tracker carries boxes between.")
+@detector_options
 @click.option("--score", type=float, default=None,
               help="Minimum score to start a track [0-1] (default 0.45).")
 @click.option("--no-tiles", is_flag=True,
@@ -152,15 +165,7 @@ def detect(source: Path, detector_name: str, model_dir: Path | None,
 @click.argument("video", type=EXISTING_PATH)
 @click.option("--camera", "camera_path", type=EXISTING_PATH, default=None,
               help="Camera YAML or KITTI calibration (default: a 90 deg dash-cam guess).")
-@click.option("--detector", "detector_name", default="yolox-nano", show_default=True,
-              help="Registry name (yolox-nano, picodet-s) or path to an .onnx file.")
-@click.option("--model-dir", type=EXISTING_PATH, default=None,
-              help="Folder with detector weights (else $VID2SIM_MODEL_DIR, then the user cache).")
-@click.option("--detections", "detections_path", type=EXISTING_PATH, default=None,
-              help="Import boxes (MOT-challenge CSV or Scalabel/BDD100K JSON) instead of "
-                   "running a detector.")
-@click.option("--detect-every", type=click.IntRange(min=1), default=1, show_default=True,
-              help="Run the detector on every N-th frame; the tracker carries boxes between.")
+@detector_options
 @click.option("--plots", "plot_dir", type=EXISTING_PATH, default=None,
               help="Folder for lead.png (lead range/range rate) and topdown.png.")
 @click.option("--out", "out_path", type=EXISTING_PATH, required=True,
@@ -258,17 +263,10 @@ def export(scenario_file: Path, fmt: str, out_dir: Path) -> None:
                    "area where online, else a road derived from the trajectory.")
 @click.option("--camera", "camera_path", type=EXISTING_PATH, default=None,
               help="Camera YAML or KITTI calibration. Default: 90 deg HFOV pinhole, 1.3 m high.")
-@click.option("--detector", default=None, help="Detector name (see `vid2sim models list`) or "
-              ".onnx path.  [default: yolox-nano]")
-@click.option("--model-dir", type=EXISTING_PATH, default=None, envvar="VID2SIM_MODEL_DIR",
-              help="Folder with detector weights [env VID2SIM_MODEL_DIR].")
-@click.option("--detections", type=EXISTING_PATH, default=None,
-              help="Import boxes (MOT CSV or Scalabel JSON) instead of running a detector.")
+@detector_options
 @click.option("--keyframes", type=EXISTING_PATH, default=None,
               help="Annotated keyframes (Scalabel/BDD100K JSON, KITTI label_02, CVAT XML): "
                    "replay evaluation and metrics.json.")
-@click.option("--detect-every", type=click.IntRange(min=1), default=1, show_default=True,
-              help="Run the detector on every N-th frame; the tracker carries boxes between.")
 @click.option("--ego-speed", "ego_speed_mps", type=click.FloatRange(min=0), default=0.0,
               show_default=True, help="Ego speed without --gps [m/s].")
 @click.option("--gps-offset", "gps_offset_s", type=float, default=None,
@@ -278,7 +276,7 @@ def export(scenario_file: Path, fmt: str, out_dir: Path) -> None:
 @click.option("--offline", is_flag=True, help="Never download a map.")
 @click.option("--out", "out_dir", type=EXISTING_PATH, required=True, help="Output folder.")
 def build(video: Path, gps: Path | None, map_path: Path | None, camera_path: Path | None,
-          detector: str | None, model_dir: Path | None, detections: Path | None,
+          detector_name: str, model_dir: Path | None, detections_path: Path | None,
           keyframes: Path | None, detect_every: int, ego_speed_mps: float,
           gps_offset_s: float | None, fps: float | None, offline: bool, out_dir: Path) -> None:
     """Build a scenario from one video: scenario.json, scenario.xosc + road.xodr, tracks.csv,
@@ -287,8 +285,8 @@ def build(video: Path, gps: Path | None, map_path: Path | None, camera_path: Pat
     from vid2sim.pipeline import build as run_build
 
     opts = BuildOptions(video=video, out_dir=out_dir, gps=gps, map_path=map_path,
-                        camera_path=camera_path, detector=detector, model_dir=model_dir,
-                        detections=detections, keyframes=keyframes, detect_every=detect_every,
+                        camera_path=camera_path, detector=detector_name, model_dir=model_dir,
+                        detections=detections_path, keyframes=keyframes, detect_every=detect_every,
                         ego_speed_mps=ego_speed_mps, gps_offset_s=gps_offset_s, fps=fps,
                         allow_download=not offline, progress=show_progress())
     result = run_build(opts, report=echo)
