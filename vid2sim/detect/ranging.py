@@ -127,6 +127,9 @@ class RangingConfig:
     pitch_accel_noise_px : float
         Process noise of that per-frame horizon offset (white-noise acceleration model)
         [px^2/s^3]; about (2 pi 1 Hz)^2 * 0.15 deg of suspension pitch at 1.5 Hz.
+    body_pitch_correlation_s : float
+        Correlation time of the body pitch [s] (a car body pitches at 1-2 Hz and its
+        dampers settle it in about half a second).
     """
 
     priors: dict[str, VehiclePrior] = field(default_factory=lambda: dict(DEFAULT_PRIORS))
@@ -149,6 +152,7 @@ class RangingConfig:
     width_tail_sigmas: float = 2.0
     per_frame_pitch: bool = True
     pitch_accel_noise_px: float = 600.0
+    body_pitch_correlation_s: float = 0.5
 
     def prior_for(self, category: str) -> VehiclePrior:
         return self.priors.get(category, self.priors["car"])
@@ -238,7 +242,8 @@ class BoxFit:
 def fit_boxes(camera: Camera, ba: BoxArrays, width_m: np.ndarray, width_std_m: np.ndarray,
               prior_h: np.ndarray, prior_h_std: np.ndarray, length_m: np.ndarray,
               config: RangingConfig, *, use_ground: bool = True, use_height: bool = True,
-              length_std_m: np.ndarray | None = None, iterations: int = 12) -> BoxFit:
+              length_std_m: np.ndarray | None = None,
+              pitch_noise_inflation: np.ndarray | float = 1.0, iterations: int = 12) -> BoxFit:
     """Fuse the cues of each box into a position by weighted least squares.
 
     The unknowns per box are (log range, lateral, width, height); the residuals are the
@@ -266,6 +271,9 @@ def fit_boxes(camera: Camera, ba: BoxArrays, width_m: np.ndarray, width_std_m: n
     length_std_m : ndarray, optional
         Spread of the length prior [m]; the length is then a fifth unknown (it sets how much
         of a laterally offset vehicle's side shows). None keeps ``length_m`` fixed.
+    pitch_noise_inflation : ndarray or float
+        Factor on the body-pitch share of the frame-to-frame variance (``cov_white``) for a
+        filter that takes it as white (see :func:`colored_noise_factor`).
 
     Returns
     -------
@@ -278,7 +286,8 @@ def fit_boxes(camera: Camera, ba: BoxArrays, width_m: np.ndarray, width_std_m: n
     horizon = camera.horizon_y_px()
     jitter_px = camera.fy * math.tan(math.radians(config.horizon_jitter_deg))
     sig_u = config.edge_noise_px + config.edge_noise_frac * bw
-    sig_v = np.hypot(config.edge_noise_px + config.edge_noise_frac * bh, jitter_px)
+    pix_v = config.edge_noise_px + config.edge_noise_frac * bh
+    sig_v = np.hypot(pix_v, jitter_px)
     # A road dz higher than the plane moves a vehicle's bottom edge by f dz / Z pixels; Z is
     # only known after the fit, so take it from the width cue (good to ~10 %, plenty here).
     z_guess = np.maximum(camera.fx * width_m / bw, 1.0)
@@ -369,8 +378,12 @@ def fit_boxes(camera: Camera, ba: BoxArrays, width_m: np.ndarray, width_std_m: n
     # them for white noise would trust the measurements too little and lag behind braking.
     # Sandwich form: the same estimate, its covariance under the white noise alone,
     # cov (J^T D J) cov with D the white share of each (scaled) residual's variance.
+    # The body pitch is not white: it lasts about half a second, so it enters with the
+    # inflation factor that gives its slow part the right weight in the filter.
     d = np.ones((n, 4 + 3))
-    d[:, 3] = (sig_v / sig_bottom) ** 2
+    v_eff = pix_v ** 2 + pitch_noise_inflation * jitter_px ** 2
+    d[:, 1] = v_eff / sig_v ** 2
+    d[:, 3] = v_eff / sig_bottom ** 2
     d[:, 4:] = 0.0
     cov_white = cov @ np.einsum("nik,ni,nil->nkl", jac, d, jac) @ cov
     rng = np.exp(theta[:, 0])
@@ -378,6 +391,18 @@ def fit_boxes(camera: Camera, ba: BoxArrays, width_m: np.ndarray, width_std_m: n
     valid = (np.sqrt(np.maximum(cov[:, 0, 0], 0)) < 0.5) & np.isfinite(rng)
     return BoxFit(rng, theta[:, 1], theta[:, 2], cov, cov_white, ground_ok, width_ok, valid,
                   theta[:, 4])
+
+
+def colored_noise_factor(dt_s: float, correlation_s: float) -> float:
+    """Factor on the variance of a first-order Markov noise (correlation time
+    ``correlation_s``) sampled every ``dt_s``, such that white noise of that variance has the
+    same low-frequency power: (1 + rho) / (1 - rho) with rho = exp(-dt / tau). A smoother that
+    averages over many frames sees correlated errors average out that much more slowly
+    (Bar-Shalom et al. 2001, sec. 8.2 on coloured measurement noise)."""
+    if not (dt_s > 0 and correlation_s > 0):
+        return 1.0
+    rho = math.exp(-dt_s / correlation_s)
+    return (1.0 + rho) / (1.0 - rho)
 
 
 # --------------------------------------------------------------------------- horizon
@@ -765,8 +790,16 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
         if np.any(frame_offset_px != 0):
             ba = BoxArrays(ba.x1, ba.y1 - frame_offset_px, ba.x2, ba.y2 - frame_offset_px,
                            ba.cut_left, ba.cut_right, ba.cut_top, ba.cut_bottom)
+    # Each track's frame spacing sets how strongly its measurements share the body pitch.
+    t_box = np.array([b.t_s for b in boxes], dtype=float)
+    inflation = np.ones(len(boxes))
+    for members in np.split(order, splits):
+        t_m = np.unique(t_box[members])
+        if t_m.size > 1:
+            inflation[members] = colored_noise_factor(float(np.median(np.diff(t_m))),
+                                                      config.body_pitch_correlation_s)
     fit = fit_boxes(cam, ba, w_track, w_track_std, h0, h0_std, l0, config,
-                    length_std_m=l0_std)
+                    length_std_m=l0_std, pitch_noise_inflation=inflation)
     if (~fit.valid).any():
         warnings.append(f"{int((~fit.valid).sum())} boxes gave no usable range cue (cut by the "
                         "border on too many sides); their range comes from the track filter")
