@@ -28,6 +28,7 @@ from vid2sim.geo.frames import EnuFrame
 from vid2sim.geo.mapmatch import (
     MatchConfig,
     _rts_along,
+    _trim,
     join_xy,
     match,
     signed_offsets,
@@ -120,27 +121,51 @@ def leuven_match(lmap, seg_edge, net, x, y):
 # --------------------------------------------------------------------------- oracle
 
 
+def _straightest(net: RoadNetwork, edge: int, before: bool) -> int:
+    """The neighbour edge (never the twin) turning least from ``edge`` at its start (``before``)
+    or end; -1 at a dead end."""
+    xy = net.edge_xy[edge]
+    if before:
+        node, ends, d = net.edge_u[edge], net.edge_v, xy[1] - xy[0]
+    else:
+        node, ends, d = net.edge_v[edge], net.edge_u, xy[-1] - xy[-2]
+    options = np.flatnonzero((ends == node) & (np.arange(net.n_edges) != net.edge_twin[edge]))
+    if not options.size:
+        return -1
+    turn = []
+    for f in options:
+        fx = net.edge_xy[f]
+        g = fx[-1] - fx[-2] if before else fx[1] - fx[0]
+        turn.append(abs(math.remainder(math.atan2(g[1], g[0]) - math.atan2(d[1], d[0]),
+                                       2 * math.pi)))
+    return int(options[int(np.argmin(turn))])
+
+
 def oracle_smoother(net: RoadNetwork, drives, n_fix: int) -> None:
     """What the matcher's along-route smoother reaches when the route is *given*: the fixes
-    projected onto the true route, the true outliers left out, the same constant-velocity
-    RTS smoother. Its fix share bounds any matcher that smooths along the route this way;
-    its "ends" count is how often the first and last fix land on the true first / last way
-    (the route is clipped to the true one, so it never adds a way: an optimistic bound)."""
+    projected onto the true route extended by the straightest way piece at each end (a
+    matcher cannot know where the route begins), the true outliers left out, the same
+    constant-velocity RTS smoother and end-trimming rule. A matcher that smooths along the
+    route this way cannot do better than these figures."""
     cfg = MatchConfig()
-    hits = ends_ok = 0
+    hits = exact = 0
     for d in drives:
-        line = join_xy(net, d.route_edges)
-        s_m, _ = signed_offsets(line, np.column_stack([d.x_m, d.y_m]), d.true_s_m, 60.0)
+        route = list(d.route_edges)
+        before, after = _straightest(net, route[0], True), _straightest(net, route[-1], False)
+        shift = float(net.edge_length_m[before]) if before >= 0 else 0.0
+        route = [before] * (before >= 0) + route + [after] * (after >= 0)
+        s_m, _ = signed_offsets(join_xy(net, route), np.column_stack([d.x_m, d.y_m]),
+                                d.true_s_m + shift, 60.0)
         s_m = np.where(d.is_outlier, np.nan, s_m)
         sigma = np.full(s_m.size, cfg.sigma_m)
         smooth = np.maximum.accumulate(_rts_along(d.t_s, s_m, sigma, cfg.accel_sigma_mps2))
-        edge_end = np.cumsum(net.edge_length_m[d.route_edges])
-        pos = np.clip(np.searchsorted(edge_end, smooth, side="right"), 0, len(edge_end) - 1)
-        way = net.edge_way_id[np.asarray(d.route_edges)[pos]]
-        hits += int((way == d.true_way_id).sum())
-        ends_ok += bool(way[0] == d.true_way_id[0] and way[-1] == d.true_way_id[-1])
-    print(f"oracle (true route given, same along-route smoother): fixes on true way "
-          f"{hits / n_fix:.2%}, first and last way right on {ends_ok}/{len(drives)} drives")
+        edge_end = np.cumsum(net.edge_length_m[route])
+        pos = np.clip(np.searchsorted(edge_end, smooth, side="right"), 0, len(route) - 1)
+        hits += int((net.edge_way_id[np.asarray(route)[pos]] == d.true_way_id).sum())
+        piece, _ = _trim(net, route, smooth, cfg.min_cover_m)
+        exact += _merge([net.edge_way_id[e] for e in piece]) == d.true_ways
+    print(f"oracle (true route given up to its end ways, same along-route smoother): fixes on "
+          f"true way {hits / n_fix:.2%}, exact way sequences {exact}/{len(drives)}")
 
 
 # --------------------------------------------------------------------------- pipeline
