@@ -6,8 +6,13 @@
    per model, with and without the small-car tiles; also recall of the small targets alone.
 2. Speed on ../shared/data/kitti_raw_0001/video.mp4 (108 frames): frames per second of
    decode + detect + track (run_detect), per model and tiling mode.
+3. With --tracking: tracker identities on the synthetic forward drive of
+   tests/detect/test_tracker.py (camera at 10 m/s past parked cars, known ids) at 2, 5 and
+   10 frames/s over several seeds: id switches, cars never reported, tracks mixing cars,
+   and tracker time per detected frame.
 
 Usage: python benchmarks/bench_detect.py [--shared ../shared] [--no-speed] [--threads 2]
+       python benchmarks/bench_detect.py --tracking --no-accuracy --no-speed
 Figures depend on the machine and its load; say so when quoting them.
 """
 
@@ -79,6 +84,33 @@ def speed(video: Path, model_dir: Path, threads: int, every: int, models: tuple[
                   f"({elapsed:.1f} s, {len({b.track_id for b in boxes})} tracks)")
 
 
+def tracking(seeds: int) -> None:
+    """Identity figures of the tracker on the synthetic forward drive (see module doc)."""
+    import importlib.util
+
+    from vid2sim.detect.tracker import Tracker
+
+    path = Path(__file__).resolve().parents[1] / "tests" / "detect" / "test_tracker.py"
+    spec = importlib.util.spec_from_file_location("synthetic_drive", path)
+    drive = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(drive)
+    print("\ntracker on the synthetic forward drive (4 s, 12-13 cars)")
+    for fps in (2.0, 5.0, 10.0):
+        switches = missing = merged = n_frames = 0
+        elapsed = 0.0
+        for seed in range(seeds):
+            frames, truth = drive.forward_drive(fps, seed=seed)
+            start = time.perf_counter()
+            s, m, g, _ = drive.id_metrics(frames, truth, fps, Tracker(
+                image_size_px=(drive.IMAGE_W, drive.IMAGE_H)))
+            elapsed += time.perf_counter() - start
+            switches, missing, merged = switches + s, missing + len(m), merged + len(g)
+            n_frames += len(frames)
+        print(f"  {fps:4.0f} frames/s, {seeds} seeds: id switches {switches}, cars never "
+              f"reported {missing}, tracks mixing cars {merged}; "
+              f"{1e3 * elapsed / n_frames:.1f} ms per frame")
+
+
 def main() -> None:
     here = Path(__file__).resolve().parents[1]
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -89,6 +121,8 @@ def main() -> None:
     parser.add_argument("--no-speed", action="store_true")
     parser.add_argument("--no-accuracy", action="store_true")
     parser.add_argument("--models", nargs="+", default=list(MODELS))
+    parser.add_argument("--tracking", action="store_true")
+    parser.add_argument("--seeds", type=int, default=10)
     args = parser.parse_args()
     model_dir = args.shared / "models"
     if not args.no_accuracy:
@@ -96,6 +130,8 @@ def main() -> None:
     if not args.no_speed:
         speed(args.shared / "data" / "kitti_raw_0001" / "video.mp4", model_dir, args.threads,
               args.every, tuple(args.models))
+    if args.tracking:
+        tracking(args.seeds)
 
 
 if __name__ == "__main__":
