@@ -190,9 +190,9 @@ def test_helsinki_accuracy_regression_floor(helsinki_eval):
 # Why the bar is out of reach (benchmarks/bench_mapmatch.py prints both figures): ways change
 # every ~29 m on these routes, so 98 % of fixes on the true way needs ~0.5 m along-route
 # accuracy, but 5 m fixes at 1 Hz smoothed along the *true* route give ~2 m: 93.2 % of fixes,
-# 18/24 exact sequences (routes start and end at junctions, within one second of driving from
-# a way boundary, so the end ways are a coin toss at 5 m noise). The matcher is at that
-# ceiling (93.5 %, 18/24), not below it.
+# 18/24 exact sequences (routes start and end at junctions, where ways often change, the first
+# and last fix within one second of driving of them: at 5 m noise the end ways are often a coin
+# toss). The matcher is at that ceiling (93.5 %, 18/24), not below it.
 @pytest.mark.xfail(reason="issue 3 bar (98 % fixes, 90 % exact routes) not reached: 93.5 % / "
                    "75 % measured; the true route with the same smoother gives 93.2 % / 75 %",
                    strict=True)
