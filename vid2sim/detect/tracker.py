@@ -7,20 +7,29 @@ unmatched, so a vehicle fading behind another keeps its track instead of spawnin
 ones. Matching is a min-cost assignment on 1 - IoU (scipy's Hungarian solver) with a gate.
 
 Sparse input (a 2 frames/s video, ``--detect-every`` with long gaps, a track lost for a
-while) breaks IoU: a car 8 m away beside a camera moving at 10 m/s grows by half and slides
-hundreds of pixels in 0.5 s. Two additions handle it without changing dense-video behaviour:
+while) breaks IoU: a car 8 m away beside a camera moving at 10 m/s doubles in size and
+slides hundreds of pixels in 0.5 s, and a row of parked cars then looks like the same row
+shifted by one car. Three additions handle it:
 
-* a last association stage (:func:`expansion_cost`) for what IoU left unmatched, on the
-  motion a forward-moving camera causes: a vehicle that is parked or drives parallel to the
-  ego keeps its lateral offset and height, so its image box scales about the focus of
-  expansion (FOE) by the range ratio. The cost is a chi-square over the box edges after the
-  best scale ratio and a small translation (the vehicle's own lateral motion), each with a
-  prior that grows with the elapsed time; edges cut by the image border are left out.
+* an ego-motion association stage (:func:`expansion_cost`): a vehicle that is parked or
+  drives parallel to the ego keeps its lateral offset and height, so its box scales about
+  the focus of expansion (FOE) by the range ratio. The cost is a chi-square over the box
+  edges: either "static", the ratio fixed by one ego closing rate shared by every vehicle
+  in the frame (searched per frame) and the box height, or "moving", any ratio under a
+  prior centred on the track's own measured closing rate, plus a penalty; a translation
+  for lateral motion is allowed; priors grow with the elapsed time; border-cut edges only
+  bound the fit. In sparse input (detected frames ``sparse_interval_s`` or more apart) it
+  runs before the IoU stages, in dense video after them for what IoU left unmatched.
+* tracks end when their own closing rate says the camera has passed them, so a car that
+  left the view at the side is not revived by the next car to appear.
 * confirmation that knows the detection rate: a tentative track is deleted as a false
   detection only when a detected frame less than ``sparse_interval_s`` after its birth fails
   to see it again (at 10 frames/s a real car is seen in the next frame; at 2 frames/s it may
   already have left the view). A track born in sparse input, or on the last detected frame
   of the video, that is never seen again is thus kept with its one confident box.
+
+Assignments price an unmatched track or detection at half the gate, so a pair is made only
+when it beats leaving both alone and pairs beyond the gate never steer the solution.
 
 The Kalman state is (cx, cy, a, h, vcx, vcy, va, vh): box centre [px], aspect w/h, height
 [px] and their rates per frame, with noise proportional to the box height (as in SORT and
