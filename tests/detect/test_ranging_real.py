@@ -5,9 +5,9 @@ the labelled rear distance Z - l/2 of each vehicle with a box at least 25 px hig
 labelled frame is ranged on its own (single-frame ranging, no temporal fusion).
 
 Issue 5 asks for a median absolute relative error <= 8 % below 40 m. Measured (see the
-printed lines, ``pytest -s``) it is not reached on these frames; the asserts below are
-regression bounds a little above what the method achieves, so a change that makes ranging
-worse fails here.
+printed lines, ``pytest -s``) it is reached on the clean boxes of all sequences and with
+temporal fusion, not on the six hard frames; the asserts are regression bounds a little
+above what the method achieves, so a change that makes ranging worse fails here.
 """
 
 from __future__ import annotations
@@ -26,8 +26,11 @@ from vid2sim.records import TrackedBox
 KITTI_TO_CATEGORY = {"Car": "car", "Van": "car", "Truck": "truck"}
 SIX_FRAMES = {"0001": (10, 15, 20), "0016": (2, 7, 12)}
 BINS_M = ((0.0, 20.0), (20.0, 40.0), (40.0, np.inf))
-# The KITTI camera is calibrated and rectified: a user of such a rig says so.
+# The default config trusts a KITTI calibration's pitch to 0.25 deg (the body's pitch to the
+# road is not calibrated); a rig whose pitch to the road is known better says so (0.05 deg);
+# GUESSED treats the calibration like a dash-cam's guessed mounting (1 deg).
 CALIBRATED = RangingConfig(camera_pitch_std_deg=0.05)
+GUESSED = RangingConfig(camera_pitch_std_deg=1.0)
 
 
 def _range_frames(data: Path, seq: str, frames, config: RangingConfig):
@@ -69,30 +72,63 @@ def _line(name: str, med: dict[str, float]) -> str:
 
 def test_six_labelled_frames_single_frame(kitti_tracking_dir):
     res = {}
-    for name, cfg in (("default (dash-cam)", RangingConfig()), ("calibrated", CALIBRATED)):
+    for name, cfg in (("guessed pitch (1 deg)", GUESSED), ("default (0.25 deg)", RangingConfig()),
+                      ("calibrated (0.05 deg)", CALIBRATED)):
         rows = np.vstack([_range_frames(kitti_tracking_dir, s, f, cfg)
                           for s, f in SIX_FRAMES.items()])
         assert np.isfinite(rows[:, 1]).all(), "every labelled vehicle must get a range"
         res[name] = _medians(rows)
         print(_line(f"KITTI six frames, {name}", res[name]))
-    assert res["calibrated"]["below 40 m"] < 0.16
-    assert res["default (dash-cam)"]["below 40 m"] < 0.20
+    # Not the 8 % of issue 5: 0001's frames hold a row of occluded cars parked 20-26 m to
+    # the left and 1.2-1.6 m below the ego's road plane (a slope), 0016's cars 13-19 m to the
+    # right and partly occluded; measured 13.1 % (default), 14.1 % (0.05 deg), 15.2 % (1 deg).
+    assert res["default (0.25 deg)"]["below 40 m"] < 0.145
+    assert res["calibrated (0.05 deg)"]["below 40 m"] < 0.155
+    assert res["guessed pitch (1 deg)"]["below 40 m"] < 0.17
 
 
 def test_all_labelled_frames_single_frame(kitti_tracking_dir):
     # Labels exist for every frame of 12 sequences; every 20th frame, ranged alone, gives
     # ~700 vehicles on many streets: a steadier figure than six frames.
     seqs = sorted(p.stem for p in (kitti_tracking_dir / "label_02").glob("*.txt"))
+    default = np.vstack([_range_frames(kitti_tracking_dir, s, None, RangingConfig())
+                         for s in seqs])
+    print(_line("KITTI all sequences, default (0.25 deg)", _medians(default)))
     rows = np.vstack([_range_frames(kitti_tracking_dir, s, None, CALIBRATED) for s in seqs])
     clean = rows[(rows[:, 2] == 0) & (rows[:, 3] <= 1)]
     med_all, med_clean = _medians(rows), _medians(clean)
-    print(_line("KITTI all sequences, calibrated", med_all))
+    print(_line("KITTI all sequences, calibrated (0.05 deg)", med_all))
     print(_line("KITTI all sequences, calibrated, unoccluded/untruncated", med_clean))
-    assert med_clean["below 40 m"] < 0.11
-    assert med_all["below 40 m"] < 0.12
+    # Measured 7.6 % clean and 8.4 % all with the 0.05 deg calibration: the 8 % of issue 5
+    # on clean boxes; all boxes include turned, occluded and truncated ones.
+    assert med_clean["below 40 m"] < 0.08
+    assert med_all["below 40 m"] < 0.09
+    assert _medians(default)["below 40 m"] < 0.10
     # No systematic scale error: the signed median within a few percent.
     signed = (rows[:, 1] - rows[:, 0]) / rows[:, 0]
     assert abs(np.median(signed[rows[:, 0] < 40])) < 0.05
+
+
+def test_all_labelled_sequences_as_tracks(kitti_tracking_dir):
+    # The labelled boxes of every 2nd frame (5 Hz) as tracks, each sequence ranged like a
+    # video: horizon from the vehicles, widths learnt per track, Kalman/RTS over time.
+    rows = []
+    for lab in sorted((kitti_tracking_dir / "label_02").glob("*.txt")):
+        camera = load_camera(kitti_tracking_dir / "calib" / lab.name)
+        labels = read_kitti_tracking_labels(lab)
+        objs = [lb for frame in sorted(labels)[::2] for lb in labels[frame]
+                if lb.type in KITTI_TO_CATEGORY]
+        boxes = [TrackedBox(lb.frame, lb.frame / 10.0, lb.track_id, KITTI_TO_CATEGORY[lb.type],
+                            1.0, *lb.box_px) for lb in objs]
+        result = range_tracks(boxes, camera)
+        rows += [(lb.location_m[2] - lb.size_hwl_m[2] / 2, rb.range_m, lb.truncated,
+                  lb.occluded) for lb, rb in zip(objs, result.boxes, strict=True)
+                 if lb.frame % 20 == 0 and lb.box_px[3] - lb.box_px[1] >= 25]
+    rows = np.array(rows, dtype=float)
+    med = _medians(rows)
+    print(_line("KITTI all sequences as tracks, default", med))
+    # Measured 7.9 % (n=583): the 8 % of issue 5 on real boxes with temporal fusion.
+    assert med["below 40 m"] < 0.085
 
 
 def test_lane_marking_horizon_on_kitti_raw(kitti_raw_dir):

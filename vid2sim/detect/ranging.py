@@ -71,6 +71,11 @@ DEFAULT_PRIORS: dict[str, VehiclePrior] = {
 }
 
 
+# Trust in a camera file's pitch [deg] (RangingConfig.camera_pitch_std_deg).
+CALIBRATED_PITCH_STD_DEG = 0.25
+GUESSED_PITCH_STD_DEG = 1.0
+
+
 @dataclass(frozen=True)
 class RangingConfig:
     """Everything ``range_tracks`` assumes, in one explicit object.
@@ -87,12 +92,19 @@ class RangingConfig:
         wheels [m]: cross-fall (2.5 % over a lane is 0.09 m), crests, sags and kerbs. It
         caps the ground cue's accuracy at about road_height_std_m / camera height in
         relative range at any distance.
+    fleet_width_mean_std_m : float
+        How far the mean car width of the fleet in a video may lie from the prior's mean
+        [m]: regions and model years differ by a few centimetres, and boxes that take the
+        mirrors in or leave them out by about 0.1 m. It limits how far the vehicles alone
+        can move the horizon (the width cue's scale is only as good as this mean).
     horizon_jitter_deg : float
         One-sigma frame-to-frame pitch of the ego body on its suspension [deg]; it moves the
         horizon and so adds to the noise of the ground cue (about 0.15 deg on normal roads).
-    camera_pitch_std_deg : float
-        Trust in the camera file's pitch [deg]; a dash-cam mounting is rarely known better
-        than about a degree. Lower it for a calibrated rig.
+    camera_pitch_std_deg : float or None
+        Trust in the camera file's pitch [deg]. None: 0.25 deg for a rig calibration (a KITTI
+        calibration file: the camera's mounting is measured, what remains is the body's
+        pitch to the road from load and tyres, a few tenths of a degree), 1 deg otherwise (a
+        dash-cam mounting is rarely known better than about a degree).
     lane_horizon_std_px : float
         One-sigma error of a lane-marking horizon estimate from one frame [px].
     border_margin_px : float
@@ -136,8 +148,9 @@ class RangingConfig:
     edge_noise_px: float = 1.0
     edge_noise_frac: float = 0.02
     road_height_std_m: float = 0.10
+    fleet_width_mean_std_m: float = 0.08
     horizon_jitter_deg: float = 0.15
-    camera_pitch_std_deg: float = 1.0
+    camera_pitch_std_deg: float | None = None
     lane_horizon_std_px: float = 4.0
     border_margin_px: float = 2.0
     min_ground_margin_px: float = 3.0
@@ -156,6 +169,14 @@ class RangingConfig:
 
     def prior_for(self, category: str) -> VehiclePrior:
         return self.priors.get(category, self.priors["car"])
+
+    def pitch_std_for(self, camera: Camera) -> float:
+        """One-sigma error of ``camera.pitch_deg`` [deg] (see ``camera_pitch_std_deg``)."""
+        if self.camera_pitch_std_deg is not None:
+            return self.camera_pitch_std_deg
+        calibrated = any("calibration" in a and not a.startswith("no camera file")
+                         for a in camera.assumptions)
+        return CALIBRATED_PITCH_STD_DEG if calibrated else GUESSED_PITCH_STD_DEG
 
 
 # --------------------------------------------------------------------------- box geometry
@@ -460,11 +481,16 @@ def horizon_from_vehicles(boxes: list[TrackedBox], camera: Camera, config: Rangi
     per_track = np.array([np.median(v) for v in by_track.values()])
     med = float(np.median(per_track))
     n = len(per_track)
-    # Spread: robust scatter over tracks, plus the floor that a width prior 1-sigma off for
-    # all cars at once would shift the answer by (f H / Z * sigma_W / W at a typical 20 m).
+    # Spread: the scatter over tracks, never below what one vehicle's own width (class spread)
+    # and road height are expected to give (a few vehicles that happen to agree prove
+    # little), plus the floor that the local fleet's mean width, off the prior's mean, shifts
+    # every vehicle alike by (f H / Z * sigma_mean / W at a typical 20 m).
+    gap_px = camera.fy * camera.height_m / 20.0
+    per_vehicle = math.hypot(gap_px * p.width_std_m / p.width_m,
+                             camera.fy * config.road_height_std_m / 20.0)
     mad = 1.4826 * float(np.median(np.abs(per_track - med))) if n > 2 else 10.0
-    floor = camera.fy * camera.height_m / 20.0 * p.width_std_m / p.width_m / 2
-    std = math.hypot(mad / math.sqrt(n), floor)
+    floor = gap_px * config.fleet_width_mean_std_m / p.width_m
+    std = math.hypot(max(mad, per_vehicle) / math.sqrt(n), floor)
     return camera.horizon_y_px() + med, std, n
 
 
@@ -476,7 +502,7 @@ def choose_horizon(boxes: list[TrackedBox], camera: Camera, config: RangingConfi
     """
     notes: list[str] = []
     h_cam = camera.horizon_y_px()
-    std_cam = camera.fy * math.tan(math.radians(config.camera_pitch_std_deg))
+    std_cam = camera.fy * math.tan(math.radians(config.pitch_std_for(camera)))
     estimates = [(h_cam, std_cam, "camera file")]
     hints = np.array([h for h in (horizon_hints_px or []) if h is not None and np.isfinite(h)])
     if hints.size >= 3:
