@@ -312,7 +312,8 @@ def build(opts: BuildOptions, report: Callable[[str], None] | None = None) -> Bu
             metrics, _ = stages.run("replay evaluation", run_eval, staging / "scenario.json",
                                     opts.keyframes, video=Path(opts.video), out_dir=staging,
                                     fps=opts.fps, extra_figures=figures,
-                                    extra_warnings=warnings, report_inputs=inputs)
+                                    extra_warnings=warnings,
+                                    report_inputs=_input_paths(opts))
             # Name the scenario as the user will find it, not by the staging folder's
             # random name, so the same inputs give the same metrics.json.
             metrics.setdefault("inputs", {})["scenario"] = str(out_dir / "scenario.json")
@@ -323,7 +324,7 @@ def build(opts: BuildOptions, report: Callable[[str], None] | None = None) -> Bu
             from vid2sim.evaluate.report import write_report
 
             write_report(staging / "report.html", scenario=scenario, metrics=None,
-                         extra_figures=figures, warnings=warnings, inputs=inputs)
+                         extra_figures=figures, warnings=warnings, inputs=_input_paths(opts))
         files["report"] = Path("report.html")
         out_dir.mkdir(parents=True, exist_ok=True)
         for child in staging.iterdir():
@@ -340,6 +341,14 @@ def build(opts: BuildOptions, report: Callable[[str], None] | None = None) -> Bu
         duration_s=scenario.duration_s, distance_m=path_length_m(ego),
         n_actors=len(scenario.actors), lead_share=lead_share, lead_range_m=lead_range,
         metrics=metrics, warnings=warnings, stage_seconds=stages.seconds)
+
+
+def _input_paths(opts: BuildOptions) -> dict[str, str]:
+    """Where this run's inputs and outputs are, for the report's "this run" table."""
+    paths = {"video": opts.video, "GPS": opts.gps, "map": opts.map_path,
+             "camera": opts.camera_path, "detections": opts.detections,
+             "keyframes": opts.keyframes, "output folder": opts.out_dir}
+    return {k: str(v) for k, v in paths.items() if v is not None}
 
 
 def _stage_figures(fig_dir: Path, road_result, trace, ego: EgoTrack,

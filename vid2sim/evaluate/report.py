@@ -232,20 +232,26 @@ def _num(x: Any, spec: str = ".3f") -> str:
 
 def _inputs_html(scenario: Scenario, inputs: Any) -> str:
     src = scenario.source
+    columns: list[str] = []
+    for item in src.inputs:
+        if isinstance(item, dict):
+            columns.extend(k for k in item if k not in columns)
     rows = []
     for item in src.inputs:
         if isinstance(item, dict):
-            cells = "; ".join(f"{k}: {v}" for k, v in item.items())
+            rows.append("<tr>" + "".join(f"<td class='l'>{_e(item.get(k, ''))}</td>"
+                                         for k in columns) + "</tr>")
         else:
-            cells = str(item)
-        rows.append(f"<tr><td class='l'>{_e(cells)}</td></tr>")
+            rows.append(f"<tr><td class='l' colspan='{max(1, len(columns))}'>{_e(item)}</td></tr>")
+    header = ("<tr>" + "".join(f"<th class='l'>{_e(k)}</th>" for k in columns) + "</tr>"
+              if columns else "<tr><th class='l'>scenario inputs</th></tr>")
     parts = ["<section><h2>Inputs and assumptions</h2>"]
     parts.append(f"<p class='small'>Scenario built by vid2sim {_e(src.tool_version or '?')}; "
                  f"origin lat {scenario.origin.lat:.6f}, lon {scenario.origin.lon:.6f}; "
                  f"duration {scenario.duration_s:.1f} s; {len(scenario.actors)} actors; "
                  f"{len(scenario.roads)} road(s).</p>")
     if rows:
-        parts.append("<table><tr><th class='l'>scenario inputs</th></tr>" + "".join(rows)
+        parts.append("<p class='small'>scenario inputs</p><table>" + header + "".join(rows)
                      + "</table>")
     if inputs:
         if isinstance(inputs, dict):
