@@ -195,7 +195,8 @@ def bench_kitti() -> None:
         print(f"KITTI tracking labels not found at {data}: skipped")
         return
     cat = {"Car": "car", "Van": "car", "Truck": "truck"}
-    for name, cfg in (("default (dash-cam priors)", RangingConfig()),
+    for name, cfg in (("guessed pitch (std 1 deg)", RangingConfig(camera_pitch_std_deg=1.0)),
+                      ("default (a calibration's pitch: std 0.25 deg)", RangingConfig()),
                       ("calibrated camera (pitch std 0.05 deg)",
                        RangingConfig(camera_pitch_std_deg=0.05))):
         rows = []
