@@ -308,3 +308,24 @@ def test_expansion_cost_follows_the_focus_of_expansion():
     whole = np.array([[10.0, 380.0, 280.0, 460.0]])
     assert expansion_cost(cut, np.array([0.5]), whole, foe_px=foe, image_size_px=(1280, 720),
                           config=cfg)[0, 0] > 1.0
+
+
+def test_sparse_lead_drifting_across_the_lane_keeps_its_track():
+    # 2 frames/s, a lead car drifting left 30 px per frame at constant size across the focus
+    # of expansion (640, 360), where growth cannot explain the motion; on frame 4 a weak box
+    # also sits where the lead was on frame 3. The drift learnt from earlier frames must
+    # carry the track to the lead, not to the weak box left behind.
+    frames = []
+    for i in range(6):
+        dets = [Detection(box(700 - 30 * i, 360, 50, 40), 0.8, "car")]
+        if i == 4:
+            dets.append(Detection(box(700 - 30 * 3, 360, 50, 40), 0.25, "car"))
+        frames.append(dets)
+    tracker = Tracker(image_size_px=(1280, 720))
+    rows = []
+    for i, dets in enumerate(frames):
+        rows += tracker.update(i, i * 0.5, dets)
+    rows = tracker.finalize(rows)
+    lead_ids = {tid for f in range(6) for tid in ids_near(rows, f, 700 - 30 * f, 360, tol=5)}
+    assert lead_ids == {1}
+    assert [r.frame for r in rows if r.track_id == 1] == list(range(6))

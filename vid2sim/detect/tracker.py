@@ -202,7 +202,8 @@ def expansion_cost(prev_px: np.ndarray, dt_s: np.ndarray, dets_px: np.ndarray, *
                    foe_px: tuple[float, float] | None, image_size_px: tuple[int, int] | None,
                    config: TrackerConfig, n_grid: int = 61,
                    static_rates_per_px_s: np.ndarray | None = None,
-                   closing_rate_per_s: np.ndarray | None = None) -> np.ndarray:
+                   closing_rate_per_s: np.ndarray | None = None,
+                   drift_px_s: np.ndarray | None = None) -> np.ndarray:
     """Gated cost of continuing each last-seen box with each detection under ego motion.
 
     A camera moving forward sees a vehicle at lateral offset X, height Y and range Z at
@@ -250,6 +251,9 @@ def expansion_cost(prev_px: np.ndarray, dt_s: np.ndarray, dets_px: np.ndarray, *
         Each track's own measured closing speed over range [1/s] (NaN: unknown): the free
         fit's scale prior is centred on the ratio it predicts, and a track it carries past
         the camera (``closing dt >= 0.9``) matches nothing.
+    drift_px_s : ndarray (n, 2), optional
+        Each track's own image motion not explained by expansion (x, y) [px/s], e.g. a lead
+        car drifting across the lane: the translation prior is centred on ``drift dt``.
 
     Returns
     -------
@@ -306,17 +310,20 @@ def expansion_cost(prev_px: np.ndarray, dt_s: np.ndarray, dets_px: np.ndarray, *
     v = (both & ~inner)[:, :, None, :]                               # edges fitted exactly
     vi = inner[:, :, None, :]
     k = (s_edge / s_t) ** 2                                          # ridge of the t prior
+    t0 = (np.zeros((n, 2)) if drift_px_s is None
+          else np.nan_to_num(np.asarray(drift_px_s, dtype=float).reshape(n, 2)))
+    t0 = (t0 * dt[:, None])[:, None, None, :]                        # (n, 1, 1, 2) [px]
 
     def edge_cost(r: np.ndarray) -> np.ndarray:
         """Edge misfit plus translation prior for scale ratios r (n, 1, G, 1) -> (n, m, G)."""
         res = b - r * a                                              # (n, m, G, 4)
         j = np.zeros(res.shape[:3])
         t = np.zeros(res.shape)
-        for axis in (slice(0, 4, 2), slice(1, 4, 2)):                 # x edges, y edges
+        for i, axis in enumerate((slice(0, 4, 2), slice(1, 4, 2))):   # x edges, y edges
             ra, va = res[..., axis], v[..., axis]
-            t_axis = (ra * va).sum(-1) / (va.sum(-1) + k)
+            t_axis = ((ra * va).sum(-1) + k * t0[..., i]) / (va.sum(-1) + k)
             t[..., axis] = t_axis[..., None]
-            j += t_axis ** 2 / s_t ** 2
+            j += (t_axis - t0[..., i]) ** 2 / s_t ** 2
         e = res - t                                                  # observed - predicted
         j += ((e * v) ** 2).sum(-1) / s_edge ** 2
         e_unscaled = b - a - t                                       # the inner edge at r = 1
@@ -424,6 +431,7 @@ class _Track:
     last_seen_frame: int
     born_t_s: float
     closing_rate_per_s: float = float("nan")  # own approach speed over range, from boxes
+    drift_px_s: np.ndarray = field(default_factory=lambda: np.zeros(2))  # see expansion_cost
     hits: int = 1
     state: str = "tracked"  # "tracked" (matched last detected frame) or "lost"
     votes: dict[str, float] = field(default_factory=lambda: defaultdict(float))
@@ -641,7 +649,8 @@ class Tracker:
                                foe_px=self.foe_px, image_size_px=self.image_size_px,
                                config=self.config, static_rates_per_px_s=rates,
                                closing_rate_per_s=np.array([t.closing_rate_per_s
-                                                            for t in tracks]))
+                                                            for t in tracks]),
+                               drift_px_s=np.array([t.drift_px_s for t in tracks]))
         n_pairs = min(len(tracks), len(dets))
         best = None
         for rate, cost in zip(rates, costs, strict=True):
@@ -681,13 +690,18 @@ class Tracker:
         else:
             track.kf.update(box)
         dt_s = t_s - track.last_seen_t_s
+        # first-order filters: box noise over 0.1 s makes single measurements jumpy
+        alpha = dt_s / (dt_s + self.config.closing_time_constant_s) if dt_s > 0 else 0.0
         measured = self._closing_rate(track.last_box_px, box, dt_s)
         if np.isfinite(measured):
-            # first-order filter: box noise over 0.1 s makes single ratios jumpy
-            alpha = dt_s / (dt_s + self.config.closing_time_constant_s)
             previous = track.closing_rate_per_s
             track.closing_rate_per_s = (measured if not np.isfinite(previous)
                                         else previous + alpha * (measured - previous))
+        drift = self._drift(track.last_box_px, box, dt_s)
+        if drift is not None:
+            first = self._hits[track.track_id] == 1
+            track.drift_px_s = drift if first else track.drift_px_s + alpha * (
+                drift - track.drift_px_s)
         track.state = "tracked"
         track.last_seen_t_s = t_s
         track.last_box_px = box
@@ -698,6 +712,21 @@ class Tracker:
         if self._hits[track.track_id] >= self.config.min_hits:
             self._confirmed.add(track.track_id)
         return self._row(track, frame, t_s, box, det.score)
+
+    def _drift(self, before_px: np.ndarray, after_px: np.ndarray, dt_s: float
+               ) -> np.ndarray | None:
+        """Image motion of the box centre beyond scaling about the FOE [px/s] (x, y), from
+        two boxes not cut by the border; None when not measurable."""
+        if dt_s <= 0 or border_cut(np.array([before_px, after_px]), self.image_size_px,
+                                   self.config.border_margin_px).any():
+            return None
+        h_before, h_after = before_px[3] - before_px[1], after_px[3] - after_px[1]
+        if h_before <= 0 or h_after <= 0:
+            return None
+        c_before = np.array([before_px[0] + before_px[2], before_px[1] + before_px[3]]) / 2
+        c_after = np.array([after_px[0] + after_px[2], after_px[1] + after_px[3]]) / 2
+        foe = c_before if self.foe_px is None else np.asarray(self.foe_px, dtype=float)
+        return (c_after - (foe + h_after / h_before * (c_before - foe))) / dt_s
 
     def _closing_rate(self, before_px: np.ndarray, after_px: np.ndarray, dt_s: float
                       ) -> float:
