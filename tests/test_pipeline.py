@@ -146,3 +146,18 @@ def test_kitti_tracking_keyframes_are_scored(kitti_tracking_dir, model_dir, tmp_
           f"F1 {metrics['f1']:.3f} mean IoU {metrics['mean_iou']:.3f} "
           f"range error {metrics.get('range_error')}")
     assert metrics["tp"] + metrics["fn"] > 0
+
+
+def test_camera_for_cropped_and_resized_frames():
+    from vid2sim.camera import Camera
+    from vid2sim.pipeline import fit_camera_to_frames
+
+    cam = Camera(image_width=1242, image_height=375, fx=721.5, fy=721.5, cx=609.6, cy=172.9)
+    cropped, note = fit_camera_to_frames(cam, 1224, 370)  # KITTI 0016: a crop, not a resize
+    assert note is None
+    assert (cropped.fx, cropped.cx, cropped.image_width) == (721.5, 609.6, 1224)
+    halved, note = fit_camera_to_frames(cam, 621, 187)
+    assert note and "scaled" in note
+    assert halved.fx == pytest.approx(360.75) and halved.cx == pytest.approx(304.8)
+    same, note = fit_camera_to_frames(cam, 1242, 375)
+    assert same is cam and note is None

@@ -7,6 +7,7 @@ no traceback unless ``-v``), 1 internal error.
 from __future__ import annotations
 
 import logging
+import os
 import sys
 import traceback
 from pathlib import Path
@@ -319,6 +320,10 @@ def main(argv: list[str] | None = None) -> int:
     """Console entry point: maps errors to exit codes."""
     verbose = any(a in ("-v", "--verbose") or (a.startswith("-v") and set(a[1:]) == {"v"})
                   for a in (argv if argv is not None else sys.argv[1:]))
+    if not verbose:
+        # FFmpeg inside OpenCV prints its own lines for a broken video ("moov atom not
+        # found"); our one-line error says the same with the file name. -v shows them.
+        os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
     try:
         cli.main(args=argv, prog_name="vid2sim", standalone_mode=False)
     except InputError as exc:

@@ -110,6 +110,27 @@ def ego_without_gps(duration_s: float, speed_mps: float, rate_hz: float) -> EgoT
                     lat_deg=zeros.copy(), lon_deg=zeros.copy())
 
 
+def fit_camera_to_frames(camera: Camera, width_px: int, height_px: int
+                         ) -> tuple[Camera, str | None]:
+    """The camera for frames of ``width_px`` x ``height_px``.
+
+    A size within 5% of the calibrated one is taken as a crop (KITTI crops each date's
+    rectified images to slightly different sizes): intrinsics kept, image size updated. A
+    larger difference is taken as a resize and the intrinsics are scaled.
+    """
+    from dataclasses import replace
+
+    if (camera.image_width, camera.image_height) == (width_px, height_px):
+        return camera, None
+    crop = (abs(width_px / camera.image_width - 1) < 0.05
+            and abs(height_px / camera.image_height - 1) < 0.05)
+    if crop:
+        return replace(camera, image_width=int(width_px), image_height=int(height_px)), None
+    note = (f"camera is {camera.image_width}x{camera.image_height} px but the video "
+            f"{width_px}x{height_px} px: intrinsics scaled to the video")
+    return camera.scaled_to(width_px, height_px), note
+
+
 def clip_ego_to_video(ego: EgoTrack, duration_s: float) -> tuple[EgoTrack, list[str]]:
     """Keep the ego samples inside the video's time span [0, duration] (scenario clock)."""
     warnings: list[str] = []
@@ -201,15 +222,33 @@ def build(opts: BuildOptions, report: Callable[[str], None] | None = None) -> Bu
 
     if opts.camera_path is not None:
         camera = load_camera(opts.camera_path)
-        if (camera.image_width, camera.image_height) != (info.width, info.height):
-            if abs(camera.image_width / camera.image_height - info.width / info.height) > 0.02:
-                warnings.append(f"camera is {camera.image_width}x{camera.image_height} but the "
-                                f"video {info.width}x{info.height}: intrinsics rescaled anyway")
-            camera = camera.scaled_to(info.width, info.height)
+        camera, note = fit_camera_to_frames(camera, info.width, info.height)
+        if note:
+            warnings.append(note)
     else:
         camera = Camera.default_for(info.width, info.height)
         warnings.extend(camera.assumptions)
 
+    # ---- the detector (or imported boxes) before any long work: missing weights fail fast
+    detector = None
+    imported = None
+    if opts.detections is not None:
+        from vid2sim.detect.external import read_detections
+
+        imported = read_detections(opts.detections)
+        detector_label = f"imported detections {Path(opts.detections).name}"
+    else:
+        from vid2sim.detect.detector import load_detector
+        from vid2sim.detect.models import DEFAULT_DETECTOR
+
+        name = opts.detector or DEFAULT_DETECTOR
+        from vid2sim.detect.tracker import TrackerConfig
+
+        # Weak boxes feed the tracker's second association stage (ByteTrack), so the
+        # detector keeps everything above the tracker's low threshold.
+        detector = load_detector(name, model_dir=opts.model_dir,
+                                 score_threshold=TrackerConfig().low_score)
+        detector_label = f"detector {name}"
     # ---- geo: ego trajectory and road
     roads = []
     road_result = None
@@ -238,25 +277,6 @@ def build(opts: BuildOptions, report: Callable[[str], None] | None = None) -> Bu
             + (" (a camera-relative scenario)" if opts.ego_speed_mps == 0 else ""))
 
     # ---- detect, track, range
-    detector = None
-    imported = None
-    if opts.detections is not None:
-        from vid2sim.detect.external import read_detections
-
-        imported = read_detections(opts.detections)
-        detector_label = f"imported detections {Path(opts.detections).name}"
-    else:
-        from vid2sim.detect.detector import load_detector
-        from vid2sim.detect.models import DEFAULT_DETECTOR
-
-        name = opts.detector or DEFAULT_DETECTOR
-        from vid2sim.detect.tracker import TrackerConfig
-
-        # Weak boxes feed the tracker's second association stage (ByteTrack), so the
-        # detector keeps everything above the tracker's low threshold.
-        detector = load_detector(name, model_dir=opts.model_dir,
-                                 score_threshold=TrackerConfig().low_score)
-        detector_label = f"detector {name}"
     horizon = HorizonEstimator(camera)
     tracked = stages.run("detect and track", run_detect, opts.video, detector=detector,
                          detections=imported, detect_every=opts.detect_every,

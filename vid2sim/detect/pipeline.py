@@ -156,6 +156,8 @@ def detect_video(source: Path, out_path: Path, *, detector_name: str = DEFAULT_D
             raise InputError(None, f"--score must be between 0 and 1, got {score}")
         config = TrackerConfig(high_score=score, new_track_score=min(0.99, score + 0.05),
                                low_score=min(config.low_score, score))
+    # The video first: a mistyped path should not be reported as missing weights.
+    n_frames = video_info(source).n_frames
     detector = None
     imported = None
     if detections_path is not None:
@@ -165,7 +167,6 @@ def detect_video(source: Path, out_path: Path, *, detector_name: str = DEFAULT_D
         detector = load_detector(detector_name, model_dir, score_threshold=config.low_score,
                                  small_object_mode=small_object_mode)
         label = f"{detector_name}{' + tiles' if small_object_mode else ''}"
-    n_frames = video_info(source).n_frames
     start = time.perf_counter()
     boxes = run_detect(source, detector=detector, detections=imported,
                        detect_every=detect_every, progress=progress, tracker_config=config)
