@@ -22,6 +22,7 @@ from vid2sim.detect.ranging import (
     DEFAULT_PRIORS,
     BoxArrays,
     RangingConfig,
+    colored_noise_factor,
     fit_boxes,
     pitch_for_horizon,
     range_tracks,
@@ -163,6 +164,41 @@ def test_side_cut_box_uses_ground_cue_only():
     assert ba.cut_right[0] and not fit.width_ok[0] and fit.ground_ok[0]
     assert fit.range_m[0] == pytest.approx(6.0, rel=0.03)
     assert fit.lateral_m[0] == pytest.approx(-3.6, abs=0.2)
+
+
+def test_turned_car_falls_back_to_the_ground_cue():
+    # A car 20 m ahead turned 35 deg off the ego axis (at a junction) shows its side: its box
+    # is ~2.5x as wide as its rear. Gaussian width prior: the fit believes the wide box and
+    # puts it much nearer; the Cauchy upper tail lets the ground cue decide instead.
+    box = CAM.project_box(np.array([20 + CAR_L / 2, 0.0]), CAR_L, CAR_W, CAR_H,
+                          yaw_rad=math.radians(35))
+    assert (box[2] - box[0]) > 2.0 * CAM.fx * CAR_W / 20.0
+    # Truth: the nearest point of the turned car, where its bottom edge touches the road.
+    z_near = CAM.fy * CAM.height_m / (box[3] - CAM.horizon_y_px())
+    robust, _ = _fit_one(CAM, box, width_std=DEFAULT_PRIORS["car"].width_std_m)
+    gauss, _ = _fit_one(CAM, box, width_std=DEFAULT_PRIORS["car"].width_std_m,
+                        config=RangingConfig(width_tail_sigmas=math.inf))
+    assert robust.range_m[0] == pytest.approx(z_near, rel=0.08)
+    assert abs(gauss.range_m[0] - z_near) > 3 * abs(robust.range_m[0] - z_near)
+
+
+def test_colored_noise_factor():
+    # Independent samples (dt >> tau) need no inflation; at 10 Hz a 0.5 s correlation makes
+    # the slow part of the noise count (1 + rho) / (1 - rho) ~ 10 times.
+    assert colored_noise_factor(5.0, 0.5) == pytest.approx(1.0, abs=1e-3)
+    rho = math.exp(-0.2)
+    assert colored_noise_factor(0.1, 0.5) == pytest.approx((1 + rho) / (1 - rho))
+    assert colored_noise_factor(0.1, 0.0) == 1.0
+
+
+def test_pitch_trust_follows_the_camera_source():
+    cfg = RangingConfig()
+    kitti = Camera(1242, 375, 721.5, 721.5, 609.6, 172.9, height_m=1.65,
+                   assumptions=("KITTI calibration: camera 2 rectified, 1.65 m high",))
+    assert cfg.pitch_std_for(kitti) == 0.25
+    assert cfg.pitch_std_for(Camera.default_for(1280, 720)) == 1.0
+    assert cfg.pitch_std_for(CAM) == 1.0
+    assert RangingConfig(camera_pitch_std_deg=0.05).pitch_std_for(kitti) == 0.05
 
 
 def test_side_of_offset_car_does_not_shorten_range():

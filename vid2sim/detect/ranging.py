@@ -309,21 +309,12 @@ def fit_boxes(camera: Camera, ba: BoxArrays, width_m: np.ndarray, width_std_m: n
     sig_u = config.edge_noise_px + config.edge_noise_frac * bw
     pix_v = config.edge_noise_px + config.edge_noise_frac * bh
     sig_v = np.hypot(pix_v, jitter_px)
-    # A road dz higher than the plane moves a vehicle's bottom edge by f dz / Z pixels; Z is
-    # only known after the fit, so take it from the width cue (good to ~10 %, plenty here).
-    z_guess = np.maximum(camera.fx * width_m / bw, 1.0)
-    sig_bottom = np.hypot(sig_v, camera.fy * config.road_height_std_m / z_guess)
     ground_ok = (~ba.cut_bottom) & (ba.y2 > horizon + config.min_ground_margin_px)
     if not use_ground:
         ground_ok = np.zeros(n, dtype=bool)
     width_ok = ~(ba.cut_left | ba.cut_right)
     height_ok = (~(ba.cut_top | ba.cut_bottom)) & use_height
     obs = np.stack([ba.x1, ba.y1, ba.x2, ba.y2], axis=1)
-    sig = np.stack([sig_u, sig_v, sig_u, sig_bottom], axis=1)
-    # The top edge is a (weak) cue only with the bottom edge beside it: box height against
-    # the height prior. A car's roof sits near the camera's own height, i.e. near the
-    # horizon, so alone it would say little about range.
-    use = np.stack([~ba.cut_left, height_ok, ~ba.cut_right, ground_ok], axis=1)
 
     # Initial guess: ground cue where usable, else width cue; lateral from the centre column.
     f = camera.fx
@@ -333,11 +324,27 @@ def fit_boxes(camera: Camera, ba: BoxArrays, width_m: np.ndarray, width_std_m: n
         g = ground_ok & ok & np.isfinite(pts[:, 0]) & (pts[:, 0] > 0.5)
         rng0 = np.where(g, pts[:, 0], rng0)
     rng0 = np.clip(rng0, 1.0, 3 * config.max_range_m)
+    # A road dz higher than the plane moves a vehicle's bottom edge by f dz / Z pixels; Z is
+    # only known after the fit, so take the first guess (the ground cue's own range where it
+    # is usable, not the width cue's: a turned vehicle's wide box would say "near" and so
+    # blur the very cue that has to range it).
+    sig_bottom = np.hypot(sig_v, camera.fy * config.road_height_std_m / rng0)
+    sig = np.stack([sig_u, sig_v, sig_u, sig_bottom], axis=1)
+    # The top edge is a (weak) cue only with the bottom edge beside it: box height against
+    # the height prior. A car's roof sits near the camera's own height, i.e. near the
+    # horizon, so alone it would say little about range.
+    use = np.stack([~ba.cut_left, height_ok, ~ba.cut_right, ground_ok], axis=1)
     rays = camera.pixel_rays_veh(np.column_stack(((ba.x1 + ba.x2) / 2, np.full(n, horizon))))
     lat0 = rays[:, 1] / np.maximum(rays[:, 0], 1e-6) * (rng0 + length_m / 2)
     if length_std_m is None:
         length_std_m = np.full(n, 1e-4)
-    theta = np.column_stack((np.log(rng0), lat0, width_m, prior_h, length_m))
+    # Width: what the box says at the ground cue's range (at least the prior), so that the
+    # reweighting below sees a turned vehicle's wide box from the first step on rather than
+    # being pulled by it towards the camera first (a redescending prior needs a fair start).
+    w_init = width_m.copy()
+    if ground_ok.any():
+        w_init = np.where(g, np.clip(bw * rng0 / f, width_m, 3.0 * width_m), width_m)
+    theta = np.column_stack((np.log(rng0), lat0, w_init, prior_h, length_m))
     prior_mean = np.column_stack((width_m, prior_h, length_m))
     prior_std = np.column_stack((width_std_m, prior_h_std, length_std_m))
     n_par = 5
