@@ -313,6 +313,43 @@ def demo(out_dir: Path, seed: int, model_dir: Path | None, detector: str | None,
              force_detections=use_detections, progress=show_progress(), report=echo)
 
 
+# --------------------------------------------------------------------------- batch
+
+
+@cli.command()
+@click.argument("manifest", type=EXISTING_PATH)
+@click.option("--out", "out_dir", type=EXISTING_PATH, required=True,
+              help="Batch folder: one subfolder per row (OUT/<name>/) and batch.csv.")
+@click.option("--jobs", type=click.IntRange(min=1), default=1, show_default=True,
+              help="Videos built at once, each in its own process (one thread pool each; "
+                   "with a detector each job uses 2 onnxruntime threads).")
+@click.option("--detector", "detector_name", default="yolox-nano", show_default=True,
+              help="Detector for rows without a detections file (registry name or .onnx).")
+@click.option("--model-dir", type=EXISTING_PATH, default=None, envvar="VID2SIM_MODEL_DIR",
+              help="Folder with detector weights [env VID2SIM_MODEL_DIR; else the user cache].")
+@click.option("--detect-every", type=click.IntRange(min=1), default=1, show_default=True,
+              help="Run the detector on every N-th frame.")
+@click.option("--offline", is_flag=True, help="Never download a map.")
+@click.option("--retry-failed", is_flag=True,
+              help="Rebuild rows that batch.csv records as failed (default: keep their error).")
+@click.pass_context
+def batch(ctx: click.Context, manifest: Path, out_dir: Path, jobs: int, detector_name: str,
+          model_dir: Path | None, detect_every: int, offline: bool, retry_failed: bool) -> None:
+    """Build one scenario per row of MANIFEST, a CSV with a header: video (required), name,
+    gps, map, camera, detections, keyframes, fps, gps_offset_s, ego_speed_mps (paths relative
+    to the manifest). Rows already built from the same inputs are skipped; exit 1 if a row
+    failed."""
+    from vid2sim.batch import BatchSettings, run_batch
+
+    settings = BatchSettings(detector=detector_name, model_dir=model_dir,
+                             detect_every=detect_every, allow_download=not offline)
+    summary = run_batch(manifest, out_dir, settings, jobs=jobs, retry_failed=retry_failed,
+                        progress=show_progress() and sys.stderr.isatty(), report=echo)
+    echo(summary.summary())
+    if summary.failed:
+        ctx.exit(1)
+
+
 # --------------------------------------------------------------------------- entry point
 
 
@@ -325,7 +362,9 @@ def main(argv: list[str] | None = None) -> int:
         # found"); our one-line error says the same with the file name. -v shows them.
         os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
     try:
-        cli.main(args=argv, prog_name="vid2sim", standalone_mode=False)
+        # A command that calls ctx.exit(code) (batch: 1 when a row failed) comes back
+        # here as click's return value in non-standalone mode.
+        rv = cli.main(args=argv, prog_name="vid2sim", standalone_mode=False)
     except InputError as exc:
         click.echo(f"error: {exc}", err=True)
         if verbose:
@@ -350,7 +389,7 @@ def main(argv: list[str] | None = None) -> int:
         if verbose:
             traceback.print_exc()
         return 1
-    return 0
+    return rv if isinstance(rv, int) else 0
 
 
 if __name__ == "__main__":  # pragma: no cover
