@@ -498,18 +498,19 @@ def _run_pool(rows: list[BatchRow], todo: list[int], settings: BatchSettings, ou
         while queue:
             pool = ProcessPoolExecutor(max_workers=jobs, mp_context=context,
                                        initializer=_init_worker, max_tasks_per_child=1)
-            running: dict[Future, int] = {}
+            running: dict[Future, tuple[int, float]] = {}  # -> row index, submit time
             broken = False
             try:
                 while queue or running:
                     while queue and len(running) < jobs and not broken:
                         i = queue.pop()
-                        running[pool.submit(run_row, rows[i], settings, out_dir)] = i
+                        future = pool.submit(run_row, rows[i], settings, out_dir)
+                        running[future] = (i, time.perf_counter())
                     if not running:
                         break
                     done, _ = wait(running, return_when=FIRST_COMPLETED)
                     for future in done:
-                        i = running.pop(future)
+                        i, t_submit = running.pop(future)
                         try:
                             outcome = future.result()
                         except BrokenProcessPool:
@@ -518,11 +519,18 @@ def _run_pool(rows: list[BatchRow], todo: list[int], settings: BatchSettings, ou
                                 name=rows[i].name, status="failed", line=rows[i].line,
                                 error="the worker process died while this or a concurrent "
                                       "row was building (out of memory? a crash in native "
-                                      "code?); --retry-failed rebuilds it")
+                                      "code?); --retry-failed rebuilds it",
+                                seconds=time.perf_counter() - t_submit)
+                        except Exception as exc:  # noqa: BLE001 - e.g. a result that cannot be pickled
+                            outcome = RowOutcome(
+                                name=rows[i].name, status="failed", line=rows[i].line,
+                                error=_one_line(f"internal error: {type(exc).__name__}: {exc}"),
+                                seconds=time.perf_counter() - t_submit)
                         finished(i, outcome)
             except BaseException:
-                # Ctrl-C or a kill: do not wait for builds in flight (their rows stay
-                # "pending" and are rebuilt by the next run).
+                # Ctrl-C: do not wait for builds in flight. Their rows stay "pending" in
+                # batch.csv; a worker may still finish its (atomic) build, which the next
+                # run then skips, or the next run rebuilds the row.
                 pool.shutdown(wait=False, cancel_futures=True)
                 raise
             pool.shutdown(wait=True)
