@@ -10,16 +10,15 @@ Each row runs in its own freshly spawned worker process (``max_tasks_per_child=1
 a memory leak or a crash in native code (OpenCV, onnxruntime) stays with that video, and
 the worker's peak resident memory is that one build's. Workers start with
 ``OMP_NUM_THREADS`` / ``OPENBLAS_NUM_THREADS`` / ``MKL_NUM_THREADS`` = 1 and OpenCV at one
-thread so that ``--jobs N`` on N cores does not oversubscribe them. ``BuildOptions`` has no
-thread count, so the detector keeps ``load_detector``'s default of 2 onnxruntime intra-op
-threads per job: with a detector (rather than imported detections) use
-``--jobs <cores / 2>``.
+thread, and the detector gets ``max(1, cores // jobs)`` onnxruntime intra-op threads, so
+that ``--jobs N`` on the machine's cores does not oversubscribe them.
 """
 
 from __future__ import annotations
 
 import contextlib
 import csv
+import dataclasses
 import io
 import logging
 import os
@@ -85,6 +84,8 @@ class BatchSettings:
     model_dir: Path | None = None
     detect_every: int = 1
     allow_download: bool = True
+    threads: int = 2
+    """onnxruntime threads of each job's detector (``run_batch`` sets cores // jobs)."""
 
 
 @dataclass(slots=True)
@@ -274,7 +275,8 @@ def build_options(row: BatchRow, settings: BatchSettings, out_dir: Path):
                         detections=row.detections, keyframes=row.keyframes,
                         detect_every=settings.detect_every, ego_speed_mps=row.ego_speed_mps,
                         gps_offset_s=row.gps_offset_s, fps=row.fps,
-                        allow_download=settings.allow_download, progress=False)
+                        allow_download=settings.allow_download, progress=False,
+                        threads=settings.threads)
 
 
 def done_outcome(row: BatchRow, out_dir: Path) -> RowOutcome | None:
@@ -421,6 +423,7 @@ def run_batch(manifest: str | Path, out_dir: str | Path, settings: BatchSettings
     """
     if jobs < 1:
         raise InputError(None, f"--jobs must be >= 1, got {jobs}")
+    settings = dataclasses.replace(settings, threads=max(1, (os.cpu_count() or 1) // jobs))
     rows = read_manifest(manifest)
     t0 = time.perf_counter()
     out_dir = Path(out_dir)

@@ -54,6 +54,8 @@ class BuildOptions:
     fps: float | None = None
     allow_download: bool = True
     progress: bool = True
+    threads: int = 2
+    """onnxruntime intra-op threads of the detector (a batch gives each job cores / jobs)."""
 
 
 @dataclass(slots=True)
@@ -247,7 +249,8 @@ def build(opts: BuildOptions, report: Callable[[str], None] | None = None) -> Bu
         # Weak boxes feed the tracker's second association stage (ByteTrack), so the
         # detector keeps everything above the tracker's low threshold.
         detector = load_detector(name, model_dir=opts.model_dir,
-                                 score_threshold=TrackerConfig().low_score)
+                                 score_threshold=TrackerConfig().low_score,
+                                 threads=max(1, int(opts.threads)))
         detector_label = f"detector {name}"
     # ---- geo: ego trajectory and road
     roads = []
@@ -299,8 +302,9 @@ def build(opts: BuildOptions, report: Callable[[str], None] | None = None) -> Bu
                     ("keyframes", opts.keyframes)):
         if p is not None:
             inputs.append({"role": role, "name": Path(p).name, "sha256": sha256_path(p)})
+    # Options that change the scenario (not where files are, nor how fast it is made).
     options = {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(opts).items()
-               if k not in ("video", "out_dir", "progress", "model_dir")}
+               if k not in ("video", "out_dir", "progress", "model_dir", "threads")}
     options["detector_used"] = detector_label
     options["fps"] = info.fps
     source = Source(inputs=inputs, tool_version=__version__, options=options,
