@@ -264,7 +264,8 @@ def fit_boxes(camera: Camera, ba: BoxArrays, width_m: np.ndarray, width_std_m: n
               prior_h: np.ndarray, prior_h_std: np.ndarray, length_m: np.ndarray,
               config: RangingConfig, *, use_ground: bool = True, use_height: bool = True,
               length_std_m: np.ndarray | None = None,
-              pitch_noise_inflation: np.ndarray | float = 1.0, iterations: int = 12) -> BoxFit:
+              pitch_noise_inflation: np.ndarray | float = 1.0,
+              road_height_std_m: np.ndarray | None = None, iterations: int = 12) -> BoxFit:
     """Fuse the cues of each box into a position by weighted least squares.
 
     The unknowns per box are (log range, lateral, width, height); the residuals are the
@@ -295,6 +296,8 @@ def fit_boxes(camera: Camera, ba: BoxArrays, width_m: np.ndarray, width_std_m: n
     pitch_noise_inflation : ndarray or float
         Factor on the body-pitch share of the frame-to-frame variance (``cov_white``) for a
         filter that takes it as white (see :func:`colored_noise_factor`).
+    road_height_std_m : ndarray, optional
+        Per-box spread of the road height under the vehicle [m]; None takes the config's.
 
     Returns
     -------
@@ -328,7 +331,8 @@ def fit_boxes(camera: Camera, ba: BoxArrays, width_m: np.ndarray, width_std_m: n
     # only known after the fit, so take the first guess (the ground cue's own range where it
     # is usable, not the width cue's: a turned vehicle's wide box would say "near" and so
     # blur the very cue that has to range it).
-    sig_bottom = np.hypot(sig_v, camera.fy * config.road_height_std_m / rng0)
+    road_std = config.road_height_std_m if road_height_std_m is None else road_height_std_m
+    sig_bottom = np.hypot(sig_v, camera.fy * road_std / rng0)
     sig = np.stack([sig_u, sig_v, sig_u, sig_bottom], axis=1)
     # The top edge is a (weak) cue only with the bottom edge beside it: box height against
     # the height prior. A car's roof sits near the camera's own height, i.e. near the
@@ -796,6 +800,7 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
              & (loose.range_m < config.width_learning_max_range_m))
     w_track = w0.copy()
     w_track_std = w0_std.copy()
+    road_std = np.full(len(boxes), config.road_height_std_m)
     width_by_track: dict[int, float] = {}
     order = np.argsort(track_ids, kind="stable")
     splits = np.flatnonzero(np.diff(track_ids[order])) + 1
@@ -812,6 +817,17 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
             info += float(np.sum(1.0 / (var * scale)))
             mean_info += float(np.sum(loose.width_m[m] / (var * scale)))
         w_est, w_sd = mean_info / info, math.sqrt(1.0 / info)
+        if w_est < prior_w - 4.0 * prior_sd:
+            # No vehicle of the class is that narrow (4 sigma: 1.27 m for a car; partial
+            # occlusion, which also narrows a box, rarely goes that far for a whole track):
+            # the road under this one lies below the ego's plane (a sag, a dip; a box wider
+            # than the class may be a turned vehicle instead, so that side is left alone).
+            # Its width is the class prior, and its
+            # ground cue counts with the road offset that the disagreement implies,
+            # dz = H (W_prior / W_ground - 1), as the road height's spread.
+            road_std[members] = max(config.road_height_std_m,
+                                    cam.height_m * abs(prior_w / max(w_est, 0.1) - 1.0))
+            w_est, w_sd = prior_w, prior_sd
         w_track[members], w_track_std[members] = w_est, w_sd
         width_by_track[tid] = round(w_est, 3)
 
@@ -832,7 +848,8 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
             inflation[members] = colored_noise_factor(float(np.median(np.diff(t_m))),
                                                       config.body_pitch_correlation_s)
     fit = fit_boxes(cam, ba, w_track, w_track_std, h0, h0_std, l0, config,
-                    length_std_m=l0_std, pitch_noise_inflation=inflation)
+                    length_std_m=l0_std, pitch_noise_inflation=inflation,
+                    road_height_std_m=road_std)
     if (~fit.valid).any():
         warnings.append(f"{int((~fit.valid).sum())} boxes gave no usable range cue (cut by the "
                         "border on too many sides); their range comes from the track filter")
