@@ -9,7 +9,7 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pytest
@@ -460,6 +460,22 @@ def test_braking_nose_dive_is_corrected_per_frame():
           f"per-frame pitch, {np.median(rel_off[in_dive]):.2%} without")
     assert np.median(rel_on[in_dive]) < 0.05
     assert np.median(rel_on[in_dive]) < 0.5 * np.median(rel_off[in_dive])
+
+
+def test_car_in_a_dip_keeps_a_plausible_width():
+    # Car 2 drives 1.2 m below the ego's road plane (a sag ahead): its bottom edge says it
+    # is at ~15 m, its width says 28 m. A car 0.9 m wide does not exist, so its road, not
+    # its width, is what is off: the width stays the class's and the range follows it.
+    sag = replace(CAM, height_m=CAM.height_m + 1.2)
+    vehicles = [Vehicle(1, lambda t: 15.0 + t, lambda t: 3.6, lambda t: 1.0),
+                Vehicle(2, lambda t: 28.0 + 0.5 * t, lambda t: 0.0, lambda t: 0.5)]
+    b1, t1 = simulate(CAM, vehicles[:1], duration_s=6.0, seed=21)
+    b2, t2 = simulate(sag, vehicles[1:], duration_s=6.0, seed=22)
+    res = range_tracks(b1 + b2, CAM, config=RangingConfig(per_frame_pitch=False))
+    assert res.width_m_by_track[2] == pytest.approx(DEFAULT_PRIORS["car"].width_m, abs=0.01)
+    rel, _ = _errors(res, {**t1, **t2})
+    in_dip = np.array([b.track_id == 2 for b in res.boxes])
+    assert np.median(rel[in_dip]) < 0.08
 
 
 def test_lead_survives_a_missed_detection():

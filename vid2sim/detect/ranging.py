@@ -333,7 +333,11 @@ def fit_boxes(camera: Camera, ba: BoxArrays, width_m: np.ndarray, width_std_m: n
     # blur the very cue that has to range it).
     road_std = config.road_height_std_m if road_height_std_m is None else road_height_std_m
     sig_bottom = np.hypot(sig_v, camera.fy * road_std / rng0)
-    sig = np.stack([sig_u, sig_v, sig_u, sig_bottom], axis=1)
+    # The roof stands on the same road: a road dz off the plane moves the top edge as far
+    # as the bottom one, so the top edge is no cue to the range through the camera height
+    # either (only the box height is, with the height prior).
+    sig_top = np.hypot(sig_v, camera.fy * road_std / rng0)
+    sig = np.stack([sig_u, sig_top, sig_u, sig_bottom], axis=1)
     # The top edge is a (weak) cue only with the bottom edge beside it: box height against
     # the height prior. A car's roof sits near the camera's own height, i.e. near the
     # horizon, so alone it would say little about range.
@@ -414,7 +418,7 @@ def fit_boxes(camera: Camera, ba: BoxArrays, width_m: np.ndarray, width_std_m: n
     # inflation factor that gives its slow part the right weight in the filter.
     d = np.ones((n, 4 + 3))
     v_eff = pix_v ** 2 + pitch_noise_inflation * jitter_px ** 2
-    d[:, 1] = v_eff / sig_v ** 2
+    d[:, 1] = v_eff / sig_top ** 2
     d[:, 3] = v_eff / sig_bottom ** 2
     d[:, 4:] = 0.0
     cov_white = cov @ np.einsum("nik,ni,nil->nkl", jac, d, jac) @ cov
