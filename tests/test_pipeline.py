@@ -161,3 +161,29 @@ def test_camera_for_cropped_and_resized_frames():
     assert halved.fx == pytest.approx(360.75) and halved.cx == pytest.approx(304.8)
     same, note = fit_camera_to_frames(cam, 1242, 375)
     assert same is cam and note is None
+
+
+def test_scenario_does_not_depend_on_where_the_inputs_are(demo_result, tmp_path, monkeypatch):
+    # The same input files, given by absolute path from one folder and by relative path from
+    # a copy elsewhere, must give the same scenario.json bytes (the README's promise).
+    import shutil
+
+    out, _ = demo_result
+    sample = out / "sample"
+    video = sample / "demo.mp4" if (sample / "demo.mp4").exists() else sample / "demo.avi"
+    names = (video.name, "demo.gpx", "camera.yaml", "detections.txt")
+    copy = tmp_path / "elsewhere" / "inputs"
+    copy.mkdir(parents=True)
+    for name in names:
+        shutil.copy(sample / name, copy / name)
+
+    def run(folder: Path, out_dir: Path) -> bytes:
+        v, g, c, d = (folder / n for n in names)
+        build(BuildOptions(video=v, out_dir=out_dir, gps=g, camera_path=c, detections=d,
+                           allow_download=False, progress=False))
+        return (out_dir / "scenario.json").read_bytes()
+
+    absolute = run(sample.resolve(), tmp_path / "a")
+    monkeypatch.chdir(tmp_path / "elsewhere")
+    relative = run(Path("inputs"), tmp_path / "b")
+    assert absolute == relative

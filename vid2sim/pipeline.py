@@ -302,8 +302,10 @@ def build(opts: BuildOptions, report: Callable[[str], None] | None = None) -> Bu
                     ("keyframes", opts.keyframes)):
         if p is not None:
             inputs.append({"role": role, "name": Path(p).name, "sha256": sha256_path(p)})
-    # Options that change the scenario (not where files are, nor how fast it is made).
-    options = {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(opts).items()
+    # Options that change the scenario (not where files are, nor how fast it is made): an
+    # input file is recorded by its name, as in ``inputs``, so the same inputs reached from
+    # another folder or by an absolute path still give a byte-identical scenario.json.
+    options = {k: (Path(v).name if isinstance(v, Path) else v) for k, v in asdict(opts).items()
                if k not in ("video", "out_dir", "progress", "model_dir", "threads")}
     options["detector_used"] = detector_label
     options["fps"] = info.fps
