@@ -135,3 +135,20 @@ def test_real_video_tracks(kitti_raw_dir, model_dir):
     assert max(lengths.values()) >= 30  # one car followed for >= 3 s
     assert all(r.x2 > r.x1 and r.y2 > r.y1 for r in rows)
     assert max(r.frame for r in rows) <= 107
+
+
+def test_imported_boxes_all_beyond_the_video_are_an_input_error(clip, tmp_path, capsys):
+    # A detections file made for another, longer video: one error line and exit 2, not an
+    # empty detections.csv that reads as "no vehicles".
+    path = tmp_path / "other_video.txt"
+    path.write_text("".join(f"{f},-1,20,40,40,30,0.9,car\n" for f in (500, 501, 502)))
+    out = tmp_path / "detections.csv"
+    assert main(["-q", "detect", str(clip), "--detections", str(path), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"error: {clip}: none of the imported boxes")
+    assert "499..501" in err[0]
+    assert not out.exists()
+    # Boxes on some of the video's frames are used as before.
+    rows = run_detect(clip, detector=None, detections={**imported(), 500: imported()[0]},
+                      progress=False)
+    assert [r.frame for r in rows] == list(range(N_FRAMES))

@@ -65,6 +65,7 @@ def run_detect(source: Path, *, detector: Detector | None,
     info = video_info(source, fps=fps)
     tracker = Tracker(tracker_config, image_size_px=(info.width, info.height))
     rows: list[TrackedBox] = []
+    n_seen = 0
     # Imported boxes need no pixels: decode only if someone looks at the image.
     decode_every = detect_every if (detector is not None or on_frame is not None) else 0
     with tqdm(total=info.n_frames or None, unit="frame", desc="detect",
@@ -80,7 +81,14 @@ def run_detect(source: Path, *, detector: Detector | None,
             else:
                 found = detector.detect(frame.image_bgr)
             rows.extend(tracker.update(frame.index, frame.t_s, found))
+            n_seen = frame.index + 1
             bar.update(1)
+    box_frames = [f for f, dets in (detections or {}).items() if dets]
+    if box_frames and min(box_frames) >= n_seen:
+        # Boxes made for another (longer) video: an empty result would look like an empty road.
+        raise InputError(source, f"none of the imported boxes falls on the video's {n_seen} "
+                         f"frames (boxes on 0-based frames {min(box_frames)}.."
+                         f"{max(box_frames)})", "is the detections file for this video?")
     return tracker.finalize(rows)
 
 
