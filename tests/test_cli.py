@@ -153,3 +153,31 @@ def test_unusable_output_path_is_one_line_error_before_any_work(command, sample_
     assert len(err) == 1 and err[0].startswith("error: ") and "existing_" in err[0]
     assert sorted(p.name for p in tmp_path.rglob("*")) == before
     assert afile.read_text() == "keep me\n"
+
+
+def test_readme_sections_name_only_options_their_command_has():
+    # Each README "### `vid2sim CMD ...`" section may only mention options CMD accepts
+    # (the detect section once advertised a --fps that detect does not have).
+    import re
+    from pathlib import Path
+
+    from click.testing import CliRunner
+
+    from vid2sim.cli import cli
+
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    other_programs = {"export": {"--log"}}  # DIR/replay.py's own option
+    checked = 0
+    for section in re.split(r"^### ", readme, flags=re.MULTILINE)[1:]:
+        m = re.match(r"`vid2sim (\w+)", section)
+        if not m or m.group(1) == "models":
+            continue
+        cmd = m.group(1)
+        body = section.split("\n## ")[0]
+        mentioned = set(re.findall(r"(?<![\w-])(--[a-z][a-z-]+)", body))
+        help_text = CliRunner().invoke(cli, [cmd, "--help"]).output
+        unknown = mentioned - other_programs.get(cmd, set()) - {
+            o for o in mentioned if o in help_text}
+        assert not unknown, f"README section of `vid2sim {cmd}` names {sorted(unknown)}"
+        checked += 1
+    assert checked >= 8
