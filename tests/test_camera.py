@@ -200,3 +200,20 @@ def test_camera_file_errors(tmp_path, text, match):
 def test_missing_camera_file(tmp_path):
     with pytest.raises(InputError, match="no such file"):
         load_camera(tmp_path / "nope.yaml")
+
+
+def test_camera_for_cropped_resized_and_foreign_frames():
+    from vid2sim.camera import fit_camera_to_frames
+
+    cam = Camera(image_width=1242, image_height=375, fx=721.5, fy=721.5, cx=609.6, cy=172.9)
+    cropped, note = fit_camera_to_frames(cam, 1224, 370)  # KITTI 0016: a crop, not a resize
+    assert "crop" in note
+    assert (cropped.fx, cropped.cx, cropped.image_width, cropped.image_height) == (
+        721.5, 609.6, 1224, 370)
+    halved, note = fit_camera_to_frames(cam, 621, 187)
+    assert "resize" in note
+    assert halved.fx == pytest.approx(360.75) and halved.cx == pytest.approx(304.8)
+    same, note = fit_camera_to_frames(cam, 1242, 375)
+    assert same is cam and note is None
+    with pytest.raises(InputError, match="cam.yaml: camera is for 1242x375"):
+        fit_camera_to_frames(cam, 1280, 720, "cam.yaml")

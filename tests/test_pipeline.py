@@ -148,21 +148,6 @@ def test_kitti_tracking_keyframes_are_scored(kitti_tracking_dir, model_dir, tmp_
     assert metrics["tp"] + metrics["fn"] > 0
 
 
-def test_camera_for_cropped_and_resized_frames():
-    from vid2sim.camera import Camera
-    from vid2sim.pipeline import fit_camera_to_frames
-
-    cam = Camera(image_width=1242, image_height=375, fx=721.5, fy=721.5, cx=609.6, cy=172.9)
-    cropped, note = fit_camera_to_frames(cam, 1224, 370)  # KITTI 0016: a crop, not a resize
-    assert note is None
-    assert (cropped.fx, cropped.cx, cropped.image_width) == (721.5, 609.6, 1224)
-    halved, note = fit_camera_to_frames(cam, 621, 187)
-    assert note and "scaled" in note
-    assert halved.fx == pytest.approx(360.75) and halved.cx == pytest.approx(304.8)
-    same, note = fit_camera_to_frames(cam, 1242, 375)
-    assert same is cam and note is None
-
-
 def test_scenario_does_not_depend_on_where_the_inputs_are(demo_result, tmp_path, monkeypatch):
     # The same input files, given by absolute path from one folder and by relative path from
     # a copy elsewhere, must give the same scenario.json bytes (the README's promise).

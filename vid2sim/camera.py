@@ -244,6 +244,46 @@ class Camera:
         return float(x1), float(y1), float(x2), float(y2)
 
 
+# Frame sizes within this relative difference of the calibrated size are a crop (KITTI's
+# rectified images differ by up to ~1.5% between recording days; codecs pad or drop a few
+# rows): the intrinsics stay. Larger differences must be a resize of the calibrated video.
+CROP_TOLERANCE = 0.05
+# A resize keeps the aspect ratio; beyond this relative difference the camera file belongs
+# to another video.
+RESIZE_ASPECT_TOLERANCE = 0.01
+
+
+def fit_camera_to_frames(camera: Camera, width_px: int, height_px: int,
+                         path: str | Path | None = None) -> tuple[Camera, str | None]:
+    """The camera for frames of ``width_px`` x ``height_px``, and a note if it changed.
+
+    Same size: unchanged. Within :data:`CROP_TOLERANCE`: a crop, so the intrinsics are kept
+    and only the image size changes. Otherwise, with the same aspect ratio, a resize: the
+    intrinsics are scaled. Anything else is another camera's file.
+
+    Raises
+    ------
+    InputError
+        If the frames are neither a crop nor a resize of the calibrated image (``path`` names
+        the camera file in the message).
+    """
+    w0, h0 = camera.image_width, camera.image_height
+    if (w0, h0) == (width_px, height_px):
+        return camera, None
+    if abs(width_px / w0 - 1) <= CROP_TOLERANCE and abs(height_px / h0 - 1) <= CROP_TOLERANCE:
+        return (replace(camera, image_width=int(width_px), image_height=int(height_px)),
+                (f"camera is for {w0}x{h0} px, frames are {width_px}x{height_px} px: taken "
+                 "as a crop, intrinsics kept"))
+    aspect0, aspect = w0 / h0, width_px / height_px
+    if abs(aspect / aspect0 - 1) <= RESIZE_ASPECT_TOLERANCE:
+        return (camera.scaled_to(width_px, height_px),
+                (f"camera is for {w0}x{h0} px, frames are {width_px}x{height_px} px: taken "
+                 "as a resize, intrinsics scaled"))
+    raise InputError(path, f"camera is for {w0}x{h0} images but the frames are "
+                     f"{width_px}x{height_px}", "give the camera file of this video, or none "
+                     "for a default camera")
+
+
 # --------------------------------------------------------------------------- readers
 
 

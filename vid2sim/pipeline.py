@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from vid2sim import __version__
-from vid2sim.camera import Camera, load_camera
+from vid2sim.camera import Camera, fit_camera_to_frames, load_camera
 from vid2sim.errors import InputError
 from vid2sim.fileio import sha256_path, write_text_atomic
 from vid2sim.records import EgoTrack, Origin, RangedBox
@@ -110,27 +110,6 @@ def ego_without_gps(duration_s: float, speed_mps: float, rate_hz: float) -> EgoT
     return EgoTrack(origin=Origin(0.0, 0.0, 0.0), t_s=t, x_m=x, y_m=zeros.copy(),
                     heading_rad=zeros.copy(), speed_mps=np.full(n, float(speed_mps)),
                     lat_deg=zeros.copy(), lon_deg=zeros.copy())
-
-
-def fit_camera_to_frames(camera: Camera, width_px: int, height_px: int
-                         ) -> tuple[Camera, str | None]:
-    """The camera for frames of ``width_px`` x ``height_px``.
-
-    A size within 5% of the calibrated one is taken as a crop (KITTI crops each date's
-    rectified images to slightly different sizes): intrinsics kept, image size updated. A
-    larger difference is taken as a resize and the intrinsics are scaled.
-    """
-    from dataclasses import replace
-
-    if (camera.image_width, camera.image_height) == (width_px, height_px):
-        return camera, None
-    crop = (abs(width_px / camera.image_width - 1) < 0.05
-            and abs(height_px / camera.image_height - 1) < 0.05)
-    if crop:
-        return replace(camera, image_width=int(width_px), image_height=int(height_px)), None
-    note = (f"camera is {camera.image_width}x{camera.image_height} px but the video "
-            f"{width_px}x{height_px} px: intrinsics scaled to the video")
-    return camera.scaled_to(width_px, height_px), note
 
 
 def clip_ego_to_video(ego: EgoTrack, duration_s: float) -> tuple[EgoTrack, list[str]]:
@@ -224,7 +203,7 @@ def build(opts: BuildOptions, report: Callable[[str], None] | None = None) -> Bu
 
     if opts.camera_path is not None:
         camera = load_camera(opts.camera_path)
-        camera, note = fit_camera_to_frames(camera, info.width, info.height)
+        camera, note = fit_camera_to_frames(camera, info.width, info.height, opts.camera_path)
         if note:
             warnings.append(note)
     else:

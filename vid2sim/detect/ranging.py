@@ -979,27 +979,13 @@ MAX_YAW_CORRECTION_DEG = 5.0
 def _camera_for_video(camera_path: Path | None, width: int, height: int
                       ) -> tuple[Camera, list[str]]:
     """The camera file's camera at the video's size, or the default camera, with notes."""
-    from vid2sim.camera import load_camera
+    from vid2sim.camera import fit_camera_to_frames, load_camera
 
     if camera_path is None:
         cam = Camera.default_for(width, height)
         return cam, [f"no --camera: {cam.assumptions[0]}"]
-    cam = load_camera(camera_path)
-    if (cam.image_width, cam.image_height) == (width, height):
-        return cam, []
-    if abs(cam.image_width - width) <= 8 and abs(cam.image_height - height) <= 8:
-        # A codec dropped a few rows/columns (macroblock alignment): same pixels, cropped.
-        return replace(cam, image_width=width, image_height=height), [
-            (f"camera file is for {cam.image_width}x{cam.image_height}, video is "
-             f"{width}x{height}: taken as cropped at the bottom/right")]
-    if abs(cam.image_width / cam.image_height - width / height) < 0.01 * width / height:
-        # A resized copy of the calibrated video: same aspect ratio, scaled intrinsics.
-        return cam.scaled_to(width, height), [
-            (f"camera file is for {cam.image_width}x{cam.image_height}, video is "
-             f"{width}x{height}: intrinsics rescaled")]
-    raise InputError(camera_path, f"camera is for {cam.image_width}x{cam.image_height} images "
-                     f"but the video is {width}x{height}",
-                     "give the camera file of this video, or none for a default camera")
+    cam, note = fit_camera_to_frames(load_camera(camera_path), width, height, camera_path)
+    return cam, [note] if note else []
 
 
 def summarize(result: RangingResult, n_frames: int) -> dict[str, float]:

@@ -39,7 +39,7 @@ import numpy as np
 from shapely.geometry import box as shapely_box
 from shapely.ops import unary_union
 
-from vid2sim.camera import Camera
+from vid2sim.camera import Camera, fit_camera_to_frames
 from vid2sim.errors import InputError
 from vid2sim.evaluate.annotations import describe, read_keyframes
 from vid2sim.evaluate.metrics import score_keyframes
@@ -59,9 +59,6 @@ HARD_MIN_IN_IMAGE = 0.5
 """Share of a projected box's area inside the image below which it is "hard"."""
 NEAR_PLANE_M = 0.1
 """Depth in front of the camera [m] at which 3D boxes are cut before projection."""
-RESCALE_RATIO = 0.05
-"""Relative frame-size difference above which the camera is rescaled to the video's size;
-below it the difference is taken for a crop and the intrinsics are kept."""
 TIME_TOLERANCE_S = 1e-3
 """Slack when testing whether a keyframe lies within an actor's trajectory [s]."""
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")  # as the build's video reader: same frame indices
@@ -496,19 +493,9 @@ def run_eval(scenario_path: str | Path, keyframes_path: str | Path, *, video: Pa
         vw, vh, video_fps = video_size_and_fps(video)
         if video.is_dir():
             frame_names = [p.name for p in image_folder_names(video)]
-        if (vw, vh) != (camera.image_width, camera.image_height):
-            ratio = max(abs(vw / camera.image_width - 1), abs(vh / camera.image_height - 1))
-            if ratio > RESCALE_RATIO:
-                # A resized video (e.g. 1920x1080 -> 1280x720): intrinsics scale with it.
-                warnings.append(f"video frames are {vw}x{vh} px but the scenario camera is "
-                                f"{camera.image_width}x{camera.image_height}: camera rescaled")
-                camera = camera.scaled_to(vw, vh)
-            else:
-                # A few pixels differ by cropping (KITTI's rectified sizes vary by date) or
-                # codec padding, which leave the intrinsics as they are.
-                warnings.append(f"video frames are {vw}x{vh} px, the scenario camera "
-                                f"{camera.image_width}x{camera.image_height}: intrinsics kept")
-                camera = replace(camera, image_width=vw, image_height=vh)
+        camera, note = fit_camera_to_frames(camera, vw, vh, scenario_path)
+        if note:
+            warnings.append(f"scenario {note}")
     rate = fps or video_fps or _scenario_fps(scenario)
     if rate is None and video is not None and video.is_dir():
         rate = FOLDER_FPS
