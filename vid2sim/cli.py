@@ -87,6 +87,9 @@ def detector_options(fn):
         click.option("--detect-every", type=click.IntRange(min=1), default=1, show_default=True,
                      help="Run the detector on every N-th frame; the tracker carries boxes "
                           "between."),
+        click.option("--fps", type=click.FloatRange(min=0.1), default=None,
+                     help="Frame rate of an image folder [frames/s] (default 10); videos use "
+                          "their own timestamps."),
     ]
     for option in reversed(options):
         fn = option(fn)
@@ -178,15 +181,15 @@ def road(gps_file: Path, map_path: Path | None, out_path: Path, plot_path: Path 
 @click.option("--out", "out_path", type=EXISTING_PATH, required=True,
               help="Where to write detections.csv (frame,t_s,track_id,category,score,x1,y1,x2,y2).")
 def detect(source: Path, detector_name: str, model_dir: Path | None,
-           detections_path: Path | None, detect_every: int, score: float | None,
-           no_tiles: bool, out_path: Path) -> None:
+           detections_path: Path | None, detect_every: int, fps: float | None,
+           score: float | None, no_tiles: bool, out_path: Path) -> None:
     """Detect and track vehicles in a video or image folder."""
     from vid2sim.detect.pipeline import detect_video
 
     check_out_file(out_path, "detections.csv")
     summary = detect_video(source, out_path, detector_name=detector_name, model_dir=model_dir,
                            detections_path=detections_path, detect_every=detect_every,
-                           score=score, small_object_mode=not no_tiles,
+                           score=score, small_object_mode=not no_tiles, fps=fps,
                            progress=show_progress())
     echo(str(summary))
 
@@ -205,8 +208,8 @@ def detect(source: Path, detector_name: str, model_dir: Path | None,
               help="Where to write tracks.csv (frame,t_s,track_id,category,score,x1,y1,x2,y2,"
                    "range_m,lateral_m,range_rate_mps,range_std_m,is_lead).")
 def track(video: Path, camera_path: Path | None, detector_name: str, model_dir: Path | None,
-          detections_path: Path | None, detect_every: int, plot_dir: Path | None,
-          out_path: Path) -> None:
+          detections_path: Path | None, detect_every: int, fps: float | None,
+          plot_dir: Path | None, out_path: Path) -> None:
     """Track vehicles and measure their range, lateral offset and range rate (no GPS needed)."""
     from vid2sim.detect.ranging import run_track
 
@@ -215,7 +218,7 @@ def track(video: Path, camera_path: Path | None, detector_name: str, model_dir: 
         check_out_dir(plot_dir)
     summary = run_track(video, camera_path, detector_name=detector_name, model_dir=model_dir,
                         detections_path=detections_path, detect_every=detect_every,
-                        out_path=out_path, plot_dir=plot_dir, progress=show_progress())
+                        out_path=out_path, plot_dir=plot_dir, progress=show_progress(), fps=fps)
     echo(summary)
 
 
@@ -309,8 +312,6 @@ def export(scenario_file: Path, fmt: str, out_dir: Path) -> None:
               show_default=True, help="Ego speed without --gps [m/s].")
 @click.option("--gps-offset", "gps_offset_s", type=float, default=None,
               help="Video time of the first GPS fix [s], overriding the file's own clock.")
-@click.option("--fps", type=click.FloatRange(min=0.1), default=None,
-              help="Frame rate of an image folder [frames/s] (default 10).")
 @click.option("--offline", is_flag=True, help="Never download a map.")
 @click.option("--out", "out_dir", type=EXISTING_PATH, required=True, help="Output folder.")
 def build(video: Path, gps: Path | None, map_path: Path | None, camera_path: Path | None,

@@ -176,9 +176,7 @@ def build(opts: BuildOptions, report: Callable[[str], None] | None = None) -> Bu
         Receives one line per stage as it starts (progress).
     """
     from vid2sim import scenario as scenario_io
-    from vid2sim.detect.lanes import HorizonEstimator
-    from vid2sim.detect.pipeline import run_detect
-    from vid2sim.detect.ranging import range_tracks, write_tracks_csv
+    from vid2sim.detect.ranging import detect_and_range, write_tracks_csv
     from vid2sim.detect.video import video_info
     from vid2sim.export.assemble import assemble_scenario
     from vid2sim.export.openscenario import write_openscenario
@@ -259,15 +257,11 @@ def build(opts: BuildOptions, report: Callable[[str], None] | None = None) -> Bu
             + (" (a camera-relative scenario)" if opts.ego_speed_mps == 0 else ""))
 
     # ---- detect, track, range
-    horizon = HorizonEstimator(camera)
-    tracked = stages.run("detect and track", run_detect, opts.video, detector=detector,
-                         detections=imported, detect_every=opts.detect_every,
-                         progress=opts.progress,
-                         on_frame=lambda frame: horizon.add_frame(frame.image_bgr), fps=opts.fps)
-    hint_px, n_votes = horizon.estimate()
-    log.info("lane-marking horizon: %s px from %d votes", hint_px, n_votes)
-    ranging = stages.run("monocular ranging", range_tracks, tracked, camera,
-                         horizon_hints_px=[hint_px] if hint_px is not None else None)
+    ranging, camera, ranging_notes = stages.run(
+        "detect, track and range", detect_and_range, Path(opts.video), camera,
+        detector=detector, detections=imported, detect_every=opts.detect_every, fps=opts.fps,
+        progress=opts.progress)
+    assumptions.extend(ranging_notes)
     warnings.extend(ranging.warnings)
     assumptions.append(
         f"horizon at row {ranging.horizon_y_px:.1f} px (pitch {ranging.pitch_deg_estimated:.2f} "

@@ -132,7 +132,8 @@ class DetectSummary:
 def detect_video(source: Path, out_path: Path, *, detector_name: str = DEFAULT_DETECTOR,
                  model_dir: Path | None = None, detections_path: Path | None = None,
                  detect_every: int = 1, score: float | None = None,
-                 small_object_mode: bool = True, progress: bool = True) -> DetectSummary:
+                 small_object_mode: bool = True, progress: bool = True,
+                 fps: float | None = None) -> DetectSummary:
     """``vid2sim detect``: detect (or import), track, write ``detections.csv``.
 
     Parameters
@@ -154,6 +155,8 @@ def detect_video(source: Path, out_path: Path, *, detector_name: str = DEFAULT_D
         Extra tiles for distant cars.
     progress : bool
         Progress bar.
+    fps : float, optional
+        Frame rate of an image folder [frames/s] (default 10).
     """
     from vid2sim.detect.external import read_detections
 
@@ -165,7 +168,7 @@ def detect_video(source: Path, out_path: Path, *, detector_name: str = DEFAULT_D
         config = TrackerConfig(high_score=score, new_track_score=min(0.99, score + 0.05),
                                low_score=min(config.low_score, score))
     # The video first: a mistyped path should not be reported as missing weights.
-    n_frames = video_info(source).n_frames
+    n_frames = video_info(source, fps=fps).n_frames
     detector = None
     imported = None
     if detections_path is not None:
@@ -177,7 +180,8 @@ def detect_video(source: Path, out_path: Path, *, detector_name: str = DEFAULT_D
         label = f"{detector_name}{' + tiles' if small_object_mode else ''}"
     start = time.perf_counter()
     boxes = run_detect(source, detector=detector, detections=imported,
-                       detect_every=detect_every, progress=progress, tracker_config=config)
+                       detect_every=detect_every, progress=progress, tracker_config=config,
+                       fps=fps)
     elapsed = time.perf_counter() - start
     write_detections_csv(boxes, out_path)
     per_track = {b.track_id: b.category for b in boxes}

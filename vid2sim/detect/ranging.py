@@ -1003,10 +1003,68 @@ def summarize(result: RangingResult, n_frames: int) -> dict[str, float]:
     }
 
 
+def detect_and_range(video: Path, camera: Camera, *, detector, detections=None,
+                     detect_every: int = 1, fps: float | None = None, progress: bool = True,
+                     config: RangingConfig | None = None
+                     ) -> tuple[RangingResult, Camera, list[str]]:
+    """Detect (or import), track and range every vehicle of a video: the shared core of
+    ``vid2sim track`` and ``vid2sim build``.
+
+    While frames stream, lane markings give per-frame horizon rows and the vanishing column;
+    the column corrects the camera's yaw (so the ego corridor follows the lane) when enough
+    frames agree and the correction is plausible for a mounting.
+
+    Parameters
+    ----------
+    video : Path
+        Video file or image folder.
+    camera : Camera
+        The camera at the video's frame size.
+    detector : Detector or None
+        Runs on every ``detect_every``-th frame; None with ``detections``.
+    detections : dict, optional
+        Imported boxes, 0-based frame -> detections.
+    fps : float, optional
+        Frame rate of an image folder [frames/s].
+
+    Returns
+    -------
+    result : RangingResult
+    camera : Camera
+        The camera used for ranging (yaw possibly corrected).
+    notes : list of str
+        What was estimated and why, for the summary.
+    """
+    from vid2sim.detect.lanes import HorizonEstimator, yaw_for_vanishing_column
+    from vid2sim.detect.pipeline import run_detect
+
+    notes: list[str] = []
+    # Only every detect_every-th frame is decoded: look at about every 5th video frame.
+    horizon_est = HorizonEstimator(camera, every=max(1, round(5 / detect_every)))
+    boxes = run_detect(video, detector=detector, detections=detections,
+                       detect_every=detect_every, progress=progress, fps=fps,
+                       on_frame=lambda frame: horizon_est.add_frame(frame.image_bgr))
+    # Lane markings also say where straight ahead is: correct the camera's yaw so the ego
+    # corridor runs along the lane rather than along a slightly turned camera axis.
+    column, n_col = horizon_est.estimate_column()
+    if column is not None and n_col >= MIN_LANE_FRAMES_FOR_YAW:
+        yaw = yaw_for_vanishing_column(camera, column)
+        if abs(yaw - camera.yaw_deg) <= MAX_YAW_CORRECTION_DEG:
+            notes.append(f"camera yaw {yaw:+.2f} deg from the lane markings' vanishing point "
+                         f"({n_col} frames; camera file said {camera.yaw_deg:+.2f})")
+            camera = replace(camera, yaw_deg=yaw)
+        else:
+            notes.append(f"lane markings point {yaw - camera.yaw_deg:+.1f} deg off the camera "
+                         "axis: implausible for a mounting, yaw not changed")
+    result = range_tracks(boxes, camera, horizon_hints_px=horizon_est.rows_px, config=config)
+    return result, camera, notes
+
+
 def run_track(video: str | Path, camera_path: str | Path | None, *, detector_name: str,
               model_dir: str | Path | None, detections_path: str | Path | None,
               detect_every: int, out_path: str | Path, plot_dir: str | Path | None = None,
-              progress: bool = True, config: RangingConfig | None = None) -> str:
+              progress: bool = True, config: RangingConfig | None = None,
+              fps: float | None = None) -> str:
     """``vid2sim track``: detect and track vehicles, range them, write ``tracks.csv``.
 
     Parameters
@@ -1027,6 +1085,8 @@ def run_track(video: str | Path, camera_path: str | Path | None, *, detector_nam
         Folder for ``lead.png`` and ``topdown.png``.
     progress : bool
         Progress bar on stderr.
+    fps : float, optional
+        Frame rate of an image folder [frames/s] (default 10).
 
     Returns
     -------
@@ -1036,13 +1096,11 @@ def run_track(video: str | Path, camera_path: str | Path | None, *, detector_nam
     """
     from vid2sim.detect.detector import load_detector
     from vid2sim.detect.external import read_detections
-    from vid2sim.detect.lanes import HorizonEstimator, yaw_for_vanishing_column
-    from vid2sim.detect.pipeline import run_detect
     from vid2sim.detect.tracker import TrackerConfig
     from vid2sim.detect.video import video_info
 
     video = Path(video)
-    info = video_info(video)
+    info = video_info(video, fps=fps)
     camera, notes = _camera_for_video(Path(camera_path) if camera_path else None,
                                       info.width, info.height)
     detector, imported = None, None
@@ -1053,24 +1111,10 @@ def run_track(video: str | Path, camera_path: str | Path | None, *, detector_nam
         detector = load_detector(detector_name, Path(model_dir) if model_dir else None,
                                  score_threshold=TrackerConfig().low_score)
         source = str(detector_name)
-    # Only every detect_every-th frame is decoded: look at about every 5th video frame.
-    horizon_est = HorizonEstimator(camera, every=max(1, round(5 / detect_every)))
-    boxes = run_detect(video, detector=detector, detections=imported,
-                       detect_every=detect_every, progress=progress,
-                       on_frame=lambda frame: horizon_est.add_frame(frame.image_bgr))
-    # Lane markings also say where straight ahead is: correct the camera's yaw so the ego
-    # corridor runs along the lane rather than along a slightly turned camera axis.
-    column, n_col = horizon_est.estimate_column()
-    if column is not None and n_col >= MIN_LANE_FRAMES_FOR_YAW:
-        yaw = yaw_for_vanishing_column(camera, column)
-        if abs(yaw - camera.yaw_deg) <= MAX_YAW_CORRECTION_DEG:
-            notes.append(f"camera yaw {yaw:+.2f} deg from the lane markings' vanishing point "
-                         f"({n_col} frames; camera file said {camera.yaw_deg:+.2f})")
-            camera = replace(camera, yaw_deg=yaw)
-        else:
-            notes.append(f"lane markings point {yaw - camera.yaw_deg:+.1f} deg off the camera "
-                         "axis: implausible for a mounting, yaw not changed")
-    result = range_tracks(boxes, camera, horizon_hints_px=horizon_est.rows_px, config=config)
+    result, camera, stage_notes = detect_and_range(
+        video, camera, detector=detector, detections=imported, detect_every=detect_every,
+        fps=fps, progress=progress, config=config)
+    notes += stage_notes
     write_tracks_csv(result.boxes, out_path)
     lines = [f"{video}: {info.n_frames} frames, boxes from {source}"]
     lines += notes
