@@ -6,6 +6,13 @@ import os
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
+
+# Property tests run on shared 2-core machines: no per-example deadline (timing is for
+# benchmarks/), and in CI a fixed example sequence so a run is reproducible.
+settings.register_profile("vid2sim", deadline=None)
+settings.register_profile("vid2sim-ci", deadline=None, derandomize=True)
+settings.load_profile("vid2sim-ci" if os.environ.get("CI") else "vid2sim")
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("VID2SIM_SHARED", REPO.parent / "shared"))
