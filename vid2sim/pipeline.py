@@ -131,17 +131,6 @@ def clip_ego_to_video(ego: EgoTrack, duration_s: float) -> tuple[EgoTrack, list[
     return EgoTrack(**fields), warnings
 
 
-def lead_statistics(boxes: list[RangedBox]) -> tuple[float, tuple[float, float, float] | None]:
-    """Share of processed frames with a lead vehicle, and its range min/median/max [m]."""
-    frames = {b.frame for b in boxes}
-    lead = [b for b in boxes if b.is_lead]
-    if not frames or not lead:
-        return 0.0, None
-    share = len({b.frame for b in lead}) / len(frames)
-    ranges = np.array([b.range_m for b in lead])
-    return share, (float(ranges.min()), float(np.median(ranges)), float(ranges.max()))
-
-
 def path_length_m(ego: EgoTrack) -> float:
     return float(np.hypot(np.diff(ego.x_m), np.diff(ego.y_m)).sum()) if len(ego.t_s) > 1 else 0.0
 
@@ -176,7 +165,7 @@ def build(opts: BuildOptions, report: Callable[[str], None] | None = None) -> Bu
         Receives one line per stage as it starts (progress).
     """
     from vid2sim import scenario as scenario_io
-    from vid2sim.detect.ranging import detect_and_range, write_tracks_csv
+    from vid2sim.detect.ranging import detect_and_range, summarize, write_tracks_csv
     from vid2sim.detect.video import video_info
     from vid2sim.export.assemble import assemble_scenario
     from vid2sim.export.openscenario import write_openscenario
@@ -334,7 +323,10 @@ def build(opts: BuildOptions, report: Callable[[str], None] | None = None) -> Bu
     finally:
         shutil.rmtree(staging, ignore_errors=True)
 
-    lead_share, lead_range = lead_statistics(ranging.boxes)
+    lead = summarize(ranging, info.n_frames)
+    lead_share = lead["lead_share"]
+    lead_range = (None if not np.isfinite(lead["lead_range_median_m"]) else
+                  (lead["lead_range_min_m"], lead["lead_range_median_m"], lead["lead_range_max_m"]))
     return BuildResult(
         out_dir=out_dir, files={k: out_dir / v for k, v in files.items()},
         duration_s=scenario.duration_s, distance_m=path_length_m(ego),
