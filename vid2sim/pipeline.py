@@ -11,7 +11,6 @@ files (and does not clobber an earlier build's files).
 
 from __future__ import annotations
 
-import json
 import logging
 import shutil
 import tempfile
@@ -25,7 +24,7 @@ import numpy as np
 from vid2sim import __version__
 from vid2sim.camera import Camera, fit_camera_to_frames, load_camera
 from vid2sim.errors import InputError
-from vid2sim.fileio import sha256_path, write_text_atomic
+from vid2sim.fileio import sha256_path
 from vid2sim.records import EgoTrack, Origin, RangedBox
 
 log = logging.getLogger(__name__)
@@ -301,12 +300,10 @@ def build(opts: BuildOptions, report: Callable[[str], None] | None = None) -> Bu
                                     opts.keyframes, video=Path(opts.video), out_dir=staging,
                                     fps=opts.fps, extra_figures=figures,
                                     extra_warnings=warnings,
-                                    report_inputs=_input_paths(opts))
-            # Name the scenario as the user will find it, not by the staging folder's
-            # random name, so the same inputs give the same metrics.json.
-            metrics.setdefault("inputs", {})["scenario"] = str(out_dir / "scenario.json")
-            write_text_atomic(staging / "metrics.json",
-                              json.dumps(metrics, indent=1, allow_nan=False) + "\n")
+                                    report_inputs=_input_paths(opts),
+                                    # the staging folder's random name would make metrics.json
+                                    # differ between identical builds
+                                    scenario_label=str(out_dir / "scenario.json"))
             files["metrics"] = Path("metrics.json")
         else:
             from vid2sim.evaluate.report import write_report

@@ -447,7 +447,8 @@ def _safe_name(name: str) -> str:
 def run_eval(scenario_path: str | Path, keyframes_path: str | Path, *, video: Path | None = None,
              out_dir: Path, fps: float | None = None, use_env: bool = True,
              extra_figures: list[tuple[str, bytes | Path]] | None = None,
-             extra_warnings: list[str] | None = None, report_inputs: dict | None = None
+             extra_warnings: list[str] | None = None, report_inputs: dict | None = None,
+             scenario_label: str | None = None
              ) -> tuple[dict, str]:
     """Replay a scenario at its annotated keyframes and score it.
 
@@ -474,6 +475,9 @@ def run_eval(scenario_path: str | Path, keyframes_path: str | Path, *, video: Pa
         Passed on to the report by a caller that ran more stages (``vid2sim build``): figures
         as (title, PNG bytes or path), warnings shown before this stage's, inputs shown
         instead of this stage's own.
+    scenario_label : str, optional
+        How metrics.json names the scenario (a build evaluates a staged copy and gives the
+        final path here), default ``scenario_path``.
 
     Returns
     -------
@@ -521,7 +525,8 @@ def run_eval(scenario_path: str | Path, keyframes_path: str | Path, *, video: Pa
     boxes = replay_boxes(scenario, times, use_env=env_used, camera=camera)
     metrics = score_keyframes(keyframes, boxes)
     metrics["replay"] = "gymnasium " + ENV_ID if env_used else "trajectory interpolation"
-    metrics["inputs"] = {"scenario": str(scenario_path), "keyframes": str(keyframes_path),
+    metrics["inputs"] = {"scenario": scenario_label or str(scenario_path),
+                         "keyframes": str(keyframes_path),
                          "video": str(video) if video is not None else None, "fps": rate}
 
     frames = read_frames(video, [k.frame for k in keyframes]) if video is not None else {}
