@@ -131,6 +131,48 @@ def test_all_labelled_sequences_as_tracks(kitti_tracking_dir):
     assert med["below 40 m"] < 0.08
 
 
+def test_range_rate_and_lead_on_labelled_sequences(kitti_tracking_dir):
+    # Range RATE on real data: the labelled boxes of every frame (10 Hz) of all sequences as
+    # tracks, against the slope of the labelled rear distance (a quadratic over 1.1 s; the
+    # labels' position noise gives it ~0.04 m/s, windows of 0.7-1.5 s agree to ~0.1 m/s).
+    # Helpers shared with `python benchmarks/bench_ranging.py --kitti-rate`, which prints
+    # the same figures per sequence.
+    from benchmarks.bench_ranging import join_rows, kitti_rate_figures, kitti_rate_rows
+
+    labels = sorted((kitti_tracking_dir / "label_02").glob("*.txt"))
+    per_seq = {lab.stem: kitti_rate_rows(lab, kitti_tracking_dir / "calib" / lab.name)
+               for lab in labels}
+    for name, rows in {**per_seq, "all": join_rows(per_seq)}.items():
+        f = kitti_rate_figures(rows)
+        print(f"KITTI {name} range rate [m/s]: lead (n={f['lead_n']}) RMSE {f['lead_rmse']:.2f}"
+              f" median |e| {f['lead_med']:.2f}, lead range median |rel| "
+              f"{f['lead_range_rel']:.1%}, labelled lead marked is_lead on "
+              f"{f['lead_same']:.1%} of {f['lead_frames']} frames (some lead on "
+              f"{f['lead_any']:.1%}); all below 40 m (n={f['all_n']}) RMSE {f['all_rmse']:.2f} "
+              f"median |e| {f['all_med']:.2f} p90 {f['all_p90']:.2f}; RMSE 0-20 m "
+              f"{f['bin_0-20_rmse']:.2f}, 20-40 m {f['bin_20-40_rmse']:.2f}, 40+ m "
+              f"{f['bin_40-inf_rmse']:.2f}; truth fit residual {f['truth_resid_m']:.3f} m")
+    assert f["truth_resid_m"] < 0.05  # the truth itself: 3.3 cm residual (labels' noise)
+    # Issue 5 asks a lead range-rate RMSE <= 0.5 m/s: reached where one car is followed
+    # (0005 0.24, 0010 0.39), not overall: the lead by label is often a parked or turning car
+    # briefly straight ahead on a bend or a crest (0007 #59/#60, 0000, 0001) and a range
+    # 10 % short scales the rate (0009). Measured at f5df590: lead RMSE 0.91, median
+    # 0.27 m/s, range 6.1 %, the labelled lead marked is_lead on 96 % of its frames.
+    assert f["lead_rmse"] < 1.0
+    assert f["lead_med"] < 0.32
+    assert f["lead_range_rel"] < 0.07
+    assert f["lead_same"] > 0.94
+    assert f["lead_any"] > 0.97  # measured 99 %
+    # All vehicles below 40 m: median 0.77, p90 3.68 m/s; the RMSE (11.8 m/s) is 95 % three
+    # diverged tracks (0001 #28-30, parked 23 m to the right, cut by the image border:
+    # 100-540 m/s), so it is bounded only a little above that.
+    assert f["all_med"] < 0.85
+    assert f["all_p90"] < 4.0
+    assert f["bin_0-20_rmse"] < 2.1  # measured 1.88
+    assert f["bin_40-inf_rmse"] < 3.6  # measured 3.28
+    assert f["all_rmse"] < 13.0
+
+
 def test_lane_marking_horizon_on_kitti_raw(kitti_raw_dir):
     import cv2
 
