@@ -282,7 +282,7 @@ def kitti_rate_rows(label_path: Path, calib_path: Path,
     Z - l/2), ``x_m`` (labelled lateral centre, right positive), ``box_h_px``, ``rate_true``
     and ``resid_m`` (:func:`kitti_rate_truth`), the estimates ``range_m``, ``rate_m_s`` and
     ``is_lead``, and ``true_lead`` (the labelled lead of its frame: the nearest vehicle with
-    |X| < 1.8 m, rear nearer than 60 m, box at least 25 px high).
+    |X| < 1.8 m and a rear nearer than 60 m, if its box is at least 25 px high).
     """
     from vid2sim.camera import load_camera
     from vid2sim.detect.external import read_kitti_tracking_labels
@@ -308,12 +308,16 @@ def kitti_rate_rows(label_path: Path, calib_path: Path,
         m = np.flatnonzero(rows["track"] == tid)
         rows["rate_true"][m], rows["resid_m"][m] = kitti_rate_truth(rows["frame"][m],
                                                                     rows["rear_m"][m])
+    # The nearest ego-lane vehicle is the lead whatever its size; a frame whose lead is under
+    # 25 px is not scored (taking the nearest of the boxes >= 25 px instead would call a car
+    # 20 m behind a small lead "the lead", and count the right choice as a miss).
     cand = ((np.abs(rows["x_m"]) < LEAD_HALF_LANE_M) & (rows["rear_m"] > 0)
-            & (rows["rear_m"] < LEAD_MAX_RANGE_M) & (rows["box_h_px"] >= MIN_BOX_PX))
+            & (rows["rear_m"] < LEAD_MAX_RANGE_M))
     rows["true_lead"] = np.zeros(n, dtype=bool)
     for f in np.unique(rows["frame"][cand]):
         c = np.flatnonzero(cand & (rows["frame"] == f))
-        rows["true_lead"][c[np.argmin(rows["rear_m"][c])]] = True
+        lead = c[np.argmin(rows["rear_m"][c])]
+        rows["true_lead"][lead] = rows["box_h_px"][lead] >= MIN_BOX_PX
     return rows
 
 

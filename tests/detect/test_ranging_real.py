@@ -156,12 +156,13 @@ def test_range_rate_and_lead_on_labelled_sequences(kitti_tracking_dir):
     # Issue 5 asks a lead range-rate RMSE <= 0.5 m/s: reached where one car is followed
     # (0005 0.24, 0010 0.39), not overall: the lead by label is often a parked or turning car
     # briefly straight ahead on a bend or a crest (0007 #59/#60, 0000, 0001) and a range
-    # 10 % short scales the rate (0009). Measured at f5df590: lead RMSE 0.91, median
-    # 0.27 m/s, range 6.1 %, the labelled lead marked is_lead on 96 % of its frames.
+    # 10 % short scales the rate (0009). Measured at f5df590: lead RMSE 0.92, median
+    # 0.26 m/s, range 6.0 %, the labelled lead marked is_lead on 98 % of its frames (the
+    # misses: cars whose labelled centre sits near the lane line, |X| ~ 1.7-1.9 m).
     assert f["lead_rmse"] < 1.0
-    assert f["lead_med"] < 0.32
+    assert f["lead_med"] < 0.30
     assert f["lead_range_rel"] < 0.07
-    assert f["lead_same"] > 0.94
+    assert f["lead_same"] > 0.96
     assert f["lead_any"] > 0.97  # measured 99 %
     # All vehicles below 40 m: median 0.77, p90 3.68 m/s; the RMSE (11.8 m/s) is 95 % three
     # diverged tracks (0001 #28-30, parked 23 m to the right, cut by the image border:
