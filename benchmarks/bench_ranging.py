@@ -1,7 +1,7 @@
 """Accuracy and speed of monocular ranging (issue 5), printed as a table.
 
     python benchmarks/bench_ranging.py [--clips 6] [--seconds 30] [--kitti] [--kitti-rate]
-                                       [--video]
+                                       [--video] [--parked]
 
 1. Synthetic clips with known truth (generated here): a pitched dash-cam whose camera file
    says "level", body pitch on the suspension and braking nose-dives, a road that is not a
@@ -18,6 +18,11 @@
    share of lead frames where the labelled lead is the one marked ``is_lead``.
 4. ``--video``: wall time of ``vid2sim track`` on ``../shared/data/kitti_raw_0001/video.mp4``.
 5. Speed of ``range_tracks`` alone, in boxes per second.
+
+``--parked``: range RATE through the real detector on ``kitti_raw_0001/video.mp4``: the parked
+cars' rates against the exact rate of a static object from the OXTS speed and yaw rate, per
+range bin and per track, their ranges against the odometry, with detect_every 1 and 2 (the
+truth lives in tests/detect/parked.py, shared with tests/detect/test_ranging_parked.py).
 """
 
 from __future__ import annotations
@@ -428,6 +433,27 @@ def bench_video() -> None:
         print(f"vid2sim track on KITTI raw 0001: {time.perf_counter() - t0:.1f} s\n{summary}")
 
 
+def bench_parked() -> None:
+    """Range rate of the parked cars of KITTI raw 0001 through the real detector, tracker and
+    ranging, against the OXTS ego motion (the truth and the table live in
+    tests/detect/parked.py, shared with tests/detect/test_ranging_parked.py)."""
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from tests.detect.parked import ego_motion, evaluate_parked, run_pipeline
+
+    raw, models = SHARED / "data" / "kitti_raw_0001", SHARED / "models"
+    if not raw.exists() or not models.exists():
+        print(f"KITTI raw 0001 or the detector weights not found under {SHARED}: skipped")
+        return
+    motion = ego_motion(raw)
+    for every in (1, 2):
+        t0 = time.perf_counter()
+        result, camera = run_pipeline(raw, models, detect_every=every)
+        label = f"KITTI raw 0001, detect_every={every} ({time.perf_counter() - t0:.0f} s)"
+        print(evaluate_parked(result, camera, motion).report(label))
+
+
 def bench_speed() -> None:
     boxes = []
     for seed in range(4):
@@ -449,6 +475,8 @@ def main() -> None:
     ap.add_argument("--kitti-rate", action="store_true",
                     help="only the range rate on the KITTI labelled boxes as 10 Hz tracks")
     ap.add_argument("--video", action="store_true", help="also vid2sim track on KITTI raw")
+    ap.add_argument("--parked", action="store_true",
+                    help="also range rate of KITTI raw 0001's parked cars vs the OXTS")
     args = ap.parse_args()
     if args.kitti_rate:
         bench_kitti_rate()
@@ -460,6 +488,8 @@ def main() -> None:
         bench_kitti()
     if args.video:
         bench_video()
+    if args.parked:
+        bench_parked()
 
 
 if __name__ == "__main__":
