@@ -58,11 +58,14 @@ def _random_profile(rng, duration_s: float, dt: float, x0: float, lo: float, hi:
     return x, v
 
 
-def _car_size(rng) -> tuple[float, float]:
-    """Width and length [m] of a passenger car drawn from the fleet: body widths 1.60-1.90 m
-    about a 1.75 m mean, lengths 3.6-5.0 m (see DEFAULT_PRIORS in ranging.py)."""
+def _car_size(rng) -> tuple[float, float, float]:
+    """Width, length and height [m] of a passenger car drawn from the fleet: body widths
+    1.60-1.90 m about a 1.75 m mean, lengths 3.6-5.0 m, heights 1.40 m (saloons) to 1.75 m
+    (SUVs) about 1.52 m (see DEFAULT_PRIORS in ranging.py; the draws are independent of the
+    priors' exact means so that no cue is exact by construction)."""
     return (float(np.clip(rng.normal(1.75, 0.12), 1.55, 2.0)),
-            float(np.clip(rng.normal(4.4, 0.45), 3.5, 5.2)))
+            float(np.clip(rng.normal(4.4, 0.45), 3.5, 5.2)),
+            float(np.clip(rng.normal(1.52, 0.10), 1.35, 1.85)))
 
 
 def road_height_m(x_m: float, y_m: float, grade_change: float, grade_start_m: float) -> float:
@@ -88,15 +91,15 @@ def synthetic_clip(seed: int, duration_s: float = 30.0, dt: float = 0.1, flat: b
     vehicles = []  # (id, x[n], y[n], v[n], W, L, H, category)
     x_lead, v_lead = _random_profile(rng, duration_s, dt, float(rng.uniform(20, 40)), 20, 70)
     x, v = x_lead, v_lead
-    vehicles.append((1, x, np.full(n, rng.normal(0, 0.3)), v, *_car_size(rng), 1.5, "car"))
+    vehicles.append((1, x, np.full(n, rng.normal(0, 0.3)), v, *_car_size(rng), "car"))
     tid = 2
     for lane_y in (3.6, -3.6, 7.2):
         for _ in range(2):
             x, v = _random_profile(rng, duration_s, dt, float(rng.uniform(10, 70)), 6, 90)
             truck = rng.random() < 0.25
-            w_m, l_m = (2.5, 10.0) if truck else _car_size(rng)
+            w_m, l_m, h_m = (2.5, 10.0, float(rng.uniform(3.0, 4.0))) if truck else _car_size(rng)
             vehicles.append((tid, x, np.full(n, lane_y + rng.normal(0, 0.3)), v, w_m, l_m,
-                             3.4 if truck else 1.5, "truck" if truck else "car"))
+                             h_m, "truck" if truck else "car"))
             tid += 1
     # A cut-in from the right at a random time, ending in the ego lane.
     t_cut = int(rng.uniform(0.3, 0.7) * n)
@@ -108,7 +111,7 @@ def synthetic_clip(seed: int, duration_s: float = 30.0, dt: float = 0.1, flat: b
     gap = 11.0 + 4.0 * np.sin(w * t_all + phase)
     gap_rate = 4.0 * w * np.cos(w * t_all + phase)
     x, v = x_lead - gap, v_lead - gap_rate
-    vehicles.append((tid, x, y_cut, v, *_car_size(rng), 1.5, "car"))
+    vehicles.append((tid, x, y_cut, v, *_car_size(rng), "car"))
     grade_change = 0.0 if flat else float(rng.normal(0, 0.02))
     grade_start_m = float(rng.uniform(15, 60))
 

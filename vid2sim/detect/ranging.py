@@ -232,12 +232,13 @@ class BoxFit:
     range_m: np.ndarray
     lateral_m: np.ndarray
     width_m: np.ndarray
-    cov: np.ndarray  # (N, 5, 5) over (log range, lateral, width, height, length)
+    cov: np.ndarray  # (N, 6, 6) over (log range, lateral, width, height, length, row offset)
     cov_white: np.ndarray  # the part of ``cov`` that is independent from frame to frame
     ground_ok: np.ndarray
     width_ok: np.ndarray
     valid: np.ndarray
     length_m: np.ndarray
+    height_m: np.ndarray
 
     @property
     def range_var_m2(self) -> np.ndarray:
@@ -250,6 +251,10 @@ class BoxFit:
     @property
     def width_var_m2(self) -> np.ndarray:
         return self.cov[:, 2, 2]
+
+    @property
+    def height_var_m2(self) -> np.ndarray:
+        return self.cov[:, 3, 3]
 
     @property
     def range_lateral_cov_m2(self) -> np.ndarray:
@@ -315,7 +320,6 @@ def fit_boxes(camera: Camera, ba: BoxArrays, width_m: np.ndarray, width_std_m: n
     jitter_px = camera.fy * math.tan(math.radians(config.horizon_jitter_deg))
     sig_u = config.edge_noise_px + config.edge_noise_frac * bw
     pix_v = config.edge_noise_px + config.edge_noise_frac * bh
-    sig_v = np.hypot(pix_v, jitter_px)
     ground_ok = (~ba.cut_bottom) & (ba.y2 > horizon + config.min_ground_margin_px)
     if not use_ground:
         ground_ok = np.zeros(n, dtype=bool)
@@ -336,16 +340,18 @@ def fit_boxes(camera: Camera, ba: BoxArrays, width_m: np.ndarray, width_std_m: n
     # is usable, not the width cue's: a turned vehicle's wide box would say "near" and so
     # blur the very cue that has to range it).
     road_std = config.road_height_std_m if road_height_std_m is None else road_height_std_m
-    sig_bottom = np.hypot(sig_v, camera.fy * road_std / rng0)
-    # The roof stands on the same road: a road dz off the plane moves the top edge as far
-    # as the bottom one, so the top edge is no cue to the range through the camera height
-    # either (only the box height is, with the height prior).
-    sig_top = np.hypot(sig_v, camera.fy * road_std / rng0)
-    sig = np.stack([sig_u, sig_top, sig_u, sig_bottom], axis=1)
-    # The top edge is a (weak) cue only with the bottom edge beside it: box height against
-    # the height prior. A car's roof sits near the camera's own height, i.e. near the
+    # The body's pitch jitter and the road's height under the vehicle move the top and the
+    # bottom edge together: one vertical offset per box [px], a sixth unknown with that
+    # prior, and each edge keeps only its own pixel noise. The box height (top to bottom)
+    # is then a clean cue against the vehicle's height, the bottom edge against the horizon
+    # is as blurred by the offset as before (Z = f H / (y_bottom - y_horizon)).
+    road_px = camera.fy * road_std / rng0
+    sig_off = np.hypot(jitter_px, road_px)
+    sig = np.stack([sig_u, pix_v, sig_u, pix_v], axis=1)
+    # The top edge is a cue only with the bottom edge beside it (box height against the
+    # vehicle's height): a car's roof sits near the camera's own height, i.e. near the
     # horizon, so alone it would say little about range.
-    use = np.stack([~ba.cut_left, height_ok, ~ba.cut_right, ground_ok], axis=1)
+    use = np.stack([~ba.cut_left, height_ok & ground_ok, ~ba.cut_right, ground_ok], axis=1)
     rays = camera.pixel_rays_veh(np.column_stack(((ba.x1 + ba.x2) / 2, np.full(n, horizon))))
     lat0 = rays[:, 1] / np.maximum(rays[:, 0], 1e-6) * (rng0 + length_m / 2)
     if length_std_m is None:
@@ -356,10 +362,10 @@ def fit_boxes(camera: Camera, ba: BoxArrays, width_m: np.ndarray, width_std_m: n
     w_init = width_m.copy()
     if ground_ok.any():
         w_init = np.where(g, np.clip(bw * rng0 / f, width_m, 3.0 * width_m), width_m)
-    theta = np.column_stack((np.log(rng0), lat0, w_init, prior_h, length_m))
-    prior_mean = np.column_stack((width_m, prior_h, length_m))
-    prior_std = np.column_stack((width_std_m, prior_h_std, length_std_m))
-    n_par = 5
+    theta = np.column_stack((np.log(rng0), lat0, w_init, prior_h, length_m, np.zeros(n)))
+    prior_mean = np.column_stack((width_m, prior_h, length_m, np.zeros(n)))
+    prior_std = np.column_stack((width_std_m, prior_h_std, length_std_m, sig_off))
+    n_par = 6
     steps = np.full(n_par, 1e-3)
 
     # Apparent width is heavy-tailed upwards: a vehicle turned away from the ego axis (at a
@@ -378,14 +384,16 @@ def fit_boxes(camera: Camera, ba: BoxArrays, width_m: np.ndarray, width_std_m: n
     def residuals(th: np.ndarray, i: np.ndarray) -> np.ndarray:
         pred = _predict_edges(camera, np.exp(th[:, 0]), th[:, 1], th[:, 2], th[:, 3],
                               th[:, 4])
+        pred[:, 1] += th[:, 5]
+        pred[:, 3] += th[:, 5]
         r_edges = np.where(use[i], (obs[i] - pred) / sig[i], 0.0)
-        r_prior = (prior_mean[i] - th[:, 2:5]) / prior_std[i]
+        r_prior = (prior_mean[i] - th[:, 2:6]) / prior_std[i]
         r_prior[:, 0] *= np.sqrt(w_prior_weight[i])
         return np.nan_to_num(np.concatenate([r_edges, r_prior], axis=1), nan=0.0)
 
     def jacobian(th: np.ndarray, i: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         r0 = residuals(th, i)
-        jac = np.zeros((len(i), 4 + 3, n_par))
+        jac = np.zeros((len(i), 4 + 4, n_par))
         for k in range(n_par):
             th_k = th.copy()
             th_k[:, k] += steps[k]
@@ -420,17 +428,17 @@ def fit_boxes(camera: Camera, ba: BoxArrays, width_m: np.ndarray, width_std_m: n
     # cov (J^T D J) cov with D the white share of each (scaled) residual's variance.
     # The body pitch is not white: it lasts about half a second, so it enters with the
     # inflation factor that gives its slow part the right weight in the filter.
-    d = np.ones((n, 4 + 3))
-    v_eff = pix_v ** 2 + pitch_noise_inflation * jitter_px ** 2
-    d[:, 1] = v_eff / sig_top ** 2
-    d[:, 3] = v_eff / sig_bottom ** 2
-    d[:, 4:] = 0.0
+    d = np.ones((n, 4 + 4))
+    d[:, 4:7] = 0.0  # size priors: common to the track
+    d[:, 7] = pitch_noise_inflation * jitter_px ** 2 / sig_off ** 2  # road height: common
     cov_white = cov @ np.einsum("nik,ni,nil->nkl", jac, d, jac) @ cov
     rng = np.exp(theta[:, 0])
-    # Unobservable range: the log-range spread stays near what the priors alone allow.
-    valid = (np.sqrt(np.maximum(cov[:, 0, 0], 0)) < 0.5) & np.isfinite(rng)
+    # Unobservable range: the log-range spread stays near what the priors alone allow, or
+    # the fit ran onto its range bounds (weak cues that disagree have no interior optimum).
+    on_bound = (theta[:, 0] <= 1e-6) | (theta[:, 0] >= math.log(3 * config.max_range_m) - 1e-6)
+    valid = (np.sqrt(np.maximum(cov[:, 0, 0], 0)) < 0.5) & np.isfinite(rng) & ~on_bound
     return BoxFit(rng, theta[:, 1], theta[:, 2], cov, cov_white, ground_ok, width_ok, valid,
-                  theta[:, 4])
+                  theta[:, 4], theta[:, 3])
 
 
 def colored_noise_factor(dt_s: float, correlation_s: float) -> float:
@@ -767,6 +775,28 @@ def frame_horizon_offsets(boxes: list[TrackedBox], camera: Camera, ba: BoxArrays
     return np.clip(out, -5 * jitter_px, 5 * jitter_px)
 
 
+def _size_from_track(values_m: np.ndarray, var_m2: np.ndarray, white_var_m2: np.ndarray,
+                     prior_m: float, prior_std_m: float) -> tuple[float, float]:
+    """A vehicle's size from its track's single-frame fits and the class prior.
+
+    The frames' weighted mean has the white (pixel) part of their variance shrinking with
+    the number of frames but the common part (road height under the vehicle, horizon) only
+    once: a sag ahead that makes every frame read the car narrower is one error, not many.
+    The result is the Gaussian product of that mean with the class prior.
+    """
+    if not values_m.size:
+        return prior_m, prior_std_m
+    var = np.maximum(var_m2, 1e-6)
+    white = np.clip(white_var_m2, 0.0, var)
+    wts = 1.0 / var
+    mean = float(np.sum(wts * values_m) / np.sum(wts))
+    common = float(np.sum(wts * (var - white)) / np.sum(wts))
+    mean_var = common + 1.0 / float(np.sum(1.0 / np.maximum(white, 1e-6)))
+    info = 1.0 / prior_std_m ** 2 + 1.0 / mean_var
+    est = (prior_m / prior_std_m ** 2 + mean / mean_var) / info
+    return est, math.sqrt(1.0 / info)
+
+
 # --------------------------------------------------------------------------- main entry
 
 
@@ -816,14 +846,19 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
     l0_std = np.array([p.length_std_m for p in priors])
     track_ids = np.array([b.track_id for b in boxes])
 
-    # 1) Each track's own width: fit with a loose width prior on frames where the ground cue
-    # is sharp and no side is cut, then combine with the class prior (Gaussian product).
-    loose = fit_boxes(cam, ba, w0, np.full(len(boxes), 1.0), h0, h0_std, l0, config,
-                      length_std_m=l0_std)
+    # 1) Each track's own width and height: fit with loose size priors on frames where the
+    # ground cue is sharp and no side is cut, then combine with the class prior (Gaussian
+    # product). Once known, the box's width and height follow the range frame by frame
+    # with nothing but pixel noise: the cues that make the range rate.
+    loose = fit_boxes(cam, ba, w0, np.full(len(boxes), 1.0), h0, np.full(len(boxes), 1.0),
+                      l0, config, length_std_m=l0_std)
     learn = (loose.valid & loose.ground_ok & loose.width_ok
              & (loose.range_m < config.width_learning_max_range_m))
+    learn_h = learn & ~(ba.cut_top | ba.cut_bottom)
     w_track = w0.copy()
     w_track_std = w0_std.copy()
+    h_track = h0.copy()
+    h_track_std = h0_std.copy()
     road_std = np.full(len(boxes), config.road_height_std_m)
     width_by_track: dict[int, float] = {}
     order = np.argsort(track_ids, kind="stable")
@@ -832,15 +867,12 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
         tid = int(track_ids[members[0]])
         m = members[learn[members]]
         prior_w, prior_sd = w0[members[0]], w0_std[members[0]]
-        info, mean_info = 1.0 / prior_sd ** 2, prior_w / prior_sd ** 2
-        if m.size:
-            var = np.maximum(loose.width_var_m2[m], 1e-4)
-            # Frames of one track share the horizon error: count at most ~10 independent
-            # looks, or the width would claim more certainty than the geometry holds.
-            scale = max(1.0, m.size / 10.0)
-            info += float(np.sum(1.0 / (var * scale)))
-            mean_info += float(np.sum(loose.width_m[m] / (var * scale)))
-        w_est, w_sd = mean_info / info, math.sqrt(1.0 / info)
+        w_est, w_sd = _size_from_track(loose.width_m[m], loose.width_var_m2[m],
+                                       loose.cov_white[m, 2, 2], prior_w, prior_sd)
+        mh = members[learn_h[members]]
+        h_track[members], h_track_std[members] = _size_from_track(
+            loose.height_m[mh], loose.height_var_m2[mh], loose.cov_white[mh, 3, 3],
+            h0[members[0]], h0_std[members[0]])
         if w_est < prior_w - 4.0 * prior_sd:
             # No vehicle of the class is that narrow (4 sigma: 1.27 m for a car; partial
             # occlusion, which also narrows a box, rarely goes that far for a whole track):
@@ -852,14 +884,16 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
             road_std[members] = max(config.road_height_std_m,
                                     cam.height_m * abs(prior_w / max(w_est, 0.1) - 1.0))
             w_est, w_sd = prior_w, prior_sd
+            # Its height was read off the same misleading ground cue.
+            h_track[members], h_track_std[members] = h0[members[0]], h0_std[members[0]]
         w_track[members], w_track_std[members] = w_est, w_sd
         width_by_track[tid] = round(w_est, 3)
 
     # 2) Per-frame horizon offset (body pitch), then the final per-frame fit.
     frame_offset_px = np.zeros(len(boxes))
     if config.per_frame_pitch:
-        frame_offset_px = frame_horizon_offsets(boxes, cam, ba, loose, w_track, h0, l0, config,
-                                                l0_std)
+        frame_offset_px = frame_horizon_offsets(boxes, cam, ba, loose, w_track, h_track, l0,
+                                                config, l0_std)
         if np.any(frame_offset_px != 0):
             ba = BoxArrays(ba.x1, ba.y1 - frame_offset_px, ba.x2, ba.y2 - frame_offset_px,
                            ba.cut_left, ba.cut_right, ba.cut_top, ba.cut_bottom)
@@ -871,7 +905,7 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
         if t_m.size > 1:
             inflation[members] = colored_noise_factor(float(np.median(np.diff(t_m))),
                                                       config.body_pitch_correlation_s)
-    fit = fit_boxes(cam, ba, w_track, w_track_std, h0, h0_std, l0, config,
+    fit = fit_boxes(cam, ba, w_track, w_track_std, h_track, h_track_std, l0, config,
                     length_std_m=l0_std, pitch_noise_inflation=inflation,
                     road_height_std_m=road_std)
     if (~fit.valid).any():
