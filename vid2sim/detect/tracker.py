@@ -524,7 +524,8 @@ class Tracker:
         # tenth) has left the view: no box may revive it.
         self._tracks = [t for t in self._tracks if not (
             t.state == "lost"
-            and t.closing_rate_per_s * (t_s - t.last_seen_t_s) >= PASSED_CLOSING)]
+            and (t.closing_rate_per_s * (t_s - t.last_seen_t_s) >= PASSED_CLOSING
+                 or self._left_through_side(t)))]
 
         def iou_stages(high: list[Detection], low: list[Detection]):
             confirmed = [t for t in self._tracks
@@ -618,6 +619,20 @@ class Tracker:
         return out
 
     # ----------------------------------------------------------------- internals
+
+    def _left_through_side(self, track: _Track) -> bool:
+        """A lost track last seen cut by the left or right border whose predicted centre
+        has since moved out of the image: the vehicle left the view at the side (passed or
+        turned away), and a box that appears later is another vehicle."""
+        if self.image_size_px is None:
+            return False
+        cut = border_cut(track.last_box_px[None, :], self.image_size_px,
+                         self.config.border_margin_px)[0]
+        if not (cut[0] or cut[2]):
+            return False
+        box = track.kf.box_px
+        centre = 0.5 * (box[0] + box[2])
+        return bool(centre < 0 or centre > self.image_size_px[0])
 
     @staticmethod
     def _associate(tracks: list[_Track], dets: list[Detection], min_iou: float):
