@@ -92,6 +92,10 @@ class RangingConfig:
         wheels [m]: cross-fall (2.5 % over a lane is 0.09 m), crests, sags and kerbs. It
         caps the ground cue's accuracy at about road_height_std_m / camera height in
         relative range at any distance.
+    road_height_std_per_lateral_m : float
+        Growth of that spread per metre of lateral offset beyond the ego lane [m/m]: a
+        crowned road falls 2-3 % to the gutter, and a parking strip or a kerb adds 0.1-0.15 m,
+        so the ground under a car parked 8 m to the side is known to about 0.2 m.
     fleet_width_mean_std_m : float
         How far the mean car width of the fleet in a video may lie from the prior's mean
         [m]: regions and model years differ by a few centimetres, and boxes that take the
@@ -151,6 +155,7 @@ class RangingConfig:
     edge_noise_px: float = 1.0
     edge_noise_frac: float = 0.02
     road_height_std_m: float = 0.10
+    road_height_std_per_lateral_m: float = 0.03
     fleet_width_mean_std_m: float = 0.08
     horizon_jitter_deg: float = 0.15
     camera_pitch_std_deg: float | None = None
@@ -340,6 +345,12 @@ def fit_boxes(camera: Camera, ba: BoxArrays, width_m: np.ndarray, width_std_m: n
     # is usable, not the width cue's: a turned vehicle's wide box would say "near" and so
     # blur the very cue that has to range it).
     road_std = config.road_height_std_m if road_height_std_m is None else road_height_std_m
+    rays = camera.pixel_rays_veh(np.column_stack(((ba.x1 + ba.x2) / 2, np.full(n, horizon))))
+    lat0 = rays[:, 1] / np.maximum(rays[:, 0], 1e-6) * (rng0 + length_m / 2)
+    # Away from the ego's lane the ego's road plane says less about the ground: cross-fall
+    # (2-3 % from the crown), gutters, kerbs and parking strips.
+    beyond = np.maximum(np.abs(lat0) - config.lane_width_m / 2, 0.0)
+    road_std = np.hypot(road_std, config.road_height_std_per_lateral_m * beyond)
     # The body's pitch jitter and the road's height under the vehicle move the top and the
     # bottom edge together: one vertical offset per box [px], a sixth unknown with that
     # prior, and each edge keeps only its own pixel noise. The box height (top to bottom)
@@ -352,8 +363,6 @@ def fit_boxes(camera: Camera, ba: BoxArrays, width_m: np.ndarray, width_std_m: n
     # vehicle's height): a car's roof sits near the camera's own height, i.e. near the
     # horizon, so alone it would say little about range.
     use = np.stack([~ba.cut_left, height_ok & ground_ok, ~ba.cut_right, ground_ok], axis=1)
-    rays = camera.pixel_rays_veh(np.column_stack(((ba.x1 + ba.x2) / 2, np.full(n, horizon))))
-    lat0 = rays[:, 1] / np.maximum(rays[:, 0], 1e-6) * (rng0 + length_m / 2)
     if length_std_m is None:
         length_std_m = np.full(n, 1e-4)
     # Width: what the box says at the ground cue's range (at least the prior), so that the
