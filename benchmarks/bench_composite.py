@@ -99,8 +99,7 @@ def run_clip(car: str, seed: int, raw_dir: Path, tracking_dir: Path, model_dir: 
                                      info.height)
     result, _, _ = detect_and_range(clip.video, camera, detector=None, detections=dets,
                                     progress=False)
-    vis_boxes = [cp.truth_box(cutout, cam, float(r), float(y), cutout.visible_width_m)
-                 for cam, r, y in zip(clip.cameras, truth.range_m, truth.lateral_m, strict=True)]
+    vis_boxes = clip.boxes_px  # the pasted outline's projection in each frame
     score = cp.score_lead(result.boxes, truth, vis_boxes)
     recall = np.mean([tb is not None and any(cp.box_iou(d.box_px, tb) >= 0.5
                                              for d in dets.get(i, []))

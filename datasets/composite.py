@@ -7,17 +7,26 @@ chosen trajectory. The truth of every frame (range of the rear, lateral offset o
 range rate) is therefore exact, while the background, the road, the camera and the vehicle's
 pixels are all real: the closest stand-in for a recorded clip with lidar range to a lead.
 
-Geometry of the paste. The car's rear face is a plane facing the camera, so between the source
-and the target camera it maps by a similarity: scale ``s = (f_target / f_source) * (Z_source /
+Geometry of the paste. The car's rear is a plane facing the camera, so between the source and
+the target camera it maps by a similarity: scale ``s = (f_target / f_source) * (Z_source /
 z_target)`` (``Z_source`` the depth of the rear face in the source camera from the label,
-``z_target`` its depth at the chosen range) and a shift that puts the projected bottom centre of
-the rear face (source: label through KITTI's ``P2``; target: :meth:`Camera.project` of the road
-point below the rear) on top of each other. So the rear face lands exactly where the target
-camera projects the 3D box. What the similarity cannot reproduce: the strip of roof that shows
-above the rear window depends on the height of each camera above the car (a few pixels at 8 m,
-under one beyond 20 m), and the side a laterally offset car shows (none within the +-0.4 m of the
-lead trajectories: a side shows only once |lateral| > width / 2). The crop is therefore cut to
-the columns of the rear face: the flank a source car shows from a neighbouring lane is not pasted.
+``z_target`` its depth at the chosen range; horizontally corrected for the few degrees the source
+car is turned, :attr:`CarCutout.face_scale`) and a shift that puts the bottom centre of the rear
+(source: the middle of the car's outline on the row where the label's rear face, through
+KITTI's ``P2``, meets the road; target: :meth:`Camera.project` of the road point below the
+middle of the rear) on top of each other. So the rear lands where the target camera projects
+it. What the similarity cannot reproduce: the strip of roof that shows above the rear window
+depends on the height of each camera above the car (a few pixels at 8 m, under one beyond
+20 m), and the side a laterally offset car shows (none within the +-0.4 m of the lead
+trajectories: a side shows only once |lateral| > width / 2). The crop is therefore cut to the
+columns of the car's rear: the flank a source car shows from a neighbouring lane is not pasted.
+
+What the pasted car is not. Its outline is the rear alone, 1.45 m wide for the car at hand,
+narrower than its label's 1.57 m box (which takes in the flanks at the wheel arches) and without
+mirrors, so its box is narrower than a real car's of the same model seen from behind. The source
+car stood in the shade of a wall: it is darker than the sunlit cars of the drive, and it casts
+no shadow on the road. The detector's scores on it match those of real KITTI cars of the same box
+height (see ``benchmarks/bench_composite.py``).
 
 Body pitch. The ego body pitches on its suspension and with the road, and every real object in
 the video moves with it. The target camera of each frame gets the OXTS pitch of that frame
@@ -559,7 +568,8 @@ def write_composite_clip(raw_dir: Path, cutout: CarCutout, truth: LeadTruth, out
     Frames are read, pasted and written one at a time; the video goes to a hidden temporary
     file beside ``out_path`` renamed over it when complete, and ``<out_path>.truth.json``
     (per frame: t_s, range_m, lateral_m, range_rate_mps, rel_accel_mps2, box_px) is written
-    atomically after it.
+    atomically after it. ``box_px`` is the box of the pasted outline: :func:`truth_box` with
+    the cut-out's visible width, in the frame's pitched camera.
 
     Parameters
     ----------
@@ -596,7 +606,7 @@ def write_composite_clip(raw_dir: Path, cutout: CarCutout, truth: LeadTruth, out
                 raise InputError(video, f"video ends at frame {i}, truth has {n_frames}")
             r, y = float(truth.range_m[i]), float(truth.lateral_m[i])
             writer.write(paste_car(frame, cutout, cams[i], r, y))
-            boxes.append(truth_box(cutout, cams[i], r, y))
+            boxes.append(truth_box(cutout, cams[i], r, y, cutout.visible_width_m))
     except BaseException:
         writer.release()
         tmp.unlink(missing_ok=True)

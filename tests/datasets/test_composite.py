@@ -157,18 +157,21 @@ def e2e(kitti_raw_dir, kitti_tracking_dir, model_dir, polo, tmp_path_factory):
                                      info.height)
     detector = load_detector("yolox-nano", model_dir, score_threshold=TrackerConfig().low_score)
     result, _, _ = detect_and_range(clip.video, camera, detector=detector, progress=False)
-    boxes = [cp.truth_box(polo, cam, float(r), float(y), polo.visible_width_m)
-             for cam, r, y in zip(clip.cameras, truth.range_m, truth.lateral_m, strict=True)]
-    return clip, info, result, cp.score_lead(result.boxes, truth, boxes)
+    return clip, info, result, cp.score_lead(result.boxes, truth, clip.boxes_px)
 
 
-def test_clip_is_written_whole_with_its_truth(e2e):
+def test_clip_is_written_whole_with_its_truth(e2e, polo):
     clip, info, _, _ = e2e
     assert info.n_frames == N_FRAMES and (info.width, info.height) == (1242, 374)
     assert not list(clip.video.parent.glob(".*partial*"))
     doc = json.loads(clip.truth_json.read_text(encoding="utf-8"))
     assert len(doc["frames"]) == N_FRAMES and doc["body_pitch_from_oxts"] is True
     assert doc["frames"][40]["range_m"] == pytest.approx(float(clip.truth.range_m[40]), 1e-5)
+    # Its box is the pasted outline's projection in that frame's pitched camera.
+    expect = cp.truth_box(polo, clip.cameras[40], float(clip.truth.range_m[40]),
+                          float(clip.truth.lateral_m[40]), polo.visible_width_m)
+    np.testing.assert_allclose(doc["frames"][40]["box_px"], expect, atol=0.01)
+    assert clip.cameras[40].pitch_deg != clip.cameras[41].pitch_deg  # the body pitch is in
 
 
 def test_real_detector_ranges_the_composited_lead(e2e):
