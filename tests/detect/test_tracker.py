@@ -136,9 +136,25 @@ def test_detect_every_carries_predicted_boxes_between_detections():
 
 
 def test_config_thresholds_are_used():
-    tracker = Tracker(TrackerConfig(new_track_score=0.95))
+    tracker = Tracker(TrackerConfig(new_track_score=0.95, weak_start_score=0.95))
     rows = run([[Detection(box(200, 200), 0.9, "car")] for _ in range(5)], tracker)
     assert rows == []
+
+
+def test_weak_detections_start_a_track_only_when_they_repeat():
+    # A small far car scores 0.3 frame after frame: a track once it was found on
+    # weak_confirm_hits detected frames in a row, with all its rows kept.
+    steady = run([[Detection(box(200 + k, 200), 0.3, "car")] for k in range(8)], Tracker())
+    assert {r.track_id for r in steady} == {1}
+    assert len(steady) == 8
+    # The same weak box on every other frame, or only three frames in a row: nothing.
+    flicker = run([[Detection(box(200, 200), 0.3, "car")] if k % 2 == 0 else []
+                   for k in range(10)], Tracker())
+    short = run([[Detection(box(200, 200), 0.3, "car")] if k < 3 else [] for k in range(8)],
+                Tracker())
+    assert flicker == [] and short == []
+    # Below weak_start_score nothing starts at all.
+    assert run([[Detection(box(200, 200), 0.2, "car")] for _ in range(8)], Tracker()) == []
 
 
 # --------------------------------------------------------------------------- forward camera

@@ -54,6 +54,11 @@ class TrackerConfig:
     :param high_score: detections at or above go to the first association stage
     :param low_score: detections below are ignored; between the two they go to stage two
     :param new_track_score: minimum score of an unmatched detection to start a track
+    :param weak_start_score: an unmatched weaker detection (at least this score) starts a
+        weak tentative track, which must then be found on ``weak_confirm_hits`` detected
+        frames in a row (a small, far vehicle scores 0.2-0.45 frame after frame; a false
+        detection of that score rarely repeats at the same place)
+    :param weak_confirm_hits: detections in a row that confirm a weak tentative track
     :param iou_high: minimum IoU to match a confident detection (stage one)
     :param iou_low: minimum IoU to match a weak detection (stage two; stricter because weak
         boxes are noisier)
@@ -88,6 +93,8 @@ class TrackerConfig:
     high_score: float = 0.45
     low_score: float = 0.1
     new_track_score: float = 0.5
+    weak_start_score: float = 0.25
+    weak_confirm_hits: int = 4
     iou_high: float = 0.2
     iou_low: float = 0.4
     iou_tentative: float = 0.3
@@ -433,6 +440,7 @@ class _Track:
     closing_rate_per_s: float = float("nan")  # own approach speed over range, from boxes
     drift_px_s: np.ndarray = field(default_factory=lambda: np.zeros(2))  # see expansion_cost
     hits: int = 1
+    weak: bool = False  # started from a weak detection: needs weak_confirm_hits in a row
     state: str = "tracked"  # "tracked" (matched last detected frame) or "lost"
     votes: dict[str, float] = field(default_factory=lambda: defaultdict(float))
 
@@ -544,15 +552,29 @@ class Tracker:
                 hit(remaining[ti], low[di])
             # Stage 3: tentative tracks get one chance with the leftover confident detections.
             left_high = [high[i] for i in free_high]
-            pairs, _, free_new = self._associate(tentative, left_high, cfg.iou_tentative)
+            pairs, free_tent, free_new = self._associate(tentative, left_high,
+                                                         cfg.iou_tentative)
             for ti, di in pairs:
                 hit(tentative[ti], left_high[di])
-            return [left_high[i] for i in free_new], [low[i] for i in free_low]
+            # Stage 4: weak tentative tracks also with the leftover weak detections.
+            weak_tracks = [tentative[i] for i in free_tent if tentative[i].weak]
+            left_low = [low[i] for i in free_low]
+            usable = [i for i, d in enumerate(left_low) if d.score >= cfg.weak_start_score]
+            pairs, _, _ = self._associate(weak_tracks, [left_low[i] for i in usable],
+                                          cfg.iou_tentative)
+            for ti, di in pairs:
+                hit(weak_tracks[ti], left_low[usable[di]])
+            used = {usable[di] for _, di in pairs}
+            return ([left_high[i] for i in free_new],
+                    [d for i, d in enumerate(left_low) if i not in used])
 
         def motion_stage(high: list[Detection], low: list[Detection]):
             # The ego-motion model (large image motion between sparse detections, or after a
             # gap); weak boxes again only for confirmed tracks seen on the previous frame.
-            unmatched = [t for t in self._tracks if id(t) not in matched]
+            # Weak tentative tracks only by IoU (stages 3-4): the motion model's wide gates
+            # would let them take boxes from the confirmed tracks they lie near.
+            unmatched = [t for t in self._tracks if id(t) not in matched
+                         and not (t.weak and t.track_id not in self._confirmed)]
             pairs, _, free_high, rate = self._associate_motion(unmatched, high, t_s)
             for ti, di in pairs:
                 hit(unmatched[ti], high[di], restart=True)
@@ -579,7 +601,7 @@ class Tracker:
                 continue
             if track.track_id in self._confirmed:
                 track.state = "lost"
-            elif t_s - track.born_t_s < cfg.sparse_interval_s:
+            elif track.weak or t_s - track.born_t_s < cfg.sparse_interval_s:
                 dead.add(id(track))
             else:
                 self._confirmed.add(track.track_id)
@@ -588,6 +610,10 @@ class Tracker:
         for det in left_high:
             if det.score >= cfg.new_track_score:
                 track = self._start(det, frame, t_s)
+                rows.append(self._row(track, frame, t_s, np.asarray(det.box_px), det.score))
+        for det in left_low + [d for d in left_high if d.score < cfg.new_track_score]:
+            if det.score >= cfg.weak_start_score:
+                track = self._start(det, frame, t_s, weak=True)
                 rows.append(self._row(track, frame, t_s, np.asarray(det.box_px), det.score))
         self._tracks = [t for t in self._tracks if id(t) not in dead
                         and t_s - t.last_seen_t_s <= cfg.max_lost_s]
@@ -603,7 +629,8 @@ class Tracker:
         ... in order of first appearance.
         """
         keep = set(self._confirmed)
-        keep |= {t.track_id for t in self._tracks if t.born_t_s == self._last_detect_t_s}
+        keep |= {t.track_id for t in self._tracks
+                 if t.born_t_s == self._last_detect_t_s and not t.weak}
         new_id: dict[int, int] = {}
         out = []
         for r in sorted(rows, key=lambda r: (r.frame, r.track_id)):
@@ -676,15 +703,15 @@ class Tracker:
         pairs, free_tracks, free_dets = best[1]
         return pairs, free_tracks, free_dets, best[2]
 
-    def _start(self, det: Detection, frame: int, t_s: float) -> _Track:
+    def _start(self, det: Detection, frame: int, t_s: float, weak: bool = False) -> _Track:
         box = np.asarray(det.box_px, dtype=float)
         track = _Track(track_id=self._next_id, kf=BoxKalman(box), frame=frame,
                        last_seen_t_s=t_s, score=det.score, last_box_px=box, last_seen_frame=frame,
-                       born_t_s=t_s)
+                       born_t_s=t_s, weak=weak)
         track.votes[det.category] += det.score
         self._next_id += 1
         self._hits[track.track_id] = 1
-        if self.config.min_hits <= 1:
+        if self.config.min_hits <= 1 and not weak:
             self._confirmed.add(track.track_id)
         self._votes[track.track_id] = track.votes
         self._tracks.append(track)
@@ -724,7 +751,8 @@ class Tracker:
         track.score = det.score
         track.votes[det.category] += det.score
         self._hits[track.track_id] += 1
-        if self._hits[track.track_id] >= self.config.min_hits:
+        need = self.config.weak_confirm_hits if track.weak else self.config.min_hits
+        if self._hits[track.track_id] >= need:
             self._confirmed.add(track.track_id)
         return self._row(track, frame, t_s, box, det.score)
 
