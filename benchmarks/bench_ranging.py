@@ -97,7 +97,9 @@ def synthetic_clip(seed: int, duration_s: float = 30.0, dt: float = 0.1, flat: b
         for _ in range(2):
             x, v = _random_profile(rng, duration_s, dt, float(rng.uniform(10, 70)), 6, 90)
             truck = rng.random() < 0.25
-            w_m, l_m, h_m = (2.5, 10.0, float(rng.uniform(3.0, 4.0))) if truck else _car_size(rng)
+            # Trucks: 2.55 m bodies (smaller ones 2.3 m), up to ~3 m across the mirrors.
+            w_m, l_m, h_m = ((float(rng.uniform(2.3, 3.0)), 10.0, float(rng.uniform(3.0, 4.0)))
+                             if truck else _car_size(rng))
             vehicles.append((tid, x, np.full(n, lane_y + rng.normal(0, 0.3)), v, w_m, l_m,
                              h_m, "truck" if truck else "car"))
             tid += 1

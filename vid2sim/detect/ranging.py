@@ -65,8 +65,8 @@ class VehiclePrior:
 DEFAULT_PRIORS: dict[str, VehiclePrior] = {
     "car": VehiclePrior(1.75, 0.12, 4.4, 1.50, 0.12, 0.45),
     "van": VehiclePrior(2.00, 0.12, 5.2, 2.10, 0.30, 0.6),
-    "truck": VehiclePrior(2.45, 0.12, 8.0, 3.20, 0.60, 2.0),
-    "bus": VehiclePrior(2.55, 0.06, 12.0, 3.10, 0.30, 2.0),
+    "truck": VehiclePrior(2.70, 0.20, 8.0, 3.20, 0.60, 2.0),
+    "bus": VehiclePrior(2.75, 0.15, 12.0, 3.10, 0.30, 2.0),
     "motorcycle": VehiclePrior(0.80, 0.15, 2.1, 1.40, 0.20, 0.2),
 }
 
