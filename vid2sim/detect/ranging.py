@@ -120,7 +120,13 @@ class RangingConfig:
         cue is sharp.
     accel_noise_grid_mps2 : tuple
         Candidate spectral densities of the longitudinal relative acceleration (white-noise
-        acceleration model) [m^2/s^3]; each track takes the most likely one.
+        acceleration model) [m^2/s^3]; each track takes the smallest one whose likelihood is
+        within ``accel_noise_margin_loglik`` of the most likely.
+    accel_noise_margin_loglik : float
+        A larger acceleration noise must raise the log-likelihood by more than this (2 is
+        the 95 % point of a likelihood-ratio test with one parameter, chi2/2 = 1.92):
+        errors of a track's range that drift slowly (cues whose weights change with range)
+        look like motion, and a filter left free to follow them makes a noisy range rate.
     lateral_accel_noise_mps2 : float
         The same for the lateral motion [m^2/s^3].
     initial_range_rate_std_mps : float
@@ -163,7 +169,8 @@ class RangingConfig:
     border_margin_px: float = 2.0
     min_ground_margin_px: float = 3.0
     width_learning_max_range_m: float = 40.0
-    accel_noise_grid_mps2: tuple[float, ...] = (0.05, 0.3, 1.5, 6.0)
+    accel_noise_grid_mps2: tuple[float, ...] = (0.05, 0.15, 0.4, 1.0, 2.5, 6.0)
+    accel_noise_margin_loglik: float = 2.0
     lateral_accel_noise_mps2: float = 0.3
     initial_range_rate_std_mps: float = 8.0
     lane_width_m: float = 3.6
@@ -705,16 +712,13 @@ def smooth_track_adaptive(t_s: np.ndarray, z: np.ndarray, r: np.ndarray, valid: 
                           config: RangingConfig) -> SmoothedTrack:
     """Run :func:`smooth_track` for each candidate acceleration noise and keep the one whose
     range innovations are the most likely (a calm follower and a hard braker need different
-    ones: maximum-likelihood choice of the process noise, as in adaptive Kalman filtering)."""
-    best: SmoothedTrack | None = None
-    for q in config.accel_noise_grid_mps2:
-        res = smooth_track(t_s, z, r, valid, q, config.lateral_accel_noise_mps2,
-                           config.initial_range_rate_std_mps,
-                           inverse=config.inverse_range_update)
-        if best is None or res.log_likelihood > best.log_likelihood + 1e-9:
-            best = res
-    assert best is not None
-    return best
+    ones: maximum-likelihood choice of the process noise, as in adaptive Kalman filtering),
+    preferring the calmer one unless the likelihood clearly says otherwise."""
+    fits = [smooth_track(t_s, z, r, valid, q, config.lateral_accel_noise_mps2,
+                         config.initial_range_rate_std_mps, inverse=config.inverse_range_update)
+            for q in sorted(config.accel_noise_grid_mps2)]
+    top = max(f.log_likelihood for f in fits)
+    return next(f for f in fits if f.log_likelihood >= top - config.accel_noise_margin_loglik)
 
 
 def frame_horizon_offsets(boxes: list[TrackedBox], camera: Camera, ba: BoxArrays,
