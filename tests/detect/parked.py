@@ -133,13 +133,16 @@ class ParkedRow:
     odo_range_m: float  # range of the track's median world point seen from this frame
 
 
-def select_static(boxes: list[RangedBox], min_boxes: int = 5, min_abs_lateral_m: float = 2.7
+def select_static(boxes: list[RangedBox], min_boxes: int = 5, min_abs_lateral_m: float = 4.5
                   ) -> tuple[list[int], dict[int, str]]:
     """Track ids taken as parked cars, and every other track with the reason it is left out.
 
-    Parked: category car, at least ``min_boxes`` boxes, and the median lateral offset outside
-    the ego lane by half a car (|lateral| > 1.8 + 0.9 m): a car ahead in the ego lane may move.
-    Nothing is dropped for disagreeing with the truth."""
+    Parked: category car, at least ``min_boxes`` boxes, and the median lateral offset beyond
+    the neighbouring lane's centre by half a car (|lateral| > 3.6 + 0.9 m): a car in the ego
+    lane or the next one may be driving (the weak-detection tracks also find one 45 m ahead
+    in the lane to the right, driving away at the ego's speed). Parked cars stand at the kerb
+    or in a car park, 6-22 m to the left in this drive. Nothing is dropped for disagreeing
+    with the truth."""
     by_track: dict[int, list[RangedBox]] = {}
     for b in boxes:
         by_track.setdefault(b.track_id, []).append(b)
@@ -151,7 +154,8 @@ def select_static(boxes: list[RangedBox], min_boxes: int = 5, min_abs_lateral_m:
         elif len(bs) < min_boxes:
             excluded[tid] = f"only {len(bs)} boxes"
         elif abs(lat) <= min_abs_lateral_m:
-            excluded[tid] = f"median lateral {lat:+.1f} m: in or next to the ego lane, may move"
+            excluded[tid] = (f"median lateral {lat:+.1f} m: in the ego lane or the next one, "
+                             "may be driving")
         else:
             keep.append(tid)
     return keep, excluded

@@ -1,16 +1,16 @@
 """Range RATE on real video with the real detector: the parked cars of KITTI raw 0001.
 
 The detector (YOLOX-nano), tracker and ranging run once on the 108 frames; every car track
-whose median lateral offset lies outside the ego lane is taken as parked (the tram is never
-detected as a vehicle; the one track in the ego lane, a car far ahead driving away, is left
-out and listed). For a static car the range rate is known exactly from the OXTS forward speed
+whose median lateral offset lies beyond the neighbouring lane is taken as parked (the tram is
+never detected as a vehicle; the tracks in the ego lane or the next one, cars far ahead
+driving away, are left out and listed). For a static car the range rate is known exactly from the OXTS forward speed
 and yaw rate (derivation in ``tests/detect/parked.py``), and its range must shrink by what the
 ego travels. A third truth, independent of every monocular cue, triangulates each car's outer
 rear corner from its bearings along the odometry path.
 
 ``pytest -s`` prints the table (per range bin, per track, overall). The asserts are regression
-bounds a little above what the pipeline measured at commit f5df590 (each bound says what was
-measured). What the figures show there:
+bounds a little above what the pipeline measured at commit e83fd4b (each bound says what was
+measured, and what it was at f5df590). What the figures showed at f5df590:
 - The row of cars parked on the left (~10 m lateral, tracks 1-9) stands 0.3-0.4 m below the
   ego's road plane (box bottoms against triangulated ranges give a camera height of 1.9-2.1 m
   instead of 1.65 m), so the ground cue reads 10-20 % short; per-track width learning then
@@ -24,6 +24,11 @@ measured). What the figures show there:
   their flanks: rates of the wrong sign, most of the 40+ m bin.
 - Track 7 switches to another car after frame ~35 (kept: nothing is dropped for
   disagreeing with the truth).
+Since then: the road's spread grows with lateral offset and sizes count their common error
+once (widths no longer lock in the ground cue's error), a track that left at the side is not
+revived (track 7), and weak detections start tracks, which adds 110 boxes of the car park
+behind the hedge, the hardest cars here: the rate figures below are over more and harder
+boxes than at f5df590.
 """
 
 from __future__ import annotations
@@ -103,35 +108,36 @@ def parked(kitti_raw_dir, model_dir) -> ParkedEvaluation:
 
 
 def test_parked_cars_found(parked):
-    # Measured: 13 parked tracks (9 in the row on the left, 4 in a car park behind a hedge),
-    # 1 left out (a car far ahead in the ego lane, driving away).
-    assert len(parked.keep) >= 11
-    assert len(parked.excluded) <= 2
-    assert len(parked.rows) >= 250  # measured 300 boxes
+    # Measured: 17 parked tracks (10 in the row on the left, 7 in a car park behind a hedge;
+    # 13 at f5df590, before weak detections started tracks), 2 left out (cars far ahead in
+    # the ego lane and the next, driving away).
+    assert len(parked.keep) >= 14
+    assert len(parked.excluded) <= 3
+    assert len(parked.rows) >= 350  # measured 411 boxes (300 at f5df590)
 
 
 def test_parked_car_range_rate(parked):
     err = rate_errors(parked.rows)
-    assert err["all"]["rmse"] < 6.2  # measured 5.55 m/s
-    assert err["all"]["mae"] < 3.7  # measured 3.25 m/s (median |error|)
-    assert err["0-20 m"]["mae"] < 3.7  # measured 3.22 m/s
-    assert err["20-40 m"]["mae"] < 3.6  # measured 3.10 m/s
-    assert err["40-inf m"]["mae"] < 10.0  # measured 8.31 m/s (car park behind a hedge)
+    assert err["all"]["rmse"] < 5.0  # measured 4.38 m/s (5.55 at f5df590)
+    assert err["all"]["mae"] < 2.8  # measured 2.39 m/s median |error| (3.25)
+    assert err["0-20 m"]["mae"] < 2.2  # measured 1.77 m/s (3.22)
+    assert err["20-40 m"]["mae"] < 3.0  # measured 2.57 m/s (3.10, fewer hedge cars)
+    assert err["40-inf m"]["mae"] < 4.0  # measured 3.29 m/s (8.31; car park behind a hedge)
     # Closing speed underestimated (truth about -10 to -13 m/s): the estimate is slower.
-    assert abs(err["all"]["bias"]) < 3.2  # measured +2.70 m/s
+    assert abs(err["all"]["bias"]) < 2.7  # measured +2.21 m/s (+2.70)
 
 
 def test_parked_car_range_consistency(parked):
     cons = range_consistency(parked.rows)
     scales = np.array([c["scale"] for c in cons.values()])
     # Slope of estimated vs odometry-predicted range per track: 1 if ranges shrink at the
-    # ego's speed. Measured median 0.65 (0.64-0.87 on the row on the left, ~1.1-1.6 on two
-    # tracks that start too far, about 0 or negative in the car park).
-    assert np.nanmedian(scales) > 0.55
+    # ego's speed. Measured median 0.80 (0.65 at f5df590; 0.72-1.13 on the row on the left,
+    # -0.7 to 0.4 in the car park but for one at 2.1).
+    assert np.nanmedian(scales) > 0.7
     res = np.abs([r.range_m - r.odo_range_m for r in parked.rows])
-    assert np.median(res) < 2.3  # measured 1.88 m
+    assert np.median(res) < 1.5  # measured 1.19 m (1.88)
     ratios = triangulation_ratios(parked.rows, parked.tri)
     # Estimated / triangulated range of the tracks with >= 10 deg of parallax: measured
-    # median 0.85 (0.76-0.92 on the row on the left, 1.15-1.4 on the two that start far).
-    assert len(ratios) >= 7  # measured 9
-    assert 0.75 < np.median(list(ratios.values())) < 1.1
+    # median 0.91 over 11 tracks (0.85 over 9 at f5df590).
+    assert len(ratios) >= 9
+    assert 0.85 < np.median(list(ratios.values())) < 1.1
