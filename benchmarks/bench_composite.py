@@ -12,23 +12,23 @@ ranging learnt for it against the pasted outline's width, and the horizon used. 
 recorded clip with lidar truth are: median |rel err| <= 8 %, rate RMSE <= 0.5 m/s, presence
 >= 95 %.
 
-Measured at e83fd4b (seeds 0-5, 108 frames each): lead range median |rel err| 4.6 % (bias
-+3.0 %), range-rate RMSE 1.05 m/s over all lead frames (per clip 0.32-0.91, and 2.26 on seed
-5), presence 92 %. At b5c7d87: 4.5 %, 0.94 m/s, 69 % (the lead frames then left out were
-mostly the far, hard ones). Why the bars are missed: (1) presence: beyond ~30 m (box < 35 px
-high) YOLOX-nano scores the car 0.15-0.47, like real KITTI cars of that size; weak tracks
-(score >= 0.25 on 4 frames in a row) now follow most of them, but seed 5's car scores
-0.14-0.25 for 4 s at 35-43 m and has no track then; (2) range: the ranging learns 1.63-1.67 m
-for a car whose rear outline is 1.45 m (prior 1.75 m), so the width cue reads long at short
-range (+6 % at 8-15 m, -1 % at 30-46 m); (3) rate: braking phases lag (RMSE 1.9 m/s, mean
-+1.0) and steady phases carry +0.6 m/s, where the range bias changes with range; the far
-braking of seed 5 (-3.8 m/s^2 at 44 m on weak boxes) alone is most of the pooled RMSE. The
-pasted car is harsher than a real one: narrow (no mirrors), shaded, no cast shadow, and its
-detector boxes jitter by 10-15 % of their width at 10-12 m. Without the OXTS body pitch
-(``--no-pitch``) the rate RMSE was 1.09 m/s at b5c7d87.
+Measured with the detector's centre window (seeds 0-5, 108 frames each): lead range median
+|rel err| 5.2 % (bias +5.0 %), range-rate RMSE 1.00 m/s over all lead frames (per clip
+0.42-1.01, and 1.83 on seed 5), presence 96 %. Before the centre window (e83fd4b): 4.6 %,
+1.05 m/s, 92 %; at b5c7d87: 4.5 %, 0.94 m/s, 69 % (the lead frames then left out were mostly
+the far, hard ones). Why the bars are missed: (1) presence: seed 5's car scores 0.14-0.25 in
+the full frame for 4 s at 35-43 m and the centre window does not always reach 0.5 there;
+(2) range: the ranging learns 1.59-1.64 m for a car whose rear outline is 1.45 m (prior
+1.75 m), so the width cue reads long; (3) rate: braking phases lag, a range bias that
+changes with range reads as rate, and seed 5's far braking (-3.8 m/s^2 at 44 m on weak
+boxes) is most of the pooled RMSE. The pasted car is harsher than a real one: narrow (no
+mirrors), shaded, no cast shadow, and its detector boxes jitter by 10-15 % of their width
+at 10-12 m. Without the OXTS body pitch (``--no-pitch``) the rate RMSE was 1.09 m/s at
+b5c7d87.
 
 Detector output of each clip is cached in ``--cache`` (default /tmp/composite/cache) keyed by
-car and seed, so re-runs only re-track and re-range; delete it after changing the compositing.
+car and seed, so re-runs only re-track and re-range; delete it after changing the compositing
+or the detector.
 """
 
 from __future__ import annotations

@@ -181,9 +181,10 @@ def test_real_detector_ranges_the_composited_lead(e2e):
     whose rear outline is 1.45 m (see benchmarks/bench_composite.py)."""
     _, _, _, score = e2e
     print(f"\ncomposite seed {E2E_SEED}: {score}")
-    # Measured at e83fd4b (0.041 and 0.46 m/s at b5c7d87, 0.056 and 0.45 at f5df590).
+    # Measured with the detector's centre window (0.054 and 0.32 m/s without it at e83fd4b,
+    # 0.041 and 0.46 at b5c7d87, 0.056 and 0.45 at f5df590).
     assert score.range_rel_err_median <= 0.07  # measured 0.054 (signed +0.054)
-    assert score.range_rate_rmse_mps <= 0.42  # measured 0.32
+    assert score.range_rate_rmse_mps <= 0.55  # measured 0.42
     assert score.presence >= 0.95  # measured 1.00
     assert score.wrong_lead_frames == 0  # measured 0: nothing else taken for the lead
     assert len(score.car_track_ids) == 1  # measured one track: no id switch

@@ -109,6 +109,11 @@ def test_tile_windows_cover_wide_frames_only():
     assert l0 == 0 and r1 == 1242
     assert l1 - l0 == r1 - r0 == round(621 * 1.1)
     assert l1 > r0  # the tiles overlap in the middle
+    # The centre window: a square of a third of the width (at most the height) about the
+    # image centre, where a forward camera sees the road ahead.
+    assert wins[3] == (433, 0, 808, 375)
+    assert tile_windows(1280, 720)[3] == (426, 146, 853, 573)
+    assert len(tile_windows(1242, 375, centre=False)) == 3
     assert tile_windows(640, 480) == [(0, 0, 640, 480)]
 
 
@@ -246,18 +251,23 @@ def test_tiles_map_boxes_back_and_drop_boxes_cut_by_a_tile_edge():
     det = _fake(YoloxDetector, None)
     det.small_object_mode = True
     image = np.zeros((375, 1242, 3), np.uint8)
-    (_, _, l_x2, _), (r_x1, _, _, _) = tile_windows(1242, 375)[1:]
+    (_, _, l_x2, _), (r_x1, _, _, _), (c_x1, _, c_x2, _) = tile_windows(1242, 375)[1:]
     r_tile = 416 / (l_x2 - 0)  # both tiles are wider than high: scale set by the width
+    r_centre = 416 / (c_x2 - c_x1)
     det.session = _PerCallSession([
         _yolox_output_with([]),                                   # full frame: nothing
         _yolox_output_with([(380.0, 100.0, 416.0, 130.0, 0.8)]),  # left tile: cut at its edge
         _yolox_output_with([(100.0, 100.0, 140.0, 124.0, 0.7)]),  # right tile: whole car
+        _yolox_output_with([(200.0, 150.0, 230.0, 170.0, 0.6),    # centre: a far car, and
+                            (50.0, 150.0, 70.0, 165.0, 0.4)]),    # a weak box: dropped there
     ])
-    (found,) = det.detect(image)
-    assert found.score == pytest.approx(0.7)
-    assert found.box_px == pytest.approx((r_x1 + 100 / r_tile, 100 / r_tile,
-                                          r_x1 + 140 / r_tile, 124 / r_tile), rel=1e-4)
-    assert len(det.session.inputs) == 3
+    found = det.detect(image)
+    assert [d.score for d in found] == pytest.approx([0.7, 0.6])
+    assert found[0].box_px == pytest.approx((r_x1 + 100 / r_tile, 100 / r_tile,
+                                             r_x1 + 140 / r_tile, 124 / r_tile), rel=1e-4)
+    assert found[1].box_px == pytest.approx((c_x1 + 200 / r_centre, 150 / r_centre,
+                                             c_x1 + 230 / r_centre, 170 / r_centre), rel=1e-4)
+    assert len(det.session.inputs) == 4
 
 
 def test_tiles_recover_small_cars(kitti_tracking_dir, model_dir):
