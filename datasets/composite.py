@@ -59,10 +59,12 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from vid2sim.camera import Camera, fit_camera_to_frames, load_camera
+from vid2sim.camera import Camera, fit_camera_to_frames, load_camera, parse_kitti_calib
 from vid2sim.detect.external import KittiLabel, read_kitti_tracking_labels
+from vid2sim.detect.tracker import iou_matrix
 from vid2sim.errors import InputError
-from vid2sim.fileio import write_text_atomic
+from vid2sim.fileio import read_input_text, write_text_atomic
+from vid2sim.geo.readers import OXTS_PITCH, read_kitti_oxts_table
 
 # A rear view: the car heads within this angle of the camera axis [deg].
 MAX_REAR_YAW_DEG = 15.0
@@ -133,14 +135,10 @@ def read_kitti_projection(calib_path: Path, cam: int = 2) -> np.ndarray:
     colour camera (about 6 cm, several pixels at a few metres), which :func:`load_camera`'s
     pinhole drops.
     """
-    text = Path(calib_path).read_text(encoding="utf-8")
-    for line in text.splitlines():
-        key, _, rest = line.partition(":")
-        if key.strip() == f"P{cam}":
-            values = np.array([float(v) for v in rest.split()])
-            if values.size == 12:
-                return values.reshape(3, 4)
-    raise InputError(calib_path, f"no 3x4 projection P{cam}")
+    values = parse_kitti_calib(read_input_text(Path(calib_path))).get(f"P{cam}")
+    if values is None or values.size != 12:
+        raise InputError(calib_path, f"no 3x4 projection P{cam}")
+    return values.reshape(3, 4)
 
 
 def label_corners(label: KittiLabel, yaw_rad: float) -> np.ndarray:
@@ -518,10 +516,7 @@ def lead_profile(seed: int, n_frames: int, fps: float = DEFAULT_FPS, *,
 
 def read_oxts_pitch(raw_dir: Path) -> np.ndarray:
     """OXTS pitch of every frame of a KITTI raw drive [rad] (positive = nose down)."""
-    files = sorted((Path(raw_dir) / "oxts" / "data").glob("*.txt"))
-    if not files:
-        raise InputError(Path(raw_dir) / "oxts" / "data", "no OXTS files")
-    return np.array([float(f.read_text(encoding="utf-8").split()[4]) for f in files])
+    return read_kitti_oxts_table(raw_dir)[:, OXTS_PITCH]
 
 
 def frame_cameras(camera: Camera, pitch_rad: np.ndarray | None, n_frames: int
@@ -641,13 +636,8 @@ def truth_to_json(truth: LeadTruth, boxes: list, cutout: CarCutout, body_pitch: 
 
 def box_iou(a: tuple[float, float, float, float], b: tuple[float, float, float, float]
             ) -> float:
-    """Intersection over union of two (x1, y1, x2, y2) boxes."""
-    iw = min(a[2], b[2]) - max(a[0], b[0])
-    ih = min(a[3], b[3]) - max(a[1], b[1])
-    if iw <= 0 or ih <= 0:
-        return 0.0
-    inter = iw * ih
-    return inter / ((a[2] - a[0]) * (a[3] - a[1]) + (b[2] - b[0]) * (b[3] - b[1]) - inter)
+    """Intersection over union of two (x1, y1, x2, y2) boxes (the tracker's IoU)."""
+    return float(iou_matrix(np.array([a]), np.array([b]))[0, 0])
 
 
 @dataclass(frozen=True)

@@ -304,10 +304,9 @@ def load_camera(path: str | Path) -> Camera:
 KITTI_CAMERA_HEIGHT_M = 1.65
 
 
-def _kitti_camera(text: str, path: Path, cam: int = 2) -> Camera:
-    """Camera from a KITTI ``calib_cam_to_cam.txt`` (``P_rect_0N``, ``S_rect_0N``) or a
-    tracking/object ``calib/SSSS.txt`` (``P0..P3``); camera ``cam`` (default 2, the left
-    colour camera), rectified, so without distortion."""
+def parse_kitti_calib(text: str) -> dict[str, np.ndarray]:
+    """``KEY: numbers`` lines of a KITTI calibration file -> {KEY: array}; lines without
+    numbers (``calib_time: ...``) are skipped."""
     values: dict[str, np.ndarray] = {}
     for line in text.splitlines():
         if ":" not in line:
@@ -317,6 +316,14 @@ def _kitti_camera(text: str, path: Path, cam: int = 2) -> Camera:
             values[key.strip()] = np.array([float(v) for v in rest.split()])
         except ValueError:
             continue
+    return values
+
+
+def _kitti_camera(text: str, path: Path, cam: int = 2) -> Camera:
+    """Camera from a KITTI ``calib_cam_to_cam.txt`` (``P_rect_0N``, ``S_rect_0N``) or a
+    tracking/object ``calib/SSSS.txt`` (``P0..P3``); camera ``cam`` (default 2, the left
+    colour camera), rectified, so without distortion."""
+    values = parse_kitti_calib(text)
     proj = values.get(f"P_rect_{cam:02d}")
     if proj is None:
         proj = values.get(f"P{cam}")

@@ -34,12 +34,16 @@ from pathlib import Path
 
 import numpy as np
 
-from vid2sim.camera import Camera
-from vid2sim.geo.readers import kitti_time_s
+from vid2sim.camera import Camera, parse_kitti_calib
+from vid2sim.geo.readers import (
+    OXTS_VF,
+    OXTS_VL,
+    OXTS_WZ,
+    read_kitti_oxts_table,
+    read_kitti_stamps,
+)
 from vid2sim.records import RangedBox
 
-# Columns of a KITTI OXTS line (oxts/dataformat.txt).
-OXTS_VF, OXTS_VL, OXTS_WZ = 8, 9, 19
 RANGE_BINS_M = ((0.0, 20.0), (20.0, 40.0), (40.0, math.inf))
 
 
@@ -52,16 +56,8 @@ def static_range_rate(vf_mps, wz_radps, lateral_m, camera_left_of_imu_m: float =
                                                           + camera_left_of_imu_m)
 
 
-def _stamps(path: Path) -> np.ndarray:
-    return np.array([kitti_time_s(s) for s in path.read_text().splitlines() if s.strip()])
-
-
 def _calib(path: Path) -> tuple[np.ndarray, np.ndarray]:
-    vals = {}
-    for line in path.read_text().splitlines():
-        key, _, rest = line.partition(":")
-        if key in ("R", "T"):
-            vals[key] = np.array([float(x) for x in rest.split()])
+    vals = parse_kitti_calib(path.read_text())
     return vals["R"].reshape(3, 3), vals["T"]
 
 
@@ -93,10 +89,9 @@ class EgoMotion:
 
 def ego_motion(drive: Path) -> EgoMotion:
     """Read a KITTI raw drive's OXTS and image_00 stamps; integrate the planar pose."""
-    files = sorted((drive / "oxts" / "data").glob("*.txt"))
-    oxts = np.array([np.loadtxt(f) for f in files])
-    t_ox = _stamps(drive / "oxts" / "timestamps.txt")
-    t_im = _stamps(drive / "image_00_timestamps.txt")
+    oxts = read_kitti_oxts_table(drive)
+    t_ox = np.array(read_kitti_stamps(drive / "oxts" / "timestamps.txt"))
+    t_im = np.array(read_kitti_stamps(drive / "image_00_timestamps.txt"))
     t0 = t_im[0]
     t_ox, t_im = t_ox - t0, t_im - t0
     vf, vl, wz = oxts[:, OXTS_VF], oxts[:, OXTS_VL], oxts[:, OXTS_WZ]

@@ -448,9 +448,10 @@ def read_bdd_json(path: Path) -> GpsTrace:
 # --------------------------------------------------------------------------- KITTI OXTS
 
 # Column indices in a KITTI OXTS data line (see oxts/dataformat.txt of a raw drive).
-_OXTS_LAT, _OXTS_LON, _OXTS_ALT = 0, 1, 2
-_OXTS_VN, _OXTS_VE, _OXTS_VF = 6, 7, 8
-_OXTS_POS_ACC = 23
+OXTS_LAT, OXTS_LON, OXTS_ALT, OXTS_PITCH = 0, 1, 2, 4
+OXTS_VN, OXTS_VE, OXTS_VF, OXTS_VL = 6, 7, 8, 9
+OXTS_WZ = 19
+OXTS_POS_ACC = 23
 _OXTS_MIN_FIELDS = 24
 
 
@@ -475,7 +476,8 @@ def _kitti_folder(path: Path) -> tuple[Path, Path]:
                      "expected oxts/data/*.txt and oxts/timestamps.txt")
 
 
-def _read_stamps(path: Path) -> list[float]:
+def read_kitti_stamps(path: Path) -> list[float]:
+    """A KITTI ``timestamps.txt`` (one stamp per line) -> seconds (:func:`kitti_time_s`)."""
     out = []
     for i, line in enumerate(_read_text(path).splitlines()):
         if not line.strip():
@@ -485,6 +487,27 @@ def _read_stamps(path: Path) -> list[float]:
         except ValueError as exc:
             raise InputError(path, f"line {i + 1}: unparsable timestamp {line.strip()!r}") from exc
     return out
+
+
+def _oxts_values(path: Path) -> list[float]:
+    parts = _read_text(path).split()
+    if len(parts) < _OXTS_MIN_FIELDS:
+        raise InputError(path, f"{len(parts)} fields, expected 30", "truncated OXTS file?")
+    try:
+        return [float(x) for x in parts]
+    except ValueError as exc:
+        raise InputError(path, f"unparsable number ({exc})") from exc
+
+
+def read_kitti_oxts_table(path: Path) -> np.ndarray:
+    """Every OXTS line of a KITTI drive (or its ``oxts`` folder) as rows of numbers, one row
+    per ``oxts/data`` file in order; the first 24 columns of ``oxts/dataformat.txt``
+    (``OXTS_*``: position, attitude, velocities, accelerations, rates, accuracy)."""
+    oxts, _ = _kitti_folder(Path(path))
+    files = sorted((oxts / "data").glob("*.txt"))
+    if not files:
+        raise InputError(oxts / "data", "no OXTS data files")
+    return np.array([_oxts_values(f)[:_OXTS_MIN_FIELDS] for f in files], dtype=float)
 
 
 def read_kitti_oxts(path: Path) -> GpsTrace:
@@ -499,7 +522,7 @@ def read_kitti_oxts(path: Path) -> GpsTrace:
     stamps_file = oxts / "timestamps.txt"
     if not stamps_file.is_file():
         raise InputError(oxts, "missing timestamps.txt", "a KITTI OXTS folder has one")
-    stamps = _read_stamps(stamps_file)
+    stamps = read_kitti_stamps(stamps_file)
     if not files:
         raise InputError(oxts / "data", "no OXTS data files")
     if len(stamps) != len(files):
@@ -507,25 +530,19 @@ def read_kitti_oxts(path: Path) -> GpsTrace:
                          "the drive is incomplete")
     fixes = []
     for f, t in zip(files, stamps, strict=True):
-        parts = _read_text(f).split()
-        if len(parts) < _OXTS_MIN_FIELDS:
-            raise InputError(f, f"{len(parts)} fields, expected 30", "truncated OXTS file?")
-        try:
-            v = [float(x) for x in parts]
-        except ValueError as exc:
-            raise InputError(f, f"unparsable number ({exc})") from exc
-        vn, ve = v[_OXTS_VN], v[_OXTS_VE]
+        v = _oxts_values(f)
+        vn, ve = v[OXTS_VN], v[OXTS_VE]
         fixes.append(GpsFix(
-            t_utc_s=t, lat_deg=v[_OXTS_LAT], lon_deg=v[_OXTS_LON], alt_m=v[_OXTS_ALT],
+            t_utc_s=t, lat_deg=v[OXTS_LAT], lon_deg=v[OXTS_LON], alt_m=v[OXTS_ALT],
             speed_mps=math.hypot(vn, ve), course_deg=math.degrees(math.atan2(ve, vn)) % 360.0,
-            accuracy_m=_opt(v[_OXTS_POS_ACC], 0.0, 1e5)))
+            accuracy_m=_opt(v[OXTS_POS_ACC], 0.0, 1e5)))
     video_start = None
     candidates = [drive / "image_00_timestamps.txt"]
     candidates += [drive / f"image_0{k}" / "timestamps.txt" for k in range(4)]
     candidates += [drive / f"image_0{k}_timestamps.txt" for k in range(1, 4)]
     for c in candidates:
         if c.is_file():
-            cam = _read_stamps(c)
+            cam = read_kitti_stamps(c)
             if cam:
                 video_start = cam[0]
                 break
