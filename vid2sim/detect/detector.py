@@ -84,12 +84,17 @@ def tile_windows(width_px: int, height_px: int, overlap: float = 0.1, centre: bo
     windows.append((0, 0, tile_w, height_px))
     windows.append((width_px - tile_w, 0, width_px, height_px))
     if centre:
-        # A square of a third of the width about the image centre, where a forward camera
-        # sees the road ahead: a lead 30-45 m away is seen at about the net's own scale.
-        side = int(min(height_px, round(width_px / 3)))
-        cx1, cy1 = (width_px - side) // 2, (height_px - side) // 2
-        windows.append((cx1, cy1, cx1 + side, cy1 + side))
+        windows.append(centre_window(width_px, height_px))
     return windows
+
+
+def centre_window(width_px: int, height_px: int) -> tuple[int, int, int, int]:
+    """A square of a third of the width (at most the height) about the image centre, where a
+    forward camera sees the road ahead: a lead 30-45 m away is seen at about the net's own
+    scale."""
+    side = int(min(height_px, round(width_px / 3)))
+    cx1, cy1 = (width_px - side) // 2, (height_px - side) // 2
+    return cx1, cy1, cx1 + side, cy1 + side
 
 
 def nms(boxes_px: np.ndarray, scores: np.ndarray, iou_threshold: float,
@@ -300,11 +305,12 @@ class OnnxDetector:
         """Vehicles in one BGR image, boxes in its pixels, best score first."""
         h, w = image_bgr.shape[:2]
         windows = tile_windows(w, h) if self.small_object_mode else [(0, 0, w, h)]
+        centre = centre_window(w, h)
         parts_b, parts_s, parts_c = [], [], []
         for x1, y1, x2, y2 in windows:
             boxes, scores, ids = self._window(image_bgr[y1:y2, x1:x2])
             boxes = boxes + [x1, y1, x1, y1]
-            if y1 > 0 or (x1 > 0 and x2 < w):
+            if len(windows) > 1 and (x1, y1, x2, y2) == centre:
                 # The centre window sees far cars at the net's scale, and with them more of
                 # what only looks like one (shadows, fragments): only its confident boxes.
                 keep = scores >= CENTRE_MIN_SCORE
