@@ -12,13 +12,19 @@ import pytest
 from vid2sim.detect.detector import (
     COCO_VEHICLES,
     DEFAULT_DETECTOR,
+    REFINE_CROP_SCALE,
+    REFINE_MAX_BOXES,
+    REFINE_MIN_SIDE_PX,
     PicodetDetector,
     YoloxDetector,
+    cut_by_window,
     decode_picodet,
     decode_yolox,
     letterbox,
     load_detector,
     nms,
+    refine_candidates,
+    refine_crop,
     suppress_fragments,
     tile_windows,
 )
@@ -146,6 +152,9 @@ def _fake(cls, outputs, **kw):
     det.score_threshold = kw.get("score_threshold", 0.3)
     det.nms_iou = kw.get("nms_iou", 0.45)
     det.small_object_mode = False
+    det.refine_max_boxes = kw.get("refine_max_boxes", 0)
+    det.refine_scale = kw.get("refine_scale", REFINE_CROP_SCALE)
+    det.refine_min_side_px = kw.get("refine_min_side_px", REFINE_MIN_SIDE_PX)
     return det
 
 
@@ -300,3 +309,118 @@ def test_weights_under_another_name_get_the_right_decoder(model_dir, tmp_path):
         load_detector(bad, decoder="yolox")
     with pytest.raises(InputError, match="cannot load"):
         load_detector(bad)
+
+
+# --------------------------------------------------------------------------- crop refinement
+
+
+def test_refine_crop_is_a_square_about_the_box_clipped_to_the_image():
+    # 30 x 20 px box: side 4 * 30 = 120 about its centre (115, 200)
+    assert refine_crop((100, 190, 130, 210), 1242, 375, 4.0, 96) == (55, 140, 175, 260)
+    # a small box gets the minimum side, 96 px, not 4 * 10
+    assert refine_crop((200, 195, 210, 205), 1242, 375, 4.0, 96) == (157, 152, 253, 248)
+    # near the bottom-right corner the square is cut by the image
+    assert refine_crop((1200, 330, 1240, 370), 1242, 375, 4.0, 96) == (1140, 270, 1242, 375)
+    # the defaults
+    side = max(REFINE_CROP_SCALE * 30, REFINE_MIN_SIDE_PX)
+    assert refine_crop((100, 190, 130, 210), 1242, 375) == (
+        round(115 - side / 2), round(200 - side / 2), round(115 + side / 2), round(200 + side / 2))
+    assert refine_crop((100, 190, 130, 210), 1242, 375, scale=2.0, min_side_px=0) == \
+        (85, 170, 145, 230)
+
+
+def test_cut_by_window_ignores_edges_on_the_image_border():
+    boxes = np.array([[0, 50, 40, 80],      # touches the crop's left edge = image border
+                      [60, 50, 100, 99],    # touches the crop's bottom edge, inside the image
+                      [60, 0.5, 100, 40],   # touches the crop's top edge (y1 = 0): kept
+                      [20, 20, 60, 60]],    # inside
+                     float)
+    cut = cut_by_window(boxes, (0, 0, 120, 100), 1242, 375)
+    assert cut.tolist() == [False, True, False, False]
+    cut = cut_by_window(boxes, (0, 10, 120, 100), 1242, 375)
+    assert cut.tolist() == [False, True, True, False]
+
+
+def test_refine_candidates_are_mid_sized_boxes_ahead_nearest_first():
+    # image centre line x = 621; a candidate's centre is at most 1.5 box widths from it
+    boxes = np.array([[600, 180, 640, 210],   # 0: ahead, far
+                      [580, 190, 660, 250],   # 1: ahead, nearest
+                      [100, 180, 160, 260],   # 2: left edge of the image: not a lead
+                      [610, 180, 616, 186],   # 3: tiny
+                      [300, 100, 950, 370],   # 4: huge (over a quarter of the width)
+                      [630, 185, 680, 225],   # 5: ahead, a bit to the right: 0.7 widths
+                      [850, 200, 900, 270]],  # 6: parked at the kerb, near: 5 widths out
+                     float)
+    assert refine_candidates(boxes, 1242, 3).tolist() == [1, 5, 0]
+    assert refine_candidates(boxes, 1242, 2).tolist() == [1, 5]
+    assert refine_candidates(boxes, 1242, 5).tolist() == [1, 5, 0]
+    assert refine_candidates(boxes, 1242, 3, max_offset_widths=6.0).tolist() == [6, 1, 5]
+    assert refine_candidates(boxes, 1242, 0).size == 0
+    assert refine_candidates(np.zeros((0, 4)), 1242, 3).size == 0
+
+
+def test_refinement_replaces_the_matching_box_only():
+    """A fake window pass finds, in the crop, a tighter box of the lead car, a box of a
+    neighbouring car and a box cut by the crop edge: only the lead's box is replaced, by the
+    crop box mapped back to frame pixels."""
+    det = _fake(YoloxDetector, None, refine_max_boxes=2, refine_scale=4.0, refine_min_side_px=96)
+    image = np.zeros((375, 1242, 3), np.uint8)
+    lead = [600.0, 200.0, 640.0, 230.0]
+    boxes = np.array([lead, [100.0, 200.0, 140.0, 230.0]])  # the second is not central
+    crop = refine_crop(lead, 1242, 375, 4.0, 96)
+    assert crop == (540, 135, 700, 295)  # 4 x 40 px about (620, 215)
+    calls = []
+
+    def fake_window(img):
+        calls.append(img.shape)
+        return (np.array([[62.0, 66.0, 98.0, 94.0],     # the lead, tighter: frame 602-638
+                          [120.0, 70.0, 158.0, 100.0],  # a neighbour: no overlap
+                          [0.5, 60.0, 30.0, 95.0]]),    # cut by the crop's left edge
+                np.array([0.9, 0.8, 0.7]), np.array([CAR, CAR, CAR]))
+
+    det._window = fake_window
+    out = det.refine(image, boxes)
+    assert calls == [(160, 160, 3)]  # one crop: the only central candidate
+    assert out[0] == pytest.approx([602.0, 201.0, 638.0, 229.0])
+    assert out[1] == pytest.approx(boxes[1])
+    assert boxes[0] == pytest.approx(lead)  # the input is not modified
+
+
+def test_refinement_keeps_the_box_without_a_good_match():
+    det = _fake(YoloxDetector, None, refine_max_boxes=2, refine_scale=4.0, refine_min_side_px=96)
+    image = np.zeros((375, 1242, 3), np.uint8)
+    lead = np.array([[600.0, 200.0, 640.0, 230.0]])
+    # only a box cut by the crop edge overlaps the lead well: it must not replace it
+    det._window = lambda img: (np.array([[0.0, 60.0, 100.0, 95.0]]), np.array([0.9]),
+                               np.array([CAR]))
+    assert det.refine(image, lead) == pytest.approx(lead)
+    # a whole box overlapping the lead with IoU 0.38 < 0.5
+    det._window = lambda img: (np.array([[75.0, 65.0, 125.0, 95.0]]), np.array([0.9]),
+                               np.array([CAR]))
+    assert det.refine(image, lead) == pytest.approx(lead)
+
+
+def test_detect_refines_after_merging_and_keeps_score_and_class():
+    det = _fake(YoloxDetector, None, refine_max_boxes=1, refine_scale=4.0, refine_min_side_px=96)
+    image = np.zeros((375, 1242, 3), np.uint8)
+    seen = []
+
+    def fake_window(img):
+        seen.append(img.shape[:2])
+        if len(seen) == 1:  # the full frame
+            return np.array([[600.0, 200.0, 640.0, 232.0]]), np.array([0.6]), np.array([7])
+        return np.array([[62.0, 66.0, 98.0, 94.0]]), np.array([0.95]), np.array([CAR])
+
+    det._window = fake_window
+    (found,) = det.detect(image)
+    assert seen == [(375, 1242), (160, 160)]
+    crop = refine_crop((600, 200, 640, 232), 1242, 375, 4.0, 96)
+    assert found.box_px == pytest.approx((crop[0] + 62, crop[1] + 66, crop[0] + 98, crop[1] + 94))
+    assert found.score == pytest.approx(0.6) and found.category == "truck"
+
+
+def test_load_detector_refines_with_the_small_object_mode_only(model_dir):
+    assert load_detector(DEFAULT_DETECTOR, model_dir).refine_max_boxes == REFINE_MAX_BOXES
+    assert load_detector(DEFAULT_DETECTOR, model_dir, small_object_mode=False
+                         ).refine_max_boxes == 0
+    assert load_detector(DEFAULT_DETECTOR, model_dir, refine_max_boxes=0).refine_max_boxes == 0
