@@ -152,3 +152,21 @@ def test_imported_boxes_all_beyond_the_video_are_an_input_error(clip, tmp_path, 
     rows = run_detect(clip, detector=None, detections={**imported(), 500: imported()[0]},
                       progress=False)
     assert [r.frame for r in rows] == list(range(N_FRAMES))
+
+
+def test_cli_detect_refine_option(clip, tmp_path, capsys, model_dir):
+    from vid2sim.detect.detector import REFINE_MAX_BOXES
+
+    assert main(["detect", "--help"]) == 0
+    help_text = " ".join(capsys.readouterr().out.split())
+    assert "--refine N" in help_text
+    assert f"default {REFINE_MAX_BOXES} with tiles, 0 with --no-tiles" in help_text
+    for args, label in ((["--refine", "1"], "with yolox-nano + tiles + 1 refined;"),
+                        (["--no-tiles"], "with yolox-nano;")):
+        out = tmp_path / f"det{len(args)}.csv"
+        assert main(["detect", str(clip), "--model-dir", str(model_dir), *args,
+                     "--out", str(out)]) == 0
+        assert label in capsys.readouterr().out
+        assert out.exists()
+    assert main(["-q", "detect", str(clip), "--refine", "-1", "--out",
+                 str(tmp_path / "x.csv")]) == 2

@@ -133,7 +133,7 @@ def detect_video(source: Path, out_path: Path, *, detector_name: str = DEFAULT_D
                  model_dir: Path | None = None, detections_path: Path | None = None,
                  detect_every: int = 1, score: float | None = None,
                  small_object_mode: bool = True, progress: bool = True,
-                 fps: float | None = None) -> DetectSummary:
+                 fps: float | None = None, refine: int | None = None) -> DetectSummary:
     """``vid2sim detect``: detect (or import), track, write ``detections.csv``.
 
     Parameters
@@ -157,6 +157,9 @@ def detect_video(source: Path, out_path: Path, *, detector_name: str = DEFAULT_D
         Progress bar.
     fps : float, optional
         Frame rate of an image folder [frames/s] (default 10).
+    refine : int, optional
+        Lead candidates re-detected on a crop per frame, 0 = off (default: the detector's,
+        see :meth:`vid2sim.detect.detector.OnnxDetector.refine`).
     """
     from vid2sim.detect.external import read_detections
 
@@ -176,8 +179,10 @@ def detect_video(source: Path, out_path: Path, *, detector_name: str = DEFAULT_D
         label = f"imported boxes ({Path(detections_path).name})"
     else:
         detector = load_detector(detector_name, model_dir, score_threshold=config.low_score,
-                                 small_object_mode=small_object_mode)
+                                 small_object_mode=small_object_mode, refine_max_boxes=refine)
         label = f"{detector_name}{' + tiles' if small_object_mode else ''}"
+        if detector.refine_max_boxes > 0:
+            label += f" + {detector.refine_max_boxes} refined"
     start = time.perf_counter()
     boxes = run_detect(source, detector=detector, detections=imported,
                        detect_every=detect_every, progress=progress, tracker_config=config,
