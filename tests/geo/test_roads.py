@@ -80,7 +80,9 @@ def test_lane_index(offset, lanes, forward, expected):
 # --------------------------------------------------------------------------- geometry
 
 
-finite = st.floats(-500.0, 500.0, allow_nan=False)
+# Millimetre coordinates: map and trace points in metres; points closer than 1e-6 m are the
+# same point to resample_polyline (dropped), a boundary the property below does not model.
+finite = st.floats(-500.0, 500.0, allow_nan=False).map(lambda v: round(v, 3))
 
 
 @settings(max_examples=60, deadline=None)
