@@ -67,8 +67,13 @@ def test_every_nth_frame_and_no_markings():
     # Frames of another size (a downscaled copy) still give rows in the camera's pixels.
     small = cv2.resize(road_image(CAM.with_pitch(1.0), seed=1), (640, 360))
     est2 = HorizonEstimator(CAM, every=1)
-    row = est2.add_frame(small)
+    row = est2.add_frame(small, index=40)
     assert row == pytest.approx(CAM.with_pitch(1.0).horizon_y_px(), abs=5.0)
+    assert est2.frames == [40]  # each row keeps its video frame, for the per-frame horizon
+    est3 = HorizonEstimator(CAM, every=2)
+    for _ in range(3):
+        est3.add_frame(road_image(CAM, seed=2))
+    assert est3.frames == [0, 2]  # without an index: the count of frames seen
 
 
 def test_camera_yaw_from_vanishing_column():

@@ -44,16 +44,19 @@ class HorizonEstimator:
         self.search_band_frac = float(search_band_frac)
         self._seen = 0
         self.rows_px: list[float] = []
+        self.frames: list[int] = []  # frame index of each row (the call count without one)
         self.columns_px: list[float] = []
 
-    def add_frame(self, image_bgr: np.ndarray | None) -> float | None:
+    def add_frame(self, image_bgr: np.ndarray | None, index: int | None = None) -> float | None:
         """Look at one frame (every N-th call does work); return its horizon row [px] if found.
 
-        Frames of another size than the camera's are scaled to the camera's pixels.
+        Frames of another size than the camera's are scaled to the camera's pixels. ``index``
+        is the frame's index in the video, kept with its row (default: the count of calls).
         """
         if image_bgr is None:
             return None
         self._seen += 1
+        index = self._seen - 1 if index is None else int(index)
         if (self._seen - 1) % self.every:
             return None
         found = self._vanishing_point(image_bgr)
@@ -62,6 +65,7 @@ class HorizonEstimator:
         u, v = found
         self.columns_px.append(u)
         self.rows_px.append(v)
+        self.frames.append(index)
         return v
 
     def estimate(self) -> tuple[float | None, int]:
