@@ -110,6 +110,23 @@ def test_weak_detections_continue_but_never_start_tracks():
     assert max(r.frame for r in rows) == 9
 
 
+def test_weak_detections_revive_a_track_only_after_a_short_gap():
+    # A far lead scoring 0.13-0.26 goes unseen for one frame: the weak boxes that follow,
+    # right on its predicted box, continue it (KITTI composite clip: 22 frames lost before).
+    confident = [[Detection(box(200, 200), 0.9, "car")] for _ in range(5)]
+    weak = [[Detection(box(200, 200), 0.15, "car")] for _ in range(6)]
+    rows = run(confident + [[]] + weak)
+    assert {r.track_id for r in rows} == {1}
+    assert max(r.frame for r in rows) == 11
+    # After half a second unseen (beyond weak_revive_s) weak boxes do not bring it back ...
+    rows = run(confident + [[]] * 5 + weak)
+    assert max(r.frame for r in rows) == 4
+    # ... nor do weak boxes that only graze its predicted box after a short gap.
+    shifted = [[Detection(box(230, 200), 0.15, "car")] for _ in range(6)]  # IoU 0.33
+    rows = run(confident + [[]] + shifted)
+    assert max(r.frame for r in rows) == 4
+
+
 def test_single_false_detection_is_dropped_and_ids_are_renumbered():
     frames = [[Detection(box(200, 200), 0.9, "car")] for _ in range(10)]
     frames[3].append(Detection(box(700, 100), 0.9, "car"))  # a one-frame ghost

@@ -63,6 +63,11 @@ class TrackerConfig:
     :param iou_low: minimum IoU to match a weak detection (stage two; stricter because weak
         boxes are noisier)
     :param iou_tentative: minimum IoU to match a not yet confirmed track
+    :param weak_revive_s: a confirmed track lost for at most this long may be taken up again
+        by a weak detection [s]: one missed frame (a far car scoring 0.13-0.26 frame after
+        frame, once below the detector's floor) must not end it
+    :param iou_weak_revive: minimum IoU of such a weak detection with the lost track's
+        predicted box (stricter than ``iou_low``: the track was not seen on the last frame)
     :param max_lost_s: a track unmatched for longer than this is ended [s]
     :param min_hits: detections needed before a track is confirmed (in dense input; see
         ``sparse_interval_s``)
@@ -98,6 +103,8 @@ class TrackerConfig:
     iou_high: float = 0.2
     iou_low: float = 0.4
     iou_tentative: float = 0.3
+    weak_revive_s: float = 0.35
+    iou_weak_revive: float = 0.5
     max_lost_s: float = 1.2
     min_hits: int = 2
     sparse_interval_s: float = 0.2
@@ -544,12 +551,20 @@ class Tracker:
             pairs, free_tracks, free_high = self._associate(confirmed, high, cfg.iou_high)
             for ti, di in pairs:
                 hit(confirmed[ti], high[di])
-            # Stage 2: weak detections only against tracks seen on the previous detected
-            # frame; a weak box is not trusted to revive a lost track.
+            # Stage 2: weak detections against tracks seen on the previous detected frame;
+            # a weak box revives a lost track only after a short gap and on a close overlap.
             remaining = [confirmed[i] for i in free_tracks if confirmed[i].state == "tracked"]
             pairs, _, free_low = self._associate(remaining, low, cfg.iou_low)
             for ti, di in pairs:
                 hit(remaining[ti], low[di])
+            brief = [confirmed[i] for i in free_tracks if confirmed[i].state == "lost"
+                     and t_s - confirmed[i].last_seen_t_s <= cfg.weak_revive_s]
+            if brief and free_low:
+                left = [low[i] for i in free_low]
+                pairs, _, free_left = self._associate(brief, left, cfg.iou_weak_revive)
+                for ti, di in pairs:
+                    hit(brief[ti], left[di])
+                free_low = [free_low[i] for i in free_left]
             # Stage 3: tentative tracks get one chance with the leftover confident detections.
             left_high = [high[i] for i in free_high]
             pairs, free_tent, free_new = self._associate(tentative, left_high,
