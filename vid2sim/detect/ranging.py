@@ -924,6 +924,9 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
         if np.any(slow_px != 0):
             ba = BoxArrays(ba.x1, ba.y1 - slow_px, ba.x2, ba.y2 - slow_px, ba.cut_left,
                            ba.cut_right, ba.cut_top, ba.cut_bottom)
+            notes.append(f"per-frame horizon from lane markings within "
+                         f"{config.lane_horizon_window_s:g} s: {slow_px.min():+.1f} to "
+                         f"{slow_px.max():+.1f} px about {horizon:.1f} px")
     priors = [config.prior_for(b.category) for b in boxes]
     w0 = np.array([p.width_m for p in priors])
     w0_std = np.array([p.width_std_m for p in priors])
