@@ -360,6 +360,31 @@ def test_lane_hints_win_over_camera_file():
     assert np.median(rel) < 0.03
 
 
+def test_parked_cars_on_lower_ground_do_not_move_the_vehicle_horizon():
+    """Three cars on the ego's road and six parked 8 m to the sides on ground 0.25 m lower
+    (a crowned road's gutter and parking strip): the horizon from vehicles takes only the
+    ones on the road; with all of them it would lie several pixels low."""
+    true_cam = CAM.with_pitch(1.0)
+    road = [Vehicle(k, lambda t, x0=x0: x0, lambda t, y0=y0: y0, lambda t: 0.0)
+            for k, (x0, y0) in enumerate([(18.0, 0.0), (27.0, 3.6), (35.0, -3.6)], start=1)]
+    parked = [Vehicle(10 + k, lambda t, x0=x0: x0, lambda t, y0=y0: y0, lambda t: 0.0)
+              for k, (x0, y0) in enumerate([(12.0, 8.0), (20.0, 8.0), (28.0, 8.0),
+                                             (15.0, -8.0), (24.0, -8.0), (33.0, -8.0)])]
+    boxes, truth = simulate(true_cam, road + parked, duration_s=2.0, seed=4)
+    drop_m = 0.25
+    lowered = [replace(b, y1=b.y1 + true_cam.fy * drop_m / truth[(b.frame, b.track_id)][0],
+                       y2=b.y2 + true_cam.fy * drop_m / truth[(b.frame, b.track_id)][0])
+               if b.track_id >= 10 else b for b in boxes]
+    res = range_tracks(lowered, CAM)
+    everyone = range_tracks(lowered, CAM, config=RangingConfig(
+        horizon_vehicle_max_lateral_m=math.inf))
+    print(f"vehicle horizon {res.horizon_y_px:.1f} px, with the parked cars "
+          f"{everyone.horizon_y_px:.1f}, truth {true_cam.horizon_y_px():.1f}")
+    assert res.horizon_source == "vehicle consistency"
+    assert res.horizon_y_px == pytest.approx(true_cam.horizon_y_px(), abs=2.0)
+    assert everyone.horizon_y_px - true_cam.horizon_y_px() > 4.0
+
+
 def test_lane_horizon_offsets_follow_a_drift_with_a_known_answer():
     frames = np.repeat(np.arange(100), 2)  # two boxes per frame
     t_s = frames * 0.1
