@@ -423,8 +423,9 @@ class OnnxDetector:
 
         Why: a car 10-45 m ahead is a 25-120 px box, which the net sees at a third of its
         size in a wide full frame and 0.6x in a tile; range comes from its bottom edge and
-        size, so box jitter is range-rate noise. On the composite clips (a real car pasted with a known box, 646 frames of
-        seeds 0-5, errors in true box widths) the lead's box with 2 refined per frame, crop
+        size, so box jitter is range-rate noise. On the composite clips (a real car pasted
+        with a known box, 646 frames of seeds 0-5, errors in true box widths) the lead's box
+        with 2 refined per frame, crop
         5x (at least 96 px): width bias +0.059 -> +0.046, frame-to-frame jitter of the width
         0.040 -> 0.023, of the bottom edge 0.022 -> 0.009, of the top edge 0.036 -> 0.016;
         lead range-rate RMSE 1.00 -> 0.85 m/s (benchmarks/bench_composite.py). The parked

@@ -842,7 +842,7 @@ def lane_horizon_offsets(frames: np.ndarray, t_s: np.ndarray, hint_frames: np.nd
     if len(hint_frames) < config.lane_horizon_min_frames or len(frames) == 0:
         return out
     # Seconds per frame from the boxes' own clock (frame numbers are what the hints carry).
-    uf, first = np.unique(frames, return_index=True)
+    uf, first, inverse = np.unique(frames, return_index=True, return_inverse=True)
     if uf.size > 1:
         sec_per_frame = float(np.median(np.diff(t_s[first]) / np.diff(uf)))
     else:
@@ -852,11 +852,10 @@ def lane_horizon_offsets(frames: np.ndarray, t_s: np.ndarray, hint_frames: np.nd
     hf, hr = hint_frames[order].astype(float), hint_rows_px[order].astype(float)
     lo = np.searchsorted(hf, uf - half, side="left")
     hi = np.searchsorted(hf, uf + half, side="right")
-    by_frame = {}
-    for f, a, b in zip(uf, lo, hi, strict=True):
-        if b - a >= config.lane_horizon_min_frames:
-            by_frame[int(f)] = float(np.median(hr[a:b])) - horizon_y_px
-    out[:] = [by_frame.get(int(f), 0.0) for f in frames]
+    per_frame = np.zeros(uf.size)
+    for k in np.flatnonzero(hi - lo >= config.lane_horizon_min_frames):
+        per_frame[k] = np.median(hr[lo[k]:hi[k]]) - horizon_y_px
+    out[:] = per_frame[inverse.reshape(-1)]
     return out
 
 
@@ -926,13 +925,13 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
     pitch = pitch_for_horizon(camera, horizon)
     cam = camera.with_pitch(pitch)
     ba = BoxArrays.from_boxes(boxes, cam, config.border_margin_px)
+    frame_box = np.array([b.frame for b in boxes])
+    t_box = np.array([b.t_s for b in boxes], dtype=float)
     if horizon_hint_frames is not None and horizon_hints_px is not None:
         hf = np.asarray(horizon_hint_frames, dtype=float)
         hr = np.asarray(horizon_hints_px, dtype=float)
         ok = np.isfinite(hr) & np.isfinite(hf)
-        slow_px = lane_horizon_offsets(np.array([b.frame for b in boxes]),
-                                       np.array([b.t_s for b in boxes], dtype=float),
-                                       hf[ok], hr[ok], horizon, config)
+        slow_px = lane_horizon_offsets(frame_box, t_box, hf[ok], hr[ok], horizon, config)
         if np.any(slow_px != 0):
             ba = BoxArrays(ba.x1, ba.y1 - slow_px, ba.x2, ba.y2 - slow_px, ba.cut_left,
                            ba.cut_right, ba.cut_top, ba.cut_bottom)
@@ -1000,7 +999,6 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
             ba = BoxArrays(ba.x1, ba.y1 - frame_offset_px, ba.x2, ba.y2 - frame_offset_px,
                            ba.cut_left, ba.cut_right, ba.cut_top, ba.cut_bottom)
     # Each track's frame spacing sets how strongly its measurements share the body pitch.
-    t_box = np.array([b.t_s for b in boxes], dtype=float)
     inflation = np.ones(len(boxes))
     for members in np.split(order, splits):
         t_m = np.unique(t_box[members])
@@ -1021,10 +1019,8 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
     out_lat = np.full(n, np.nan)
     out_lat_rate = np.full(n, np.nan)
     out_std = np.full(n, np.nan)
-    t_all = np.array([b.t_s for b in boxes], dtype=float)
     for members in np.split(order, splits):
-        members = members[np.lexsort((np.array([boxes[i].frame for i in members]),
-                                      t_all[members]))]
+        members = members[np.lexsort((frame_box[members], t_box[members]))]
         if not fit.valid[members].any():
             # Nothing but weak cues (e.g. a car alongside, cut at the bottom and a side):
             # report the single-frame fit with its large spread rather than nothing.
@@ -1039,7 +1035,7 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
         r[:, 0, 0] = fit.range_white_var_m2[members]
         r[:, 1, 1] = fit.lateral_white_var_m2[members]
         common = np.maximum(fit.range_var_m2[members] - fit.range_white_var_m2[members], 0)
-        sm = smooth_track_adaptive(t_all[members], z, r, fit.valid[members], config)
+        sm = smooth_track_adaptive(t_box[members], z, r, fit.valid[members], config)
         out_range[members] = sm.range_m
         out_lat[members] = sm.lateral_m
         out_std[members] = np.sqrt(sm.range_std_m ** 2 + common)
