@@ -33,20 +33,24 @@ REPO = Path(__file__).resolve().parents[1]
 
 
 def _run_case(case: str, shared: Path, model_dir: Path | None, queue) -> None:
-    from vid2sim.pipeline import BuildOptions, build, run_demo
+    from vid2sim.app.build import build
+    from vid2sim.app.demo import run_demo
+    from vid2sim.app.inputs import Inputs
+    from vid2sim.app.settings import DetectorSettings, Settings
 
+    settings = Settings(detector=DetectorSettings(model_dir=model_dir), allow_download=False,
+                        progress=False)
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix=f"bench-{case}-") as tmp:
         tmp = Path(tmp)
         if case == "demo-imported":
-            result = run_demo(tmp, force_detections=True, progress=False)
+            result = run_demo(tmp, force_detections=True, settings=settings)
         elif case == "demo-detector":
-            result = run_demo(tmp, model_dir=model_dir, progress=False)
+            result = run_demo(tmp, settings=settings)
         elif case == "kitti-raw":
             raw = shared / "data" / "kitti_raw_0001"
-            result = build(BuildOptions(video=raw / "video.mp4", out_dir=tmp / "out", gps=raw,
-                                        camera_path=raw / "camera.yaml", model_dir=model_dir,
-                                        allow_download=False, progress=False))
+            result = build(Inputs(video=raw / "video.mp4", gps=raw, camera=raw / "camera.yaml"),
+                           tmp / "out", settings)
         else:
             raise SystemExit(f"unknown case {case}")
     wall = time.perf_counter() - t0

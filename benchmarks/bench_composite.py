@@ -1,5 +1,5 @@
 """Lead ranging on composite clips (a real KITTI car pasted into the real KITTI raw drive 0001
-at a known trajectory; see ``datasets/composite.py``), with the real detector, printed as a table.
+at a known trajectory; see ``vid2sim/samples/composite.py``), with the real detector, printed as a table.
 
     python benchmarks/bench_composite.py [--seeds 0 1 2 3] [--cars polo] [--cache DIR]
                                          [--no-pitch]
@@ -44,13 +44,11 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from datasets import composite as cp  # after the path fix, for a plain checkout
 from vid2sim.camera import fit_camera_to_frames, load_camera
-from vid2sim.detect.ranging import detect_and_range
+from vid2sim.detect.pipeline import detect_and_range
 from vid2sim.detect.video import video_info
 from vid2sim.records import Detection
+from vid2sim.samples import composite as cp
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared"
 N_FRAMES = 108

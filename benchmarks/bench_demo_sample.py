@@ -9,17 +9,14 @@ renderer alone.
 from __future__ import annotations
 
 import argparse
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from datasets import demo_sample as ds  # after the path fix, for a plain checkout
-from datasets.render import SceneRenderer, VehicleState
+from vid2sim.samples import demo_sample as ds
+from vid2sim.samples.render import SceneRenderer, VehicleState
 
 
 def main(argv: list[str] | None = None) -> int:

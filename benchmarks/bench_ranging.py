@@ -422,7 +422,9 @@ def bench_kitti_rate() -> None:
 
 
 def bench_video() -> None:
-    from vid2sim.detect.ranging import run_track
+    from vid2sim.app.commands import run_track
+    from vid2sim.app.inputs import Inputs
+    from vid2sim.app.settings import DetectorSettings, Settings
 
     raw = SHARED / "data" / "kitti_raw_0001"
     if not raw.exists():
@@ -432,9 +434,10 @@ def bench_video() -> None:
 
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
-        summary = run_track(raw / "video.mp4", raw / "camera.yaml", detector_name="yolox-nano",
-                            model_dir=SHARED / "models", detections_path=None, detect_every=1,
-                            out_path=Path(tmp) / "tracks.csv", progress=False)
+        settings = Settings(detector=DetectorSettings(model_dir=SHARED / "models"),
+                            progress=False)
+        summary = run_track(Inputs(video=raw / "video.mp4", camera=raw / "camera.yaml"),
+                            Path(tmp) / "tracks.csv", settings)
         print(f"vid2sim track on KITTI raw 0001: {time.perf_counter() - t0:.1f} s\n{summary}")
 
 

@@ -18,10 +18,10 @@ from pathlib import Path
 
 import numpy as np
 
-from datasets.sample_gps import HELSINKI, Segment, sample_fixes, simulate
 from vid2sim.geo.readers import read_gps
 from vid2sim.geo.trace import smooth_ego
 from vid2sim.records import GpsTrace
+from vid2sim.samples.sample_gps import HELSINKI, Segment, sample_fixes, simulate
 
 
 def city_drive(duration_s: float, seed: int = 0) -> list[Segment]:

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from vid2sim.batch import BatchRow, done_outcome, read_manifest
+from vid2sim.app.batch import BatchRow, done_outcome, read_manifest
 from vid2sim.cli import main
 from vid2sim.errors import InputError
 
@@ -30,7 +30,7 @@ def _run(argv: list[str]) -> tuple[int, str]:
 @pytest.fixture(scope="module")
 def sample(tmp_path_factory) -> Path:
     """One demo sample (imported detections: no weights) and a broken video beside it."""
-    from datasets.demo_sample import generate_demo_sample
+    from vid2sim.samples.demo_sample import generate_demo_sample
 
     folder = tmp_path_factory.mktemp("batch_sample")
     generate_demo_sample(folder, seed=7)

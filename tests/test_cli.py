@@ -8,9 +8,9 @@ import sys
 
 import pytest
 
-from datasets.sample_gps import write_sample_gpx
 from vid2sim import __version__
 from vid2sim.cli import main
+from vid2sim.samples.sample_gps import write_sample_gpx
 
 
 @pytest.fixture(scope="module")
@@ -115,12 +115,12 @@ def test_usage_errors_exit_2_without_traceback(args, capsys):
 
 
 def test_internal_error_exit_1(monkeypatch, sample_gpx, tmp_path, capsys):
-    import vid2sim.geo.trace as trace_mod
+    import vid2sim.app.commands as commands_mod
 
     def boom(*a, **k):
         raise RuntimeError("simulated bug")
 
-    monkeypatch.setattr(trace_mod, "run_trace", boom)
+    monkeypatch.setattr(commands_mod, "run_trace", boom)
     assert main(["trace", str(sample_gpx), "--out", str(tmp_path / "e.csv")]) == 1
     err = capsys.readouterr().err
     assert "internal error" in err and "simulated bug" in err and "Traceback" not in err

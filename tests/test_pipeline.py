@@ -8,8 +8,13 @@ from pathlib import Path
 import pytest
 
 from vid2sim import scenario as scenario_io
+from vid2sim.app.build import build
+from vid2sim.app.demo import run_demo
+from vid2sim.app.inputs import Inputs
+from vid2sim.app.settings import DetectorSettings, Settings
 from vid2sim.cli import main
-from vid2sim.pipeline import BuildOptions, build, run_demo
+
+QUIET = Settings(progress=False, allow_download=False)
 
 CONTRACT_KEYS = {"keyframes", "tp", "fp", "fn", "precision", "recall", "f1", "mean_iou",
                  "per_keyframe"}
@@ -19,7 +24,7 @@ CONTRACT_KEYS = {"keyframes", "tp", "fp", "fn", "precision", "recall", "f1", "me
 def demo_result(tmp_path_factory):
     """The demo run without detector weights (the sample's noisy imported detections)."""
     out = tmp_path_factory.mktemp("demo")
-    result = run_demo(out, force_detections=True, progress=False)
+    result = run_demo(out, force_detections=True, settings=QUIET)
     return out, result
 
 
@@ -57,16 +62,14 @@ def test_demo_writes_every_output_and_a_valid_scenario(demo_result):
 def test_same_inputs_give_byte_identical_scenarios(demo_result, tmp_path):
     out, _ = demo_result
     sample = out / "sample"
-    from datasets.demo_sample import helsinki_pbf_path
+    from vid2sim.samples.demo_sample import helsinki_pbf_path
 
-    opts = BuildOptions(video=sample / "demo.mp4", out_dir=tmp_path / "again", gps=sample / "demo.gpx",
-                        map_path=helsinki_pbf_path(), camera_path=sample / "camera.yaml",
-                        detections=sample / "detections.txt",
-                        keyframes=sample / "keyframes.json", allow_download=False,
-                        progress=False)
-    if not opts.video.exists():  # the sample falls back to MJPG where mp4v is missing
-        opts.video = sample / "demo.avi"
-    build(opts)
+    video = sample / "demo.mp4"
+    if not video.exists():  # the sample falls back to MJPG where mp4v is missing
+        video = sample / "demo.avi"
+    build(Inputs(video=video, gps=sample / "demo.gpx", map=helsinki_pbf_path(),
+                 camera=sample / "camera.yaml", detections=sample / "detections.txt",
+                 keyframes=sample / "keyframes.json"), tmp_path / "again", QUIET)
     for name in ("scenario.json", "scenario.xosc", "road.xodr", "tracks.csv"):
         first = (out / "build" / name).read_bytes()
         again = (tmp_path / "again" / name).read_bytes()
@@ -83,9 +86,8 @@ def test_build_without_gps_is_camera_relative(demo_result, tmp_path):
     out, _ = demo_result
     sample = out / "sample"
     video = sample / "demo.mp4" if (sample / "demo.mp4").exists() else sample / "demo.avi"
-    result = build(BuildOptions(video=video, out_dir=tmp_path / "rel",
-                                camera_path=sample / "camera.yaml",
-                                detections=sample / "detections.txt", progress=False))
+    result = build(Inputs(video=video, camera=sample / "camera.yaml",
+                          detections=sample / "detections.txt"), tmp_path / "rel", QUIET)
     scen = scenario_io.load(result.files["scenario"])
     assert all(p == 0 for p in scen.ego.trajectory.speed)
     assert any("no GPS" in a for a in scen.source.assumptions)
@@ -119,10 +121,10 @@ def test_broken_gps_fails_before_any_output(demo_result, tmp_path, capsys):
 
 
 def test_kitti_raw_build_falls_back_to_a_trajectory_road(kitti_raw_dir, model_dir, tmp_path):
-    result = build(BuildOptions(video=kitti_raw_dir / "video.mp4", out_dir=tmp_path / "k",
-                                gps=kitti_raw_dir, camera_path=kitti_raw_dir / "camera.yaml",
-                                model_dir=model_dir, detect_every=2, allow_download=False,
-                                progress=False))
+    settings = Settings(detector=DetectorSettings(model_dir=model_dir, detect_every=2),
+                        allow_download=False, progress=False)
+    result = build(Inputs(video=kitti_raw_dir / "video.mp4", gps=kitti_raw_dir,
+                          camera=kitti_raw_dir / "camera.yaml"), tmp_path / "k", settings)
     scen = scenario_io.load(result.files["scenario"])
     assert scen.roads[0].source == "trajectory"
     # KITTI's camera clock gives the video-GPS alignment; the drive is ~10.7 s at ~10 m/s.
@@ -134,11 +136,12 @@ def test_kitti_raw_build_falls_back_to_a_trajectory_road(kitti_raw_dir, model_di
 @pytest.mark.parametrize("seq", ["0001", "0016"])
 def test_kitti_tracking_keyframes_are_scored(kitti_tracking_dir, model_dir, tmp_path, seq):
     """Issue 7: the labelled KITTI frames as a 2 fps video without GPS; figures printed."""
-    result = build(BuildOptions(
-        video=kitti_tracking_dir / "image_02" / seq, out_dir=tmp_path / seq,
-        camera_path=kitti_tracking_dir / "calib" / f"{seq}.txt", model_dir=model_dir,
-        keyframes=kitti_tracking_dir / "label_02" / f"{seq}.txt", fps=2.0,
-        allow_download=False, progress=False))
+    settings = Settings(detector=DetectorSettings(model_dir=model_dir), allow_download=False,
+                        progress=False)
+    result = build(Inputs(video=kitti_tracking_dir / "image_02" / seq,
+                          camera=kitti_tracking_dir / "calib" / f"{seq}.txt",
+                          keyframes=kitti_tracking_dir / "label_02" / f"{seq}.txt", fps=2.0),
+                   tmp_path / seq, settings)
     metrics = json.loads(Path(result.files["metrics"]).read_text())
     assert CONTRACT_KEYS <= metrics.keys()
     assert metrics["keyframes"] == 3
@@ -164,8 +167,7 @@ def test_scenario_does_not_depend_on_where_the_inputs_are(demo_result, tmp_path,
 
     def run(folder: Path, out_dir: Path) -> bytes:
         v, g, c, d = (folder / n for n in names)
-        build(BuildOptions(video=v, out_dir=out_dir, gps=g, camera_path=c, detections=d,
-                           allow_download=False, progress=False))
+        build(Inputs(video=v, gps=g, camera=c, detections=d), out_dir, QUIET)
         return (out_dir / "scenario.json").read_bytes()
 
     absolute = run(sample.resolve(), tmp_path / "a")

@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import asdict, dataclass, field, replace
+from enum import Enum
 from pathlib import Path
 from typing import Any
 
@@ -54,6 +55,17 @@ def _rot_z(a: float) -> np.ndarray:
     return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]], dtype=float)
 
 
+class PitchSource(str, Enum):
+    """Where a camera's pitch comes from, i.e. how far it can be trusted."""
+
+    #: a rig calibration (KITTI calibration file): the mounting is measured
+    CALIBRATION = "calibration"
+    #: the user's camera YAML: a dash-cam mounting, known to about a degree
+    CAMERA_FILE = "camera file"
+    #: no camera description: a level mounting is assumed
+    DEFAULT = "default"
+
+
 @dataclass(frozen=True)
 class Camera:
     """A calibrated forward camera on the ego vehicle (the YAML camera record)."""
@@ -70,6 +82,7 @@ class Camera:
     yaw_deg: float = 0.0
     roll_deg: float = 0.0
     assumptions: tuple[str, ...] = field(default=(), compare=False)
+    pitch_source: PitchSource = field(default=PitchSource.CAMERA_FILE, compare=False)
 
     # ----------------------------------------------------------------- construction
 
@@ -85,6 +98,7 @@ class Camera:
                  f"horizontal field of view, no distortion, {DEFAULT_HEIGHT_M} m above the road, "
                  "level mounting"),
             ),
+            pitch_source=PitchSource.DEFAULT,
         )
 
     @classmethod
@@ -118,6 +132,7 @@ class Camera:
         d = asdict(self)
         d["dist"] = list(self.dist)
         d.pop("assumptions")
+        d.pop("pitch_source")
         return d
 
     def with_pitch(self, pitch_deg: float) -> Camera:
@@ -337,4 +352,4 @@ def _kitti_camera(text: str, path: Path, cam: int = 2) -> Camera:
         assumptions.append("image size not in the calibration: assumed 1242x375")
     return Camera(image_width=width, image_height=height, fx=float(p[0, 0]), fy=float(p[1, 1]),
                   cx=float(p[0, 2]), cy=float(p[1, 2]), height_m=KITTI_CAMERA_HEIGHT_M,
-                  assumptions=tuple(assumptions))
+                  assumptions=tuple(assumptions), pitch_source=PitchSource.CALIBRATION)

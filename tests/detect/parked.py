@@ -333,7 +333,7 @@ def run_pipeline(drive: Path, model_dir: Path, detect_every: int = 1):
     runs it (YOLOX-nano, the tracker's low score threshold): (RangingResult, camera used)."""
     from vid2sim.camera import fit_camera_to_frames, load_camera
     from vid2sim.detect.detector import load_detector
-    from vid2sim.detect.ranging import detect_and_range
+    from vid2sim.detect.pipeline import detect_and_range
     from vid2sim.detect.tracker import TrackerConfig
     from vid2sim.detect.video import video_info
 

@@ -142,8 +142,8 @@ def test_read_kitti_labels(kitti_tracking_dir):
 
 
 def test_own_detections_csv_reads_back(tmp_path):
-    from vid2sim.detect.pipeline import write_detections_csv
     from vid2sim.records import TrackedBox
+    from vid2sim.tables import write_detections_csv
 
     rows = [TrackedBox(0, 0.0, 1, "car", 0.9, 1.0, 2.0, 30.0, 40.0),
             TrackedBox(0, 0.0, 2, "bus", 0.5, 50.0, 2.0, 90.0, 40.0),

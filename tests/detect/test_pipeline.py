@@ -12,8 +12,10 @@ import pytest
 
 from vid2sim.cli import main
 from vid2sim.detect.detector import load_detector
-from vid2sim.detect.pipeline import CSV_COLUMNS, run_detect, write_detections_csv
+from vid2sim.detect.pipeline import run_detect
 from vid2sim.records import VEHICLE_CATEGORIES, Detection, TrackedBox
+from vid2sim.tables import DETECTIONS_CSV_COLUMNS as CSV_COLUMNS
+from vid2sim.tables import write_detections_csv
 
 N_FRAMES = 20
 

@@ -16,7 +16,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from vid2sim.camera import Camera
+from vid2sim.camera import Camera, PitchSource
 from vid2sim.detect.lead import lane_indices, lane_name
 from vid2sim.detect.ranging import (
     DEFAULT_PRIORS,
@@ -27,13 +27,12 @@ from vid2sim.detect.ranging import (
     lane_horizon_offsets,
     pitch_for_horizon,
     range_tracks,
-    read_tracks_csv,
     smooth_track,
     smooth_track_adaptive,
-    write_tracks_csv,
 )
 from vid2sim.errors import InputError
 from vid2sim.records import TrackedBox
+from vid2sim.tables import read_tracks_csv, write_tracks_csv
 
 CAM = Camera(image_width=1280, image_height=720, fx=1000.0, fy=1000.0, cx=639.5, cy=359.5,
              height_m=1.3)
@@ -195,7 +194,8 @@ def test_colored_noise_factor():
 def test_pitch_trust_follows_the_camera_source():
     cfg = RangingConfig()
     kitti = Camera(1242, 375, 721.5, 721.5, 609.6, 172.9, height_m=1.65,
-                   assumptions=("KITTI calibration: camera 2 rectified, 1.65 m high",))
+                   assumptions=("KITTI calibration: camera 2 rectified, 1.65 m high",),
+                   pitch_source=PitchSource.CALIBRATION)
     assert cfg.pitch_std_for(kitti) == 0.25
     assert cfg.pitch_std_for(Camera.default_for(1280, 720)) == 1.0
     assert cfg.pitch_std_for(CAM) == 1.0

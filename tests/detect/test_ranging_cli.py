@@ -12,7 +12,7 @@ import yaml
 from tests.detect.test_ranging_lanes import road_image
 from vid2sim.camera import Camera
 from vid2sim.cli import main
-from vid2sim.detect.ranging import read_tracks_csv
+from vid2sim.tables import read_tracks_csv
 
 CAM = Camera(image_width=640, image_height=360, fx=500.0, fy=500.0, cx=319.5, cy=179.5,
              height_m=1.4)

@@ -358,7 +358,7 @@ def test_image_folder_without_fps_assumes_ten_and_says_so(tmp_path, visible_scen
 def test_demo_sample_truth_scores_perfectly(tmp_path):
     """The demo generator's true scenario replayed against its own keyframes: conventions of
     both sides (ego pose, camera, occlusion, what annotators skip) agree."""
-    demo = pytest.importorskip("datasets.demo_sample")
+    demo = pytest.importorskip("vid2sim.samples.demo_sample")
     sample = demo.generate_demo_sample(tmp_path / "sample", duration_s=4.0, width=480,
                                        height=270)
     sc_path = tmp_path / "truth_scenario.json"

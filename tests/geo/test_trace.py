@@ -13,12 +13,23 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from datasets.sample_gps import HELSINKI, Segment, main, sample_fixes, simulate, write_sample_gpx
+from vid2sim.app.commands import run_trace
+from vid2sim.app.inputs import Inputs
+from vid2sim.app.settings import Settings
 from vid2sim.errors import InputError
 from vid2sim.geo.frames import EnuFrame
 from vid2sim.geo.readers import read_gps
-from vid2sim.geo.trace import run_trace, smooth_ego, write_ego_csv
+from vid2sim.geo.trace import smooth_ego
 from vid2sim.records import GpsTrace, Origin
+from vid2sim.samples.sample_gps import (
+    HELSINKI,
+    Segment,
+    main,
+    sample_fixes,
+    simulate,
+    write_sample_gpx,
+)
+from vid2sim.tables import write_ego_csv
 
 
 def angle_diff(a, b):
@@ -250,7 +261,7 @@ def test_sample_gpx_and_run_trace(tmp_path):
     assert tr.format == "gpx" and 200 < len(tr.fixes) < 400
     lat = np.array([f.lat_deg for f in tr.fixes])
     assert abs(np.median(lat) - 60.1699) < 0.02
-    summary = run_trace(gpx, tmp_path / "ego.csv", rate_hz=5.0)
+    summary = run_trace(Inputs(gps=gpx), tmp_path / "ego.csv", Settings(rate_hz=5.0))
     for word in ("format:", "gpx", "fixes:", "duration:", "distance:", "speed:", "gaps",
                  "rejected", "time:", str(tmp_path / "ego.csv")):
         assert word in summary

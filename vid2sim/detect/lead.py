@@ -9,14 +9,20 @@ to the left are 1, 2, ... and to the right -1, -2, ..., named "ego", "left", "ri
 from __future__ import annotations
 
 from collections import defaultdict
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 
 from vid2sim.records import TrackedBox
 
-if TYPE_CHECKING:  # pragma: no cover
-    from vid2sim.detect.ranging import RangingConfig
+
+class LaneSettings(Protocol):
+    """What lane and lead assignment needs (``RangingConfig`` provides it)."""
+
+    lane_width_m: float
+    lane_hysteresis_m: float
+    lead_switch_frames: int
+    max_range_m: float
 
 # A rival must be nearer than the current lead by this much to count as nearer at all
 # [m]: two cars in one lane are a car length apart, so this only ignores range noise.
@@ -55,7 +61,7 @@ def lane_indices(lateral_m: np.ndarray, lane_width_m: float, hysteresis_m: float
 
 
 def assign_lanes_and_lead(boxes: list[TrackedBox], range_m: np.ndarray, lateral_m: np.ndarray,
-                          config: RangingConfig) -> tuple[list[str], np.ndarray]:
+                          config: LaneSettings) -> tuple[list[str], np.ndarray]:
     """Lane of every box and whether it is the lead vehicle in its frame.
 
     The lead is the nearest vehicle in the ego lane. Another ego-lane vehicle that is only a
@@ -71,7 +77,7 @@ def assign_lanes_and_lead(boxes: list[TrackedBox], range_m: np.ndarray, lateral_
         The boxes (any order).
     range_m, lateral_m : ndarray
         Range to the rear and lateral offset of each box [m] (smoothed).
-    config : RangingConfig
+    config : LaneSettings
         Lane width, hysteresis, switch delay, maximum range.
 
     Returns

@@ -1,21 +1,23 @@
-"""The detection stage wired: stream frames -> detect (or import boxes) -> track -> detections.csv."""
+"""The detection stage wired: stream frames -> detect (or import boxes) -> track -> range.
+
+This is the I/O edge of ``detect/``: it reads frames and calls the pure stages (detector,
+tracker, lane markings, ranging) one frame at a time.
+"""
 
 from __future__ import annotations
 
-import time
-from collections import Counter
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import replace
 from pathlib import Path
 
-from vid2sim.detect.detector import DEFAULT_DETECTOR, Detector, load_detector
+from vid2sim.camera import Camera
+from vid2sim.detect.detector import Detector
+from vid2sim.detect.lanes import HorizonEstimator, yaw_for_vanishing_column
+from vid2sim.detect.ranging import RangingConfig, range_tracks
 from vid2sim.detect.tracker import Tracker, TrackerConfig
 from vid2sim.detect.video import iter_frames, video_info
 from vid2sim.errors import InputError
-from vid2sim.fileio import atomic_open
-from vid2sim.records import Detection, Frame, TrackedBox
-
-CSV_COLUMNS = ("frame", "t_s", "track_id", "category", "score", "x1", "y1", "x2", "y2")
+from vid2sim.records import Detection, Frame, Note, RangingResult, TrackedBox
 
 
 def run_detect(source: Path, *, detector: Detector | None,
@@ -30,9 +32,9 @@ def run_detect(source: Path, *, detector: Detector | None,
     source : Path
         Video file or folder of images.
     detector : Detector or None
-        Runs on every ``detect_every``-th frame. None with ``detections`` given: the imported
-        boxes are used; None without: the default detector (YOLOX-nano with tiles, weights
-        from $VID2SIM_MODEL_DIR or the user cache) is loaded.
+        Runs on every ``detect_every``-th frame; None with ``detections`` given (the imported
+        boxes are used). Detectors are loaded by the application layer
+        (:func:`vid2sim.app.loaders.load_detector_for`).
     detections : dict, optional
         Imported boxes, 0-based frame -> detections (see :mod:`vid2sim.detect.external`);
         used instead of a detector. Frames absent from the dict are treated as frames where
@@ -58,8 +60,7 @@ def run_detect(source: Path, *, detector: Detector | None,
     from tqdm import tqdm
 
     if detector is None and detections is None:
-        # low threshold: boxes between 0.1 and the tracker's high score feed stage two
-        detector = load_detector(DEFAULT_DETECTOR, score_threshold=TrackerConfig().low_score)
+        raise ValueError("run_detect needs a detector or imported detections")
     if detect_every < 1:
         raise InputError(None, f"--detect-every must be >= 1, got {detect_every}")
     info = video_info(source, fps=fps)
@@ -92,104 +93,69 @@ def run_detect(source: Path, *, detector: Detector | None,
     return tracker.finalize(rows)
 
 
-def write_detections_csv(boxes: list[TrackedBox], path: Path) -> None:
-    """Write tracked boxes as ``frame,t_s,track_id,category,score,x1,y1,x2,y2`` (atomic).
-
-    Times in seconds (6 decimals), boxes in pixels (2 decimals).
-    """
-    with atomic_open(path, "w", encoding="utf-8", newline="\n") as fh:
-        fh.write(",".join(CSV_COLUMNS) + "\n")
-        for b in boxes:
-            fh.write(f"{b.frame},{b.t_s:.6f},{b.track_id},{b.category},{b.score:.4f},"
-                     f"{b.x1:.2f},{b.y1:.2f},{b.x2:.2f},{b.y2:.2f}\n")
+# The lane vanishing point moves on curves; a median over this many sampled frames (every
+# 5th video frame: 2 s at 25 fps) is needed before it is trusted as straight ahead.
+MIN_LANE_FRAMES_FOR_YAW = 10
+# A windscreen mount turned more than this is implausible: more likely a long curve.
+MAX_YAW_CORRECTION_DEG = 5.0
 
 
-@dataclass(slots=True)
-class DetectSummary:
-    """What ``vid2sim detect`` did (printed by the CLI)."""
+def detect_and_range(video: Path, camera: Camera, *, detector, detections=None,
+                     detect_every: int = 1, fps: float | None = None, progress: bool = True,
+                     config: RangingConfig | None = None,
+                     tracker_config: TrackerConfig | None = None
+                     ) -> tuple[RangingResult, Camera, list[Note]]:
+    """Detect (or import), track and range every vehicle of a video: the shared core of
+    ``vid2sim track`` and ``vid2sim build``.
 
-    source: Path
-    out_path: Path
-    n_frames: int
-    elapsed_s: float
-    n_rows: int
-    n_tracks: int
-    tracks_per_category: dict[str, int] = field(default_factory=dict)
-    detector: str = ""
-
-    @property
-    def fps(self) -> float:
-        """Frames processed per second of wall time."""
-        return self.n_frames / self.elapsed_s if self.elapsed_s > 0 else float("nan")
-
-    def __str__(self) -> str:
-        cats = ", ".join(f"{k} {v}" for k, v in sorted(self.tracks_per_category.items()))
-        return (f"{self.source}: {self.n_frames} frames in {self.elapsed_s:.1f} s "
-                f"({self.fps:.1f} frames/s) with {self.detector}; {self.n_tracks} tracks"
-                f"{' (' + cats + ')' if cats else ''}, {self.n_rows} rows -> {self.out_path}")
-
-
-def detect_video(source: Path, out_path: Path, *, detector_name: str = DEFAULT_DETECTOR,
-                 model_dir: Path | None = None, detections_path: Path | None = None,
-                 detect_every: int = 1, score: float | None = None,
-                 small_object_mode: bool = True, progress: bool = True,
-                 fps: float | None = None, refine: int | None = None) -> DetectSummary:
-    """``vid2sim detect``: detect (or import), track, write ``detections.csv``.
+    While frames stream, lane markings give per-frame horizon rows and the vanishing column;
+    the column corrects the camera's yaw (so the ego corridor follows the lane) when enough
+    frames agree and the correction is plausible for a mounting.
 
     Parameters
     ----------
-    source, out_path : Path
-        Video or image folder; output CSV.
-    detector_name : str
-        Registry name or .onnx path (ignored with ``detections_path``).
-    model_dir : Path, optional
-        Folder searched first for weights.
-    detections_path : Path, optional
-        MOT CSV or Scalabel JSON with boxes to use instead of a detector.
-    detect_every : int
-        Run the detector on every N-th frame.
-    score : float, optional
-        Minimum score for a detection to start or confidently continue a track (default
-        0.45); weaker boxes down to 0.1 only continue tracks.
-    small_object_mode : bool
-        Extra tiles for distant cars.
-    progress : bool
-        Progress bar.
+    video : Path
+        Video file or image folder.
+    camera : Camera
+        The camera at the video's frame size.
+    detector : Detector or None
+        Runs on every ``detect_every``-th frame; None with ``detections``.
+    detections : dict, optional
+        Imported boxes, 0-based frame -> detections.
     fps : float, optional
-        Frame rate of an image folder [frames/s] (default 10).
-    refine : int, optional
-        Lead candidates re-detected on a crop per frame, 0 = off (default: the detector's,
-        see :meth:`vid2sim.detect.detector.OnnxDetector.refine`).
-    """
-    from vid2sim.detect.external import read_detections
+        Frame rate of an image folder [frames/s].
 
-    source = Path(source)
-    config = TrackerConfig()
-    if score is not None:
-        if not 0.0 < score < 1.0:
-            raise InputError(None, f"--score must be between 0 and 1, got {score}")
-        config = TrackerConfig(high_score=score, new_track_score=min(0.99, score + 0.05),
-                               low_score=min(config.low_score, score))
-    # The video first: a mistyped path should not be reported as missing weights.
-    n_frames = video_info(source, fps=fps).n_frames
-    detector = None
-    imported = None
-    if detections_path is not None:
-        imported = read_detections(detections_path)
-        label = f"imported boxes ({Path(detections_path).name})"
-    else:
-        detector = load_detector(detector_name, model_dir, score_threshold=config.low_score,
-                                 small_object_mode=small_object_mode, refine_max_boxes=refine)
-        label = f"{detector_name}{' + tiles' if small_object_mode else ''}"
-        if detector.refine_max_boxes > 0:
-            label += f" + {detector.refine_max_boxes} refined"
-    start = time.perf_counter()
-    boxes = run_detect(source, detector=detector, detections=imported,
-                       detect_every=detect_every, progress=progress, tracker_config=config,
-                       fps=fps)
-    elapsed = time.perf_counter() - start
-    write_detections_csv(boxes, out_path)
-    per_track = {b.track_id: b.category for b in boxes}
-    return DetectSummary(source=source, out_path=Path(out_path), n_frames=n_frames,
-                         elapsed_s=elapsed, n_rows=len(boxes), n_tracks=len(per_track),
-                         tracks_per_category=dict(Counter(per_track.values())), detector=label)
+    Returns
+    -------
+    result : RangingResult
+    camera : Camera
+        The camera used for ranging (yaw possibly corrected).
+    notes : list of Note
+        What was estimated and why, for the summary.
+    """
+    notes: list[Note] = []
+    # Every decoded frame: about 6 ms at 640 px wide, and the per-frame rows follow the
+    # horizon's drift (see lane_horizon_offsets).
+    horizon_est = HorizonEstimator(camera, every=1)
+    boxes = run_detect(video, detector=detector, detections=detections,
+                       detect_every=detect_every, progress=progress, fps=fps,
+                       tracker_config=tracker_config,
+                       on_frame=lambda frame: horizon_est.add_frame(frame.image_bgr,
+                                                                    frame.index))
+    # Lane markings also say where straight ahead is: correct the camera's yaw so the ego
+    # corridor runs along the lane rather than along a slightly turned camera axis.
+    column, n_col = horizon_est.estimate_column()
+    if column is not None and n_col >= MIN_LANE_FRAMES_FOR_YAW:
+        yaw = yaw_for_vanishing_column(camera, column)
+        if abs(yaw - camera.yaw_deg) <= MAX_YAW_CORRECTION_DEG:
+            notes.append(Note.estimate(
+                f"camera yaw {yaw:+.2f} deg from the lane markings' vanishing point "
+                f"({n_col} frames; camera file said {camera.yaw_deg:+.2f})"))
+            camera = replace(camera, yaw_deg=yaw)
+        else:
+            notes.append(Note.warning(
+                f"lane markings point {yaw - camera.yaw_deg:+.1f} deg off the camera axis: "
+                "implausible for a mounting, yaw not changed"))
+    result = range_tracks(boxes, camera, horizon_hints_px=horizon_est.rows_px,
+                          horizon_hint_frames=horizon_est.frames, config=config)
+    return result, camera, notes

@@ -16,25 +16,18 @@ the x of the vehicle's rear, lateral_m the y of its centre.
 
 from __future__ import annotations
 
-import csv
 import logging
 import math
 from collections import defaultdict
-from dataclasses import dataclass, field, replace
-from pathlib import Path
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from vid2sim.camera import Camera
-from vid2sim.errors import InputError
-from vid2sim.fileio import atomic_open
-from vid2sim.records import RangedBox, RangingResult, TrackedBox
+from vid2sim.camera import Camera, PitchSource
+from vid2sim.detect.lead import assign_lanes_and_lead
+from vid2sim.records import Note, NoteKind, RangedBox, RangingResult, TrackedBox
 
 log = logging.getLogger(__name__)
-
-TRACKS_CSV_COLUMNS = ("frame", "t_s", "track_id", "category", "score", "x1", "y1", "x2", "y2",
-                      "range_m", "lateral_m", "range_rate_mps", "range_std_m", "is_lead")
-
 
 # --------------------------------------------------------------------------- configuration
 
@@ -203,8 +196,7 @@ class RangingConfig:
         """One-sigma error of ``camera.pitch_deg`` [deg] (see ``camera_pitch_std_deg``)."""
         if self.camera_pitch_std_deg is not None:
             return self.camera_pitch_std_deg
-        calibrated = any("calibration" in a and not a.startswith("no camera file")
-                         for a in camera.assumptions)
+        calibrated = camera.pitch_source is PitchSource.CALIBRATION
         return CALIBRATED_PITCH_STD_DEG if calibrated else GUESSED_PITCH_STD_DEG
 
 
@@ -557,12 +549,12 @@ def horizon_from_vehicles(boxes: list[TrackedBox], camera: Camera, config: Rangi
 
 
 def choose_horizon(boxes: list[TrackedBox], camera: Camera, config: RangingConfig,
-                   horizon_hints_px: list[float] | None) -> tuple[float, str, list[str]]:
+                   horizon_hints_px: list[float] | None) -> tuple[float, str, list[Note]]:
     """Fuse the horizon estimates by inverse variance: camera file, lane markings, vehicles.
 
     Returns the row [px], the source with the largest weight, and notes for the summary.
     """
-    notes: list[str] = []
+    notes: list[Note] = []
     h_cam = camera.horizon_y_px()
     std_cam = camera.fy * math.tan(math.radians(config.pitch_std_for(camera)))
     estimates = [(h_cam, std_cam, "camera file")]
@@ -572,7 +564,8 @@ def choose_horizon(boxes: list[TrackedBox], camera: Camera, config: RangingConfi
         mad = 1.4826 * float(np.median(np.abs(hints - h_lane)))
         std_lane = max(mad, config.lane_horizon_std_px) / math.sqrt(hints.size) + 1.0
         estimates.append((h_lane, std_lane, "lane markings"))
-        notes.append(f"lane markings: horizon {h_lane:.1f} px from {hints.size} frames")
+        notes.append(Note.estimate(f"lane markings: horizon {h_lane:.1f} px from {hints.size} "
+                                   "frames"))
     h_veh, std_veh, n_veh = horizon_from_vehicles(boxes, camera, config)
     if h_veh is not None and n_veh >= 3:
         # One iteration at the new pitch: the width cue itself depends slightly on pitch.
@@ -581,14 +574,16 @@ def choose_horizon(boxes: list[TrackedBox], camera: Camera, config: RangingConfi
         if h2 is not None:
             h_veh, std_veh, n_veh = h2, std2, n2
         estimates.append((h_veh, std_veh, "vehicle consistency"))
-        notes.append(f"vehicle consistency: horizon {h_veh:.1f} px from {n_veh} vehicles")
+        notes.append(Note.estimate(f"vehicle consistency: horizon {h_veh:.1f} px from {n_veh} "
+                                   "vehicles"))
     if len(estimates) > 2 and abs(estimates[1][0] - estimates[2][0]) > 3 * math.hypot(
             estimates[1][1], estimates[2][1]):
         # Lane markings are pure geometry; the vehicle estimate leans on size priors and on
         # parked cars standing level with the road. When they disagree, keep the markings.
-        notes.append(f"lane-marking and vehicle horizons disagree ({estimates[1][0]:.1f} vs "
-                     f"{estimates[2][0]:.1f} px): kept the lane markings (a slope, kerb "
-                     "parking or unusual vehicle sizes?)")
+        notes.append(Note.warning(
+            f"lane-marking and vehicle horizons disagree ({estimates[1][0]:.1f} vs "
+            f"{estimates[2][0]:.1f} px): kept the lane markings (a slope, kerb parking or "
+            "unusual vehicle sizes?)"))
         estimates.pop(2)
     w = np.array([1.0 / s ** 2 for _, s, _ in estimates])
     h = float(np.sum(w * np.array([e[0] for e in estimates])) / w.sum())
@@ -909,19 +904,19 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
     RangingResult
         One :class:`RangedBox` per input box in the input order; lead and lane assigned.
     """
-    from vid2sim.detect.lead import assign_lanes_and_lead
-
     config = config or RangingConfig()
-    warnings: list[str] = []
+    warnings: list[Note] = []
     if not boxes:
         h = camera.horizon_y_px()
-        return RangingResult([], camera.pitch_deg, h, "camera file", {}, ["no boxes to range"])
+        return RangingResult([], camera.pitch_deg, h, "camera file", {},
+                             [Note.warning("no boxes to range")])
     unknown = sorted({b.category for b in boxes} - set(config.priors))
     if unknown:
-        warnings.append(f"no size prior for {', '.join(unknown)}: used the car prior")
+        warnings.append(Note.warning(f"no size prior for {', '.join(unknown)}: used the car "
+                                     "prior"))
 
     horizon, source, notes = choose_horizon(boxes, camera, config, horizon_hints_px)
-    warnings.extend(n for n in notes if "disagree" in n)
+    warnings.extend(n for n in notes if n.kind is NoteKind.WARNING)
     pitch = pitch_for_horizon(camera, horizon)
     cam = camera.with_pitch(pitch)
     ba = BoxArrays.from_boxes(boxes, cam, config.border_margin_px)
@@ -935,9 +930,10 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
         if np.any(slow_px != 0):
             ba = BoxArrays(ba.x1, ba.y1 - slow_px, ba.x2, ba.y2 - slow_px, ba.cut_left,
                            ba.cut_right, ba.cut_top, ba.cut_bottom)
-            notes.append(f"per-frame horizon from lane markings within "
-                         f"{config.lane_horizon_window_s:g} s: {slow_px.min():+.1f} to "
-                         f"{slow_px.max():+.1f} px about {horizon:.1f} px")
+            notes.append(Note.estimate(
+                f"per-frame horizon from lane markings within "
+                f"{config.lane_horizon_window_s:g} s: {slow_px.min():+.1f} to "
+                f"{slow_px.max():+.1f} px about {horizon:.1f} px"))
     priors = [config.prior_for(b.category) for b in boxes]
     w0 = np.array([p.width_m for p in priors])
     w0_std = np.array([p.width_std_m for p in priors])
@@ -1009,8 +1005,9 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
                     length_std_m=l0_std, pitch_noise_inflation=inflation,
                     road_height_std_m=road_std)
     if (~fit.valid).any():
-        warnings.append(f"{int((~fit.valid).sum())} boxes gave no usable range cue (cut by the "
-                        "border on too many sides); their range comes from the track filter")
+        warnings.append(Note.warning(
+            f"{int((~fit.valid).sum())} boxes gave no usable range cue (cut by the border on "
+            "too many sides); their range comes from the track filter"))
 
     # 3) Per-track Kalman filter + RTS smoother.
     n = len(boxes)
@@ -1053,245 +1050,4 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
                   lateral_rate_mps=float(out_lat_rate[i]), lane=lanes[i])
         for i, b in enumerate(boxes)]
     return RangingResult(ranged, pitch, horizon, source, width_by_track, warnings + [
-        n for n in notes if "disagree" not in n])
-
-
-# --------------------------------------------------------------------------- tracks.csv
-
-
-def _fmt(v: float, digits: int) -> str:
-    return "nan" if not np.isfinite(v) else f"{v:.{digits}f}"
-
-
-def write_tracks_csv(boxes: list[RangedBox], path: str | Path) -> None:
-    """Write ``tracks.csv`` atomically, one row per tracked vehicle per processed frame.
-
-    Columns ``frame,t_s,track_id,category,score,x1,y1,x2,y2,range_m,lateral_m,range_rate_mps,
-    range_std_m,is_lead``; ``is_lead`` is 1 on the lead vehicle's row, else 0; unknown values
-    (the range rate of a one-frame track) are ``nan``.
-    """
-    with atomic_open(path, "w", encoding="utf-8", newline="") as fh:
-        wr = csv.writer(fh, lineterminator="\n")
-        wr.writerow(TRACKS_CSV_COLUMNS)
-        for b in sorted(boxes, key=lambda b: (b.frame, b.track_id)):
-            wr.writerow([b.frame, f"{b.t_s:.4f}", b.track_id, b.category, f"{b.score:.3f}",
-                         f"{b.x1:.1f}", f"{b.y1:.1f}", f"{b.x2:.1f}", f"{b.y2:.1f}",
-                         _fmt(b.range_m, 2), _fmt(b.lateral_m, 2), _fmt(b.range_rate_mps, 2),
-                         _fmt(b.range_std_m, 2), int(b.is_lead)])
-
-
-def read_tracks_csv(path: str | Path) -> list[RangedBox]:
-    """Read a ``tracks.csv`` written by :func:`write_tracks_csv` (or by hand).
-
-    Raises
-    ------
-    InputError
-        If the file is missing, lacks a column, or holds a value that is not a number.
-    """
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(path, "no such file")
-    out: list[RangedBox] = []
-    try:
-        with open(path, encoding="utf-8", newline="") as fh:
-            reader = csv.DictReader(fh)
-            missing = [c for c in TRACKS_CSV_COLUMNS if c not in (reader.fieldnames or [])]
-            if missing:
-                raise InputError(path, f"not a tracks.csv: lacks column(s) {', '.join(missing)}",
-                                 "write it with `vid2sim track`")
-            for line, row in enumerate(reader, start=2):
-                try:
-                    out.append(_row_to_box(row))
-                except (TypeError, ValueError, KeyError) as exc:
-                    raise InputError(path, f"line {line}: {exc}") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(path, f"cannot read: {exc}") from None
-    return out
-
-
-def _row_to_box(row: dict[str, str]) -> RangedBox:
-    return RangedBox(
-        frame=int(row["frame"]), t_s=float(row["t_s"]), track_id=int(row["track_id"]),
-        category=row["category"], score=float(row["score"]), x1=float(row["x1"]),
-        y1=float(row["y1"]), x2=float(row["x2"]), y2=float(row["y2"]),
-        range_m=float(row["range_m"]), lateral_m=float(row["lateral_m"]),
-        range_rate_mps=float(row["range_rate_mps"]), range_std_m=float(row["range_std_m"]),
-        is_lead=row["is_lead"].strip() in ("1", "true", "True"))
-
-
-# --------------------------------------------------------------------------- vid2sim track
-
-# The lane vanishing point moves on curves; a median over this many sampled frames (every
-# 5th video frame: 2 s at 25 fps) is needed before it is trusted as straight ahead.
-MIN_LANE_FRAMES_FOR_YAW = 10
-# A windscreen mount turned more than this is implausible: more likely a long curve.
-MAX_YAW_CORRECTION_DEG = 5.0
-
-
-def _camera_for_video(camera_path: Path | None, width: int, height: int
-                      ) -> tuple[Camera, list[str]]:
-    """The camera file's camera at the video's size, or the default camera, with notes."""
-    from vid2sim.camera import fit_camera_to_frames, load_camera
-
-    if camera_path is None:
-        cam = Camera.default_for(width, height)
-        return cam, [f"no --camera: {cam.assumptions[0]}"]
-    cam, note = fit_camera_to_frames(load_camera(camera_path), width, height, camera_path)
-    return cam, [note] if note else []
-
-
-def summarize(result: RangingResult, n_frames: int) -> dict[str, float]:
-    """Figures for the summary: tracks, lead presence share, lead range min/median/max [m]."""
-    lead = [b for b in result.boxes if b.is_lead and np.isfinite(b.range_m)]
-    rng = np.array([b.range_m for b in lead])
-    lead_frames = {b.frame for b in lead}
-    return {
-        "tracks": len({b.track_id for b in result.boxes}),
-        "lead_share": len(lead_frames) / n_frames if n_frames else float("nan"),
-        "lead_tracks": len({b.track_id for b in lead}),
-        "lead_range_min_m": float(rng.min()) if rng.size else float("nan"),
-        "lead_range_median_m": float(np.median(rng)) if rng.size else float("nan"),
-        "lead_range_max_m": float(rng.max()) if rng.size else float("nan"),
-    }
-
-
-def detect_and_range(video: Path, camera: Camera, *, detector, detections=None,
-                     detect_every: int = 1, fps: float | None = None, progress: bool = True,
-                     config: RangingConfig | None = None
-                     ) -> tuple[RangingResult, Camera, list[str]]:
-    """Detect (or import), track and range every vehicle of a video: the shared core of
-    ``vid2sim track`` and ``vid2sim build``.
-
-    While frames stream, lane markings give per-frame horizon rows and the vanishing column;
-    the column corrects the camera's yaw (so the ego corridor follows the lane) when enough
-    frames agree and the correction is plausible for a mounting.
-
-    Parameters
-    ----------
-    video : Path
-        Video file or image folder.
-    camera : Camera
-        The camera at the video's frame size.
-    detector : Detector or None
-        Runs on every ``detect_every``-th frame; None with ``detections``.
-    detections : dict, optional
-        Imported boxes, 0-based frame -> detections.
-    fps : float, optional
-        Frame rate of an image folder [frames/s].
-
-    Returns
-    -------
-    result : RangingResult
-    camera : Camera
-        The camera used for ranging (yaw possibly corrected).
-    notes : list of str
-        What was estimated and why, for the summary.
-    """
-    from vid2sim.detect.lanes import HorizonEstimator, yaw_for_vanishing_column
-    from vid2sim.detect.pipeline import run_detect
-
-    notes: list[str] = []
-    # Every decoded frame: about 6 ms at 640 px wide, and the per-frame rows follow the
-    # horizon's drift (see lane_horizon_offsets).
-    horizon_est = HorizonEstimator(camera, every=1)
-    boxes = run_detect(video, detector=detector, detections=detections,
-                       detect_every=detect_every, progress=progress, fps=fps,
-                       on_frame=lambda frame: horizon_est.add_frame(frame.image_bgr,
-                                                                    frame.index))
-    # Lane markings also say where straight ahead is: correct the camera's yaw so the ego
-    # corridor runs along the lane rather than along a slightly turned camera axis.
-    column, n_col = horizon_est.estimate_column()
-    if column is not None and n_col >= MIN_LANE_FRAMES_FOR_YAW:
-        yaw = yaw_for_vanishing_column(camera, column)
-        if abs(yaw - camera.yaw_deg) <= MAX_YAW_CORRECTION_DEG:
-            notes.append(f"camera yaw {yaw:+.2f} deg from the lane markings' vanishing point "
-                         f"({n_col} frames; camera file said {camera.yaw_deg:+.2f})")
-            camera = replace(camera, yaw_deg=yaw)
-        else:
-            notes.append(f"lane markings point {yaw - camera.yaw_deg:+.1f} deg off the camera "
-                         "axis: implausible for a mounting, yaw not changed")
-    result = range_tracks(boxes, camera, horizon_hints_px=horizon_est.rows_px,
-                          horizon_hint_frames=horizon_est.frames, config=config)
-    return result, camera, notes
-
-
-def run_track(video: str | Path, camera_path: str | Path | None, *, detector_name: str,
-              model_dir: str | Path | None, detections_path: str | Path | None,
-              detect_every: int, out_path: str | Path, plot_dir: str | Path | None = None,
-              progress: bool = True, config: RangingConfig | None = None,
-              fps: float | None = None) -> str:
-    """``vid2sim track``: detect and track vehicles, range them, write ``tracks.csv``.
-
-    Parameters
-    ----------
-    video : path
-        Video file or image folder.
-    camera_path : path, optional
-        Camera YAML or KITTI calibration; None uses a default camera for the frame size.
-    detector_name, model_dir : str, path
-        Detector registry name or .onnx path, and a folder searched first for weights.
-    detections_path : path, optional
-        Imported boxes (MOT CSV, Scalabel JSON) used instead of a detector.
-    detect_every : int
-        Run the detector on every N-th frame.
-    out_path : path
-        ``tracks.csv`` to write (atomically).
-    plot_dir : path, optional
-        Folder for ``lead.png`` and ``topdown.png``.
-    progress : bool
-        Progress bar on stderr.
-    fps : float, optional
-        Frame rate of an image folder [frames/s] (default 10).
-
-    Returns
-    -------
-    str
-        A few lines of summary: tracks, frames, lead presence, horizon and its source, lead
-        range figures.
-    """
-    from vid2sim.detect.detector import load_detector
-    from vid2sim.detect.external import read_detections
-    from vid2sim.detect.tracker import TrackerConfig
-    from vid2sim.detect.video import video_info
-
-    video = Path(video)
-    info = video_info(video, fps=fps)
-    camera, notes = _camera_for_video(Path(camera_path) if camera_path else None,
-                                      info.width, info.height)
-    detector, imported = None, None
-    if detections_path is not None:
-        imported = read_detections(Path(detections_path))
-        source = f"imported boxes ({Path(detections_path).name})"
-    else:
-        detector = load_detector(detector_name, Path(model_dir) if model_dir else None,
-                                 score_threshold=TrackerConfig().low_score)
-        source = str(detector_name)
-    result, camera, stage_notes = detect_and_range(
-        video, camera, detector=detector, detections=imported, detect_every=detect_every,
-        fps=fps, progress=progress, config=config)
-    notes += stage_notes
-    write_tracks_csv(result.boxes, out_path)
-    lines = [f"{video}: {info.n_frames} frames, boxes from {source}"]
-    lines += notes
-    s = summarize(result, info.n_frames)
-    lines.append(f"{s['tracks']} tracks, {len(result.boxes)} rows -> {out_path}")
-    lines.append(f"horizon {result.horizon_y_px:.1f} px (pitch {result.pitch_deg_estimated:+.2f} "
-                 f"deg) from {result.horizon_source}; camera file said "
-                 f"{camera.horizon_y_px():.1f} px (pitch {camera.pitch_deg:+.2f} deg)")
-    if np.isfinite(s["lead_range_median_m"]):
-        lines.append(f"lead present on {100 * s['lead_share']:.0f}% of frames "
-                     f"({s['lead_tracks']} lead vehicles); lead range min/median/max "
-                     f"{s['lead_range_min_m']:.1f}/{s['lead_range_median_m']:.1f}/"
-                     f"{s['lead_range_max_m']:.1f} m")
-    else:
-        lines.append("no lead vehicle in the ego lane")
-    if plot_dir is not None:
-        from vid2sim.detect.plots import plot_lead, plot_topdown
-
-        plot_dir = Path(plot_dir)
-        cfg = config or RangingConfig()
-        p1 = plot_lead(result.boxes, plot_dir / "lead.png")
-        p2 = plot_topdown(result.boxes, plot_dir / "topdown.png", cfg.lane_width_m)
-        lines.append(f"plots: {p1}, {p2}")
-    lines += [f"note: {w}" for w in result.warnings]
-    return "\n".join(lines)
+        n for n in notes if n.kind is not NoteKind.WARNING])

@@ -18,7 +18,7 @@ other way and three cars stand in the parking strip along the right kerb. The ge
 - ``sample.json``: a manifest describing the above.
 
 Only the noise (GPS, detections, pixel grain) depends on the seed; the drive itself is fixed.
-``python -m datasets.demo_sample OUT_DIR`` writes the sample; :func:`truth_scenario` reads the
+``python -m vid2sim.samples.demo_sample OUT_DIR`` writes the sample; :func:`truth_scenario` reads the
 truth back as a :class:`~vid2sim.scenario.Scenario` and :func:`compare_to_truth` scores a
 built scenario against it.
 """
@@ -40,12 +40,12 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from datasets.render import Building, RoadGeometry, SceneRenderer, VehicleState, VehicleView
 from vid2sim.camera import Camera
 from vid2sim.errors import InputError
 from vid2sim.fileio import write_text_atomic
 from vid2sim.geo.frames import EnuFrame
 from vid2sim.records import Origin
+from vid2sim.samples.render import Building, RoadGeometry, SceneRenderer, VehicleState, VehicleView
 from vid2sim.scenario import Actor, Ego, Road, Scenario, Source, Trajectory, dumps_canonical
 
 # --------------------------------------------------------------------------- the drive
@@ -912,7 +912,7 @@ def compare_to_truth(built: Scenario, truth_path: Path) -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m datasets.demo_sample",
+    parser = argparse.ArgumentParser(prog="python -m vid2sim.samples.demo_sample",
                                      description="Write the vid2sim synthetic demo sample.")
     parser.add_argument("out_dir", type=Path)
     parser.add_argument("--seed", type=int, default=7)

@@ -11,7 +11,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from datasets.demo_sample import (
+from vid2sim.camera import load_camera
+from vid2sim.geo.frames import EnuFrame
+from vid2sim.records import Origin
+from vid2sim.samples.demo_sample import (
     EGO_LANE_OFFSET_M,
     GARMIN_TPX_NS,
     KEYFRAME_OFFSET_S,
@@ -24,9 +27,6 @@ from datasets.demo_sample import (
     load_route,
     truth_scenario,
 )
-from vid2sim.camera import load_camera
-from vid2sim.geo.frames import EnuFrame
-from vid2sim.records import Origin
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,5 @@
-"""Many videos in one run: a CSV manifest -> one ``pipeline.build`` per row in a process pool.
+"""Many videos in one run: a CSV manifest -> one :func:`~vid2sim.app.build.build` per row in a
+process pool.
 
 The unit of work is one row = one video = one ``build`` into ``OUT/<name>/``. The batch is
 idempotent: a row whose ``scenario.json`` already records the sha256 of the row's current
@@ -20,6 +21,7 @@ import contextlib
 import csv
 import dataclasses
 import io
+import json
 import logging
 import os
 import resource
@@ -31,16 +33,19 @@ from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
 
+from vid2sim import scenario as scenario_io
+from vid2sim.app.build import build
+from vid2sim.app.inputs import INPUT_NUMBERS, INPUT_ROLES, Inputs
+from vid2sim.app.settings import Settings
 from vid2sim.errors import InputError
-from vid2sim.fileio import read_input_text, write_text_atomic
+from vid2sim.fileio import read_input_text, sha256_path, write_text_atomic
 
 log = logging.getLogger(__name__)
 
-# Manifest column -> label used in messages; the path columns are resolved against the
-# manifest's folder.
-PATH_COLUMNS = {"video": "video", "gps": "GPS", "map": "map", "camera": "camera",
-                "detections": "detections", "keyframes": "keyframes"}
-NUMBER_COLUMNS = ("fps", "gps_offset_s", "ego_speed_mps")
+# Manifest column -> label used in messages (the input roles of a build); the path columns
+# are resolved against the manifest's folder.
+PATH_COLUMNS = dict(INPUT_ROLES)
+NUMBER_COLUMNS = INPUT_NUMBERS
 MANIFEST_COLUMNS = ("video", "name", *[c for c in PATH_COLUMNS if c != "video"],
                     *NUMBER_COLUMNS)
 RESULT_COLUMNS = ("name", "status", "seconds", "duration_s", "distance_m", "actors",
@@ -68,24 +73,16 @@ class BatchRow:
     gps_offset_s: float | None = None
     ego_speed_mps: float = 0.0
 
+    def inputs(self) -> Inputs:
+        """The row as the :class:`Inputs` of one build."""
+        return Inputs(video=self.video, gps=self.gps, map=self.map_path,
+                      camera=self.camera_path, detections=self.detections,
+                      keyframes=self.keyframes, fps=self.fps, gps_offset_s=self.gps_offset_s,
+                      ego_speed_mps=self.ego_speed_mps)
+
     def input_paths(self) -> dict[str, Path]:
         """Role -> path of the inputs ``build`` records (and hashes) in ``source.inputs``."""
-        roles = {"video": self.video, "gps": self.gps, "map": self.map_path,
-                 "camera": self.camera_path, "detections": self.detections,
-                 "keyframes": self.keyframes}
-        return {role: p for role, p in roles.items() if p is not None}
-
-
-@dataclass(slots=True)
-class BatchSettings:
-    """Options shared by every row (the command line's)."""
-
-    detector: str | None = None
-    model_dir: Path | None = None
-    detect_every: int = 1
-    allow_download: bool = True
-    threads: int = 2
-    """onnxruntime threads of each job's detector (``run_batch`` sets cores // jobs)."""
+        return self.inputs().paths()
 
 
 @dataclass(slots=True)
@@ -265,20 +262,6 @@ def _name_unnamed(rows: list[BatchRow], taken: set[str]) -> None:
 # --------------------------------------------------------------------------- one row
 
 
-def build_options(row: BatchRow, settings: BatchSettings, out_dir: Path):
-    """The ``BuildOptions`` of one row, its output in ``out_dir/<name>``."""
-    from vid2sim.pipeline import BuildOptions
-
-    return BuildOptions(video=row.video, out_dir=Path(out_dir) / row.name, gps=row.gps,
-                        map_path=row.map_path, camera_path=row.camera_path,
-                        detector=settings.detector, model_dir=settings.model_dir,
-                        detections=row.detections, keyframes=row.keyframes,
-                        detect_every=settings.detect_every, ego_speed_mps=row.ego_speed_mps,
-                        gps_offset_s=row.gps_offset_s, fps=row.fps,
-                        allow_download=settings.allow_download, progress=False,
-                        threads=settings.threads)
-
-
 def done_outcome(row: BatchRow, out_dir: Path) -> RowOutcome | None:
     """A "skipped" outcome when ``out_dir/<name>`` holds a build of the row's current inputs.
 
@@ -287,9 +270,6 @@ def done_outcome(row: BatchRow, out_dir: Path) -> RowOutcome | None:
     same roles with the same sha256 as the row's files now (a file's name or folder may
     change; its content may not). Hashing reads every input: about 1 s per GB.
     """
-    from vid2sim import scenario as scenario_io
-    from vid2sim.fileio import sha256_path
-
     row_dir = Path(out_dir) / row.name
     scenario_path = row_dir / "scenario.json"
     if not scenario_path.is_file() or not (row_dir / "report.html").is_file():
@@ -308,22 +288,19 @@ def done_outcome(row: BatchRow, out_dir: Path) -> RowOutcome | None:
                          duration_s=scenario.duration_s, actors=len(scenario.actors))
     metrics_path = row_dir / "metrics.json"
     if metrics_path.is_file():
-        import json
-
         with contextlib.suppress(ValueError, OSError):
             metrics = json.loads(metrics_path.read_text(encoding="utf-8"))
             outcome.f1, outcome.mean_iou = metrics.get("f1"), metrics.get("mean_iou")
     return outcome
 
 
-def run_row(row: BatchRow, settings: BatchSettings, out_dir: Path) -> RowOutcome:
+def run_row(row: BatchRow, settings: Settings, out_dir: Path) -> RowOutcome:
     """Build one row; never raises (an error becomes a "failed" outcome with one line)."""
-    from vid2sim.pipeline import build
-
     t0 = time.perf_counter()
     outcome = RowOutcome(name=row.name, status="ok", line=row.line)
     try:
-        result = build(build_options(row, settings, out_dir))
+        result = build(row.inputs(), Path(out_dir) / row.name,
+                       dataclasses.replace(settings, progress=False))
     except InputError as exc:
         outcome.status, outcome.error = "failed", _one_line(str(exc))
     except Exception as exc:  # noqa: BLE001 - one bad video must not stop the batch
@@ -398,7 +375,7 @@ def write_batch_csv(path: Path, outcomes: list[RowOutcome]) -> None:
     write_text_atomic(path, buf.getvalue())
 
 
-def run_batch(manifest: str | Path, out_dir: str | Path, settings: BatchSettings, *,
+def run_batch(manifest: str | Path, out_dir: str | Path, settings: Settings, *,
               jobs: int = 1, retry_failed: bool = False, progress: bool = False,
               report: Callable[[str], None] | None = None) -> BatchSummary:
     """Build every row of ``manifest`` into ``out_dir/<name>/`` with ``jobs`` workers.
@@ -409,8 +386,8 @@ def run_batch(manifest: str | Path, out_dir: str | Path, settings: BatchSettings
         CSV manifest (validated completely before anything is built or written).
     out_dir : path
         Batch folder: one subfolder per row and ``batch.csv``.
-    settings : BatchSettings
-        Options shared by every row.
+    settings : Settings
+        Settings shared by every row (each job's detector gets cores / jobs threads).
     jobs : int
         Worker processes (each builds one row at a time).
     retry_failed : bool
@@ -423,7 +400,8 @@ def run_batch(manifest: str | Path, out_dir: str | Path, settings: BatchSettings
     """
     if jobs < 1:
         raise InputError(None, f"--jobs must be >= 1, got {jobs}")
-    settings = dataclasses.replace(settings, threads=max(1, (os.cpu_count() or 1) // jobs))
+    settings = dataclasses.replace(settings, detector=dataclasses.replace(
+        settings.detector, threads=max(1, (os.cpu_count() or 1) // jobs)))
     rows = read_manifest(manifest)
     t0 = time.perf_counter()
     out_dir = Path(out_dir)
@@ -485,7 +463,7 @@ def _copy_recorded(outcome: RowOutcome, record: dict[str, str]) -> None:
             setattr(outcome, column, float(record.get(column, "")))
 
 
-def _run_pool(rows: list[BatchRow], todo: list[int], settings: BatchSettings, out_dir: Path,
+def _run_pool(rows: list[BatchRow], todo: list[int], settings: Settings, out_dir: Path,
               jobs: int, finished: Callable[[int, RowOutcome], None]) -> None:
     """Run ``todo`` rows, at most ``jobs`` at a time, one fresh spawned process per row.
 

@@ -11,8 +11,8 @@ import json
 import numpy as np
 import pytest
 
-from datasets import composite as cp
 from vid2sim.camera import Camera, fit_camera_to_frames, load_camera
+from vid2sim.samples import composite as cp
 
 N_FRAMES = 108
 
@@ -145,7 +145,7 @@ E2E_SEED = 1
 def e2e(kitti_raw_dir, kitti_tracking_dir, model_dir, polo, tmp_path_factory):
     """Write one composite clip and run the real detector, tracker and ranging on it once."""
     from vid2sim.detect.detector import load_detector
-    from vid2sim.detect.ranging import detect_and_range
+    from vid2sim.detect.pipeline import detect_and_range
     from vid2sim.detect.tracker import TrackerConfig
     from vid2sim.detect.video import video_info
 

@@ -4,7 +4,7 @@ A drive is a list of segments (duration, longitudinal acceleration, yaw rate) in
 fine step into the true ENU trajectory; fixes are then sampled from it with white noise, an
 optional slowly wandering bias (how real consumer GPS error behaves) and injected outliers.
 
-``python -m datasets.sample_gps OUT.gpx`` writes the README's sample drive through central
+``python -m vid2sim.samples.sample_gps OUT.gpx`` writes the README's sample drive through central
 Helsinki.
 """
 
@@ -157,7 +157,7 @@ def write_sample_gpx(path: str | Path) -> Path:
     fixes = sample_fixes(sample_drive(), HELSINKI, rate_hz=1.0, noise_m=2.5, bias_m=2.0,
                          outliers={70: (60.0, -45.0), 150: (-35.0, 80.0)}, seed=2024)
     gpx = gpxpy.gpx.GPX()
-    gpx.creator = "vid2sim datasets.sample_gps"
+    gpx.creator = "vid2sim samples.sample_gps"
     track = gpxpy.gpx.GPXTrack(name="vid2sim sample drive, Helsinki")
     seg = gpxpy.gpx.GPXTrackSegment()
     for f in fixes:
@@ -174,7 +174,7 @@ def write_sample_gpx(path: str | Path) -> Path:
 def main(argv: list[str] | None = None) -> int:
     args = sys.argv[1:] if argv is None else argv
     if len(args) != 1 or args[0] in ("-h", "--help"):
-        print("usage: python -m datasets.sample_gps OUT.gpx", file=sys.stderr)
+        print("usage: python -m vid2sim.samples.sample_gps OUT.gpx", file=sys.stderr)
         return 2
     out = write_sample_gpx(args[0])
     print(f"wrote {out}")

@@ -1,0 +1,268 @@
+"""``vid2sim build``: the whole pipeline for one video, written into a staged folder.
+
+trace -> road -> detect/track/range -> assemble -> export -> evaluate. Each stage is a
+function of a domain package that takes records and returns records; this module loads the
+inputs (through :mod:`vid2sim.app.loaders`), passes records along, sorts the stages' notes
+into warnings and assumptions, and writes the outputs.
+
+All outputs are written into a staging folder beside the output folder and moved in only when
+every stage has succeeded, so a failed build leaves no half-written files and does not clobber
+an earlier build's files.
+"""
+
+from __future__ import annotations
+
+import shutil
+import tempfile
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from vid2sim import __version__
+from vid2sim import scenario as scenario_io
+from vid2sim.app.commands import lead_summary, match_road
+from vid2sim.app.figures import stage_figures
+from vid2sim.app.inputs import Inputs
+from vid2sim.app.loaders import (
+    load_boxes,
+    load_camera_for,
+    load_trace,
+    load_video_info,
+    need_video,
+    smooth_trace,
+)
+from vid2sim.app.settings import Settings
+from vid2sim.detect.pipeline import detect_and_range
+from vid2sim.errors import InputError
+from vid2sim.evaluate.replay import run_eval
+from vid2sim.evaluate.report import write_report
+from vid2sim.export.assemble import assemble_scenario
+from vid2sim.export.openscenario import write_openscenario
+from vid2sim.records import EgoTrack, Note, NoteKind, Origin, notes_of
+from vid2sim.scenario import Source
+from vid2sim.tables import write_tracks_csv
+
+
+@dataclass(slots=True)
+class BuildResult:
+    """What a build produced, for the CLI summary and for tests."""
+
+    out_dir: Path
+    files: dict[str, Path]
+    duration_s: float
+    distance_m: float
+    n_actors: int
+    lead_share: float
+    lead_range_m: tuple[float, float, float] | None
+    metrics: dict | None
+    warnings: list[str]
+    stage_seconds: dict[str, float] = field(default_factory=dict)
+
+    def summary(self) -> str:
+        lines = [(f"scenario: {self.duration_s:.1f} s, ego distance {self.distance_m:.0f} m, "
+                  f"{self.n_actors} actors")]
+        if self.lead_range_m is not None:
+            lo, med, hi = self.lead_range_m
+            lines.append(f"lead vehicle on {100 * self.lead_share:.0f}% of frames, range "
+                         f"min {lo:.1f} / median {med:.1f} / max {hi:.1f} m")
+        else:
+            lines.append("no lead vehicle seen")
+        if self.metrics:
+            m = self.metrics
+            lines.append(f"keyframes {m['keyframes']}: precision {m['precision']:.3f}, recall "
+                         f"{m['recall']:.3f}, F1 {m['f1']:.3f}, mean IoU {m['mean_iou']:.3f}")
+        lines.append("stages: " + ", ".join(f"{k} {v:.1f} s" for k, v in self.stage_seconds.items()))
+        for w in self.warnings:
+            lines.append(f"warning: {w}")
+        lines.append("files:")
+        lines.extend(f"  {p}" for p in self.files.values())
+        return "\n".join(lines)
+
+
+# --------------------------------------------------------------------------- pure helpers
+
+
+def ego_without_gps(duration_s: float, speed_mps: float, rate_hz: float) -> EgoTrack:
+    """A straight ego drive heading east from the ENU origin at a constant speed.
+
+    Used when no GPS trace is given: the scenario is then camera-relative (speed 0) or
+    relative to an assumed constant ego speed.
+    """
+    n = max(2, int(np.floor(duration_s * rate_hz)) + 1)
+    t = np.arange(n) / rate_hz
+    x = speed_mps * t
+    zeros = np.zeros(n)
+    return EgoTrack(origin=Origin(0.0, 0.0, 0.0), t_s=t, x_m=x, y_m=zeros.copy(),
+                    heading_rad=zeros.copy(), speed_mps=np.full(n, float(speed_mps)),
+                    lat_deg=zeros.copy(), lon_deg=zeros.copy())
+
+
+def clip_ego_to_video(ego: EgoTrack, duration_s: float) -> tuple[EgoTrack, list[str]]:
+    """Keep the ego samples inside the video's time span [0, duration] (scenario clock)."""
+    warnings: list[str] = []
+    keep = (ego.t_s >= -1e-9) & (ego.t_s <= duration_s + 1e-9)
+    if keep.sum() < 2:
+        raise InputError(None, f"the GPS trace does not overlap the video (GPS covers "
+                         f"{ego.t_s[0]:.1f}..{ego.t_s[-1]:.1f} s of video time, the video "
+                         f"0..{duration_s:.1f} s)", "check the clocks or pass --gps-offset")
+    if ego.t_s[0] > 0.5:
+        warnings.append(f"GPS starts {ego.t_s[0]:.1f} s after the first video frame")
+    if ego.t_s[-1] < duration_s - 0.5:
+        warnings.append(f"GPS ends {duration_s - ego.t_s[-1]:.1f} s before the last video frame")
+    if keep.all():
+        return ego, warnings
+    fields_ = {name: (getattr(ego, name)[keep] if isinstance(getattr(ego, name), np.ndarray)
+                      else getattr(ego, name)) for name in EgoTrack.__slots__}
+    return EgoTrack(**fields_), warnings
+
+
+def path_length_m(ego: EgoTrack) -> float:
+    """Length of the ego's path [m]."""
+    return float(np.hypot(np.diff(ego.x_m), np.diff(ego.y_m)).sum()) if len(ego.t_s) > 1 else 0.0
+
+
+class _Stages:
+    """Times each stage and prints its name (progress per stage)."""
+
+    def __init__(self, report: Callable[[str], None] | None):
+        self.report = report
+        self.seconds: dict[str, float] = {}
+
+    def run(self, name: str, fn, *args, **kwargs):
+        if self.report:
+            self.report(f"[{len(self.seconds) + 1}] {name} ...")
+        t0 = time.perf_counter()
+        out = fn(*args, **kwargs)
+        self.seconds[name] = time.perf_counter() - t0
+        return out
+
+
+# --------------------------------------------------------------------------- build
+
+
+def build(inputs: Inputs, out_dir: Path, settings: Settings | None = None,
+          report: Callable[[str], None] | None = None) -> BuildResult:
+    """Run the whole pipeline for one video and write its outputs into ``out_dir``.
+
+    Parameters
+    ----------
+    inputs : Inputs
+        The video and what comes with it (GPS, map, camera, boxes, keyframes, time base).
+    out_dir : Path
+        Output folder (its vid2sim outputs are replaced only when the build succeeds).
+    settings : Settings, optional
+        Detector, tracker, ranging, smoothing and assembly settings (defaults otherwise).
+    report : callable, optional
+        Receives one line per stage as it starts (progress).
+    """
+    settings = settings or Settings()
+    stages = _Stages(report)
+    out_dir = Path(out_dir)
+    # Every input before any long work, so a typo fails in a second, not a minute.
+    settings.check()
+    inputs.check()
+    video = need_video(inputs)
+    info = load_video_info(inputs)
+    video_duration_s = (info.n_frames - 1) / info.fps if info.n_frames > 1 else 0.0
+    camera, notes = load_camera_for(inputs, info)
+    # The detector (or imported boxes) before any long work: missing weights fail fast.
+    detector, imported, boxes_label = load_boxes(inputs, settings)
+
+    # ---- geo: ego trajectory and road
+    roads, road_result, trace = [], None, None
+    if inputs.gps is not None:
+        trace = stages.run("read GPS", load_trace, inputs)
+        ego, trace_stats = stages.run("smooth ego trajectory", smooth_trace, trace, inputs,
+                                      settings)
+        notes.extend(trace_stats.warnings)
+        ego, clip_warnings = clip_ego_to_video(ego, video_duration_s)
+        notes.extend(clip_warnings)
+        road_result = stages.run("road and map matching", match_road, trace, ego, inputs,
+                                 settings)
+        roads = list(road_result.roads)
+        notes.extend(road_result.warnings)
+    else:
+        ego = ego_without_gps(video_duration_s, inputs.ego_speed_mps, settings.rate_hz)
+        notes.append(Note.assumption(
+            f"no GPS: the ego drives a straight road heading east at {inputs.ego_speed_mps:g} "
+            "m/s from an arbitrary origin (lat 0, lon 0)"
+            + (" (a camera-relative scenario)" if inputs.ego_speed_mps == 0 else "")))
+
+    # ---- detect, track, range
+    ranging, camera, ranging_notes = stages.run(
+        "detect, track and range", detect_and_range, video, camera, detector=detector,
+        detections=imported, detect_every=settings.detector.detect_every, fps=inputs.fps,
+        progress=settings.progress, config=settings.ranging,
+        tracker_config=settings.tracker_config())
+    notes.extend(ranging_notes)
+    notes.extend(ranging.warnings)
+    notes.append(Note.estimate(
+        f"horizon at row {ranging.horizon_y_px:.1f} px (pitch {ranging.pitch_deg_estimated:.2f} "
+        f"deg) from {ranging.horizon_source}"))
+    camera_used = camera.with_pitch(ranging.pitch_deg_estimated)
+    warnings = notes_of(notes, NoteKind.WARNING)
+    assumptions = [n for n in notes if getattr(n, "kind", None) in (NoteKind.ASSUMPTION,
+                                                                     NoteKind.ESTIMATE)]
+
+    # ---- assemble
+    options = {**inputs.recorded(), **settings.recorded(), "detector_used": boxes_label,
+               "fps": info.fps}
+    source = Source(inputs=inputs.fingerprints(), tool_version=__version__, options=options,
+                    assumptions=[str(a) for a in assumptions])
+    scenario, assemble_warnings = stages.run("assemble scenario", assemble_scenario, ego, roads,
+                                             ranging.boxes, camera_used, source=source,
+                                             config=settings.assemble)
+    warnings.extend(assemble_warnings)
+
+    # ---- write into a staging folder, then move into place
+    out_dir.parent.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", dir=out_dir.parent))
+    try:
+        files: dict[str, Path] = {}
+        scenario_io.save(scenario, staging / "scenario.json")
+        files["scenario"] = Path("scenario.json")
+        write_tracks_csv(ranging.boxes, staging / "tracks.csv")
+        files["tracks"] = Path("tracks.csv")
+        xosc, xodr = stages.run("export OpenSCENARIO/OpenDRIVE", write_openscenario, scenario,
+                                staging)
+        files["openscenario"] = Path(xosc.name)
+        files["opendrive"] = Path(xodr.name)
+        figures = stage_figures(staging / "figures", road_result, trace, ego, ranging.boxes)
+        report_inputs = {**inputs.labelled_paths(), "output folder": str(out_dir)}
+        metrics = None
+        if inputs.keyframes is not None:
+            # run_eval writes metrics.json, the keyframe overlays and the one report.html,
+            # with this build's figures, warnings and inputs added.
+            metrics, _ = stages.run("replay evaluation", run_eval, staging / "scenario.json",
+                                    inputs.keyframes, video=video, out_dir=staging,
+                                    fps=inputs.fps, extra_figures=figures,
+                                    extra_warnings=warnings, report_inputs=report_inputs,
+                                    # the staging folder's random name would make metrics.json
+                                    # differ between identical builds
+                                    scenario_label=str(out_dir / "scenario.json"))
+            files["metrics"] = Path("metrics.json")
+        else:
+            write_report(staging / "report.html", scenario=scenario, metrics=None,
+                         extra_figures=figures, warnings=warnings, inputs=report_inputs)
+        files["report"] = Path("report.html")
+        out_dir.mkdir(parents=True, exist_ok=True)
+        for child in staging.iterdir():
+            target = out_dir / child.name
+            if target.is_dir() and not target.is_symlink():
+                shutil.rmtree(target)
+            child.replace(target)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+
+    lead = lead_summary(ranging, info.n_frames)
+    lead_range = (None if not np.isfinite(lead["lead_range_median_m"]) else
+                  (lead["lead_range_min_m"], lead["lead_range_median_m"], lead["lead_range_max_m"]))
+    return BuildResult(
+        out_dir=out_dir, files={k: out_dir / v for k, v in files.items()},
+        duration_s=scenario.duration_s, distance_m=path_length_m(ego),
+        n_actors=len(scenario.actors), lead_share=lead["lead_share"], lead_range_m=lead_range,
+        metrics=metrics, warnings=warnings, stage_seconds=stages.seconds)
+

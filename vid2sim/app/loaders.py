@@ -1,0 +1,86 @@
+"""The one place each shared input is loaded: video facts, camera, detector, boxes, GPS.
+
+Every command that needs one of these calls the loader here, so a camera is fitted to the
+frames, a detector gets its thresholds, and the GPS gets its time base the same way in
+``track``, ``build`` and ``batch``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from vid2sim.app.inputs import Inputs
+from vid2sim.app.settings import Settings
+from vid2sim.camera import Camera, fit_camera_to_frames, load_camera
+from vid2sim.detect.detector import OnnxDetector, load_detector
+from vid2sim.detect.external import read_detections
+from vid2sim.detect.video import video_info
+from vid2sim.errors import InputError
+from vid2sim.geo.readers import read_gps
+from vid2sim.geo.trace import smooth_ego
+from vid2sim.records import Detection, EgoTrack, GpsTrace, Note, TraceStats, VideoInfo
+
+
+def need_video(inputs: Inputs) -> Path:
+    """The video path, or an input error for a command that needs one."""
+    if inputs.video is None:
+        raise InputError(None, "no video given")
+    return Path(inputs.video)
+
+
+def load_video_info(inputs: Inputs) -> VideoInfo:
+    """Size, rate and frame count of the video (image folders timed at ``inputs.fps``)."""
+    return video_info(need_video(inputs), fps=inputs.fps)
+
+
+def load_camera_for(inputs: Inputs, info: VideoInfo) -> tuple[Camera, list[Note]]:
+    """The camera of ``inputs.camera`` fitted to the frames, or a default camera, with notes.
+
+    A camera file for another image size is taken as a crop or a resize when it can be one
+    (a note says so), else refused.
+    """
+    if inputs.camera is None:
+        # A warning, not only an assumption: ranges scale with the guessed focal length and
+        # height. The scenario's source records the camera's assumptions as well.
+        cam = Camera.default_for(info.width, info.height)
+        return cam, [Note.warning(f"no --camera: {a}") for a in cam.assumptions]
+    cam, note = fit_camera_to_frames(load_camera(inputs.camera), info.width, info.height,
+                                     inputs.camera)
+    return cam, [Note.warning(note)] if note else []
+
+
+def load_detector_for(settings: Settings) -> OnnxDetector:
+    """The detector of ``settings.detector``; it keeps every box above the tracker's low
+    score, since weak boxes feed the tracker's second association stage (ByteTrack)."""
+    d = settings.detector
+    return load_detector(d.name, d.model_dir, score_threshold=settings.tracker_config().low_score,
+                         small_object_mode=d.tiles, refine_max_boxes=d.refine,
+                         threads=max(1, int(d.threads)))
+
+
+def load_boxes(inputs: Inputs, settings: Settings
+               ) -> tuple[OnnxDetector | None, dict[int, list[Detection]] | None, str]:
+    """Either the imported boxes of ``inputs.detections`` or the detector, and a label
+    saying which (for summaries and the scenario's source)."""
+    if inputs.detections is not None:
+        return (None, read_detections(Path(inputs.detections)),
+                f"imported boxes ({Path(inputs.detections).name})")
+    detector = load_detector_for(settings)
+    label = settings.detector.label()
+    if detector.refine_max_boxes > 0:
+        label += f" + {detector.refine_max_boxes} refined"
+    return detector, None, label
+
+
+def load_trace(inputs: Inputs) -> GpsTrace:
+    """The GPS trace of ``inputs.gps`` (format detected from the content)."""
+    if inputs.gps is None:
+        raise InputError(None, "no GPS trace given")
+    return read_gps(Path(inputs.gps))
+
+
+def smooth_trace(trace: GpsTrace, inputs: Inputs, settings: Settings
+                 ) -> tuple[EgoTrack, TraceStats]:
+    """The ego trajectory of a trace on the run's GPS time base (``inputs.gps_offset_s``)."""
+    return smooth_ego(trace, rate_hz=settings.rate_hz, gps_offset_s=inputs.gps_offset_s,
+                      params=settings.trace)

@@ -1,0 +1,118 @@
+"""The typed settings tree of a run: one record composed of the stages' own config classes.
+
+Every command takes a :class:`Settings`; the CLI builds it from its options once, and
+``vid2sim batch`` hands the same record to each row. Defaults live in the stage config
+classes and in :mod:`vid2sim.defaults`, never in the CLI.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+from vid2sim.defaults import EGO_RATE_HZ
+from vid2sim.detect.models import DEFAULT_DETECTOR
+from vid2sim.detect.ranging import RangingConfig
+from vid2sim.detect.tracker import TrackerConfig
+from vid2sim.errors import InputError
+from vid2sim.export.assemble import AssembleConfig
+from vid2sim.geo.trace import TraceParams
+
+
+@dataclass(frozen=True, slots=True)
+class DetectorSettings:
+    """How vehicles are found in the frames.
+
+    :param name: detector registry name (``vid2sim models list``) or a path to an .onnx file
+    :param model_dir: folder searched first for registry weights (then ``$VID2SIM_MODEL_DIR``,
+        then the user cache)
+    :param tiles: also run on two half-frame tiles and a centre window (distant cars)
+    :param refine: lead candidates re-detected on a crop per frame; None = the detector's
+        default (2 with tiles, 0 without)
+    :param score: minimum score to start a track [0-1]; None = the tracker's default
+    :param detect_every: run the detector on every N-th frame
+    :param threads: onnxruntime intra-op threads (a batch gives each job cores / jobs)
+    """
+
+    name: str = DEFAULT_DETECTOR
+    model_dir: Path | None = None
+    tiles: bool = True
+    refine: int | None = None
+    score: float | None = None
+    detect_every: int = 1
+    threads: int = 2
+
+    def check(self) -> None:
+        """Raise :class:`InputError` for values no run can use."""
+        if self.detect_every < 1:
+            raise InputError(None, f"--detect-every must be >= 1, got {self.detect_every}")
+        if self.score is not None and not 0.0 < self.score < 1.0:
+            raise InputError(None, f"--score must be between 0 and 1, got {self.score}")
+        if self.refine is not None and self.refine < 0:
+            raise InputError(None, f"--refine must be >= 0, got {self.refine}")
+        if self.threads < 1:
+            raise InputError(None, f"threads must be >= 1, got {self.threads}")
+
+    def label(self) -> str:
+        """How the boxes were made, for summaries (``yolox-nano + tiles``)."""
+        return f"{self.name}{' + tiles' if self.tiles else ''}"
+
+
+def tracker_for_score(base: TrackerConfig, score: float | None) -> TrackerConfig:
+    """The tracker thresholds for a user's minimum start score (``--score``).
+
+    Detections at or above ``score`` start and confidently continue tracks; weaker ones down
+    to the tracker's low score only continue them.
+    """
+    if score is None:
+        return base
+    return replace(base, high_score=score, new_track_score=min(0.99, score + 0.05),
+                   low_score=min(base.low_score, score))
+
+
+@dataclass(frozen=True, slots=True)
+class Settings:
+    """Everything a run may be told besides its inputs.
+
+    :param detector: detector and detection schedule
+    :param tracker: tracker thresholds (``detector.score`` adjusts them, see
+        :meth:`tracker_config`)
+    :param ranging: monocular ranging priors and noise
+    :param trace: GPS smoothing
+    :param assemble: scenario assembly
+    :param rate_hz: ego trajectory sample rate [Hz]
+    :param allow_download: fetch OpenStreetMap data for a trace without a map file
+    :param osm_cache_dir: where downloaded maps are cached (default the user cache)
+    :param progress: progress bars on stderr
+    """
+
+    detector: DetectorSettings = field(default_factory=DetectorSettings)
+    tracker: TrackerConfig = field(default_factory=TrackerConfig)
+    ranging: RangingConfig = field(default_factory=RangingConfig)
+    trace: TraceParams = field(default_factory=TraceParams)
+    assemble: AssembleConfig = field(default_factory=AssembleConfig)
+    rate_hz: float = EGO_RATE_HZ
+    allow_download: bool = True
+    osm_cache_dir: Path | None = None
+    progress: bool = True
+
+    def tracker_config(self) -> TrackerConfig:
+        """The tracker's thresholds with ``detector.score`` applied."""
+        return tracker_for_score(self.tracker, self.detector.score)
+
+    def check(self) -> None:
+        """Raise :class:`InputError` for settings no run can use (before any work)."""
+        self.detector.check()
+        if not 0.1 <= self.rate_hz <= 100.0:
+            raise InputError(None, f"--rate must be 0.1-100 Hz, got {self.rate_hz:g}")
+
+    def recorded(self) -> dict:
+        """The settings that change a scenario, as recorded in its ``source.options``.
+
+        Not recorded: where weights or caches are, thread counts, progress bars (they change
+        how fast a scenario is made, not what it holds).
+        """
+        d = self.detector
+        return {"detector": d.name, "tiles": d.tiles, "refine": d.refine, "score": d.score,
+                "detect_every": d.detect_every, "rate_hz": self.rate_hz,
+                "allow_download": self.allow_download}
