@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from vid2sim.samples import demo_sample as ds
-from vid2sim.samples.render import SceneRenderer, VehicleState
+from vid2sim.samples.render import DrawnVehicle, SceneRenderer
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -51,7 +51,7 @@ def main(argv: list[str] | None = None) -> int:
     for t in t_frames:
         ex, ey, eh = at("ego", t)
         es = float(np.interp(t, traffic.t_s, traffic.s_m["ego"]))
-        vehicles = [VehicleState(a.id, *at(a.id, t), a.length_m, a.width_m, a.height_m,
+        vehicles = [DrawnVehicle(a.id, *at(a.id, t), a.length_m, a.width_m, a.height_m,
                                  a.color_bgr, a.style) for a in ds.ACTORS]
         renderer.render((ex, ey), eh, es, vehicles)
     dt = time.perf_counter() - t0

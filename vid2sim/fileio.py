@@ -10,6 +10,8 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import IO
 
+from vid2sim.errors import InputError
+
 
 @contextlib.contextmanager
 def atomic_open(path: str | Path, mode: str = "w", **kwargs) -> Iterator[IO]:
@@ -80,8 +82,6 @@ def read_input_text(path: str | Path) -> str:
     Raises :class:`~vid2sim.errors.InputError` naming the file for a missing, unreadable or
     non-UTF-8 file, so every reader reports these the same way.
     """
-    from vid2sim.errors import InputError
-
     path = Path(path)
     try:
         return path.read_text(encoding="utf-8").lstrip("\ufeff")

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from vid2sim.samples.demo_sample import demo_camera
-from vid2sim.samples.render import RoadGeometry, SceneRenderer, VehicleState, _clip_near
+from vid2sim.samples.render import DrawnVehicle as VehicleState
+from vid2sim.samples.render import RoadGeometry, SceneRenderer, _clip_near
 
 
 def _straight_road(length_m: float = 300.0) -> RoadGeometry:

@@ -43,6 +43,7 @@ from vid2sim.camera import Camera, fit_camera_to_frames
 from vid2sim.errors import InputError
 from vid2sim.evaluate.annotations import describe, read_keyframes
 from vid2sim.evaluate.metrics import score_keyframes
+from vid2sim.evaluate.report import write_report
 from vid2sim.fileio import write_bytes_atomic, write_text_atomic
 from vid2sim.records import Keyframe, ProjectedBox
 from vid2sim.scenario import Actor, Scenario, load
@@ -484,8 +485,6 @@ def run_eval(scenario_path: str | Path, keyframes_path: str | Path, *, video: Pa
     (metrics, summary)
         The metrics.json content and a few human-readable lines.
     """
-    from vid2sim.evaluate.report import write_report
-
     scenario_path, keyframes_path, out_dir = Path(scenario_path), Path(keyframes_path), Path(out_dir)
     scenario = load(scenario_path)
     camera = Camera.from_dict(scenario.camera, scenario_path)

@@ -32,6 +32,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from vid2sim.errors import InputError
 from vid2sim.records import EgoTrack, RangedBox
 from vid2sim.scenario import Actor, Ego, Road, Scenario, Source, Trajectory
 
@@ -349,7 +350,6 @@ def assemble_scenario(ego: EgoTrack, roads: list[Road], tracks: list[RangedBox] 
     """
     cfg = config or AssembleConfig()
     if len(ego.t_s) < 2:
-        from vid2sim.errors import InputError
 
         raise InputError(None, "the ego trajectory has fewer than two samples",
                          "check the GPS input and --gps-offset")

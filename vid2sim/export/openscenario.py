@@ -43,6 +43,7 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import least_squares
 
+from vid2sim.export.assemble import straight_road_for
 from vid2sim.geo.frames import EnuFrame
 from vid2sim.scenario import Road, Scenario, Trajectory
 
@@ -312,8 +313,6 @@ def build_opendrive(scenario: Scenario, name: str = "vid2sim"):
     """The scenario's roads as a scenariogeneration ``OpenDrive`` (revision 1.8)."""
     from scenariogeneration import xodr
 
-    from vid2sim.export.assemble import straight_road_for
-
     roads = scenario.roads or [straight_road_for(scenario.ego)]
     odr = xodr.OpenDrive(name, revMajor="1", revMinor="8",
                          geo_reference=EnuFrame(scenario.origin).proj_string())
@@ -484,8 +483,6 @@ def write_openscenario(scenario: Scenario, out_dir: Path) -> tuple[Path, Path]:
     -------
     xosc_path, xodr_path : Path
     """
-    from vid2sim.export.assemble import straight_road_for
-
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     odr_root = build_opendrive(scenario).get_element()

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from vid2sim.errors import InputError
+from vid2sim.fileio import atomic_open
 from vid2sim.geo.frames import EnuFrame
 from vid2sim.geo.mapmatch import MatchConfig, MatchResult, match, signed_offsets
 from vid2sim.geo.osm import RoadNetwork, download_network, format_bbox, load_network
@@ -412,8 +413,6 @@ def plot_road(result: RoadResult, trace: GpsTrace, ego: EgoTrack, path_png: str 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from vid2sim.fileio import atomic_open
-
     frame = EnuFrame(result.origin)
     fixes_xy = (frame.to_enu([f.lat_deg for f in trace.fixes], [f.lon_deg for f in trace.fixes])
                 [:, :2] if trace.fixes else np.zeros((0, 2)))
@@ -444,23 +443,3 @@ def plot_road(result: RoadResult, trace: GpsTrace, ego: EgoTrack, path_png: str 
     with atomic_open(path_png, "wb") as fh:
         fig.savefig(fh, format="png")
     plt.close(fig)
-
-
-def run_road(gps_file: str | Path, out_path: str | Path, *, map_path: Path | None = None,
-             plot_path: Path | None = None, allow_download: bool = True,
-             cache_dir: Path | None = None, gps_offset_s: float | None = None) -> str:
-    """``vid2sim road``: read the trace, smooth the ego, match, write road.json (atomically),
-    optionally the PNG; returns the summary text."""
-    from vid2sim.fileio import write_text_atomic
-    from vid2sim.geo.readers import read_gps
-    from vid2sim.geo.trace import smooth_ego
-    from vid2sim.scenario import dumps_canonical
-
-    trace = read_gps(gps_file)
-    ego, _ = smooth_ego(trace, rate_hz=10.0, gps_offset_s=gps_offset_s)
-    result = build_road(trace, ego, map_path, allow_download=allow_download,
-                        cache_dir=cache_dir, fix_t_s=fix_times_s(trace, gps_offset_s))
-    write_text_atomic(out_path, dumps_canonical(road_json(result)))
-    if plot_path is not None:
-        plot_road(result, trace, ego, plot_path)
-    return format_summary(result, Path(out_path))

@@ -21,51 +21,25 @@ Pipeline of :func:`smooth_ego` (all in the local ENU frame, metres and seconds):
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from vid2sim.errors import InputError
-from vid2sim.fileio import atomic_open
 from vid2sim.geo.frames import EnuFrame
+from vid2sim.geo.kalman import hermite, smooth
+from vid2sim.geo.stops import (
+    doppler_stops,
+    held_heading,
+    median3,
+    position_stops,
+    spans,
+    stop_headings,
+)
+from vid2sim.geo.trace_params import TraceParams
 from vid2sim.records import EgoTrack, GpsTrace, Origin, TraceStats
 
-
-@dataclass(frozen=True, slots=True)
-class TraceParams:
-    """Tuning of :func:`smooth_ego`; the defaults suit road vehicles.
-
-    :param v_max_mps: fastest plausible speed; faster steps between fixes are outliers [m/s]
-    :param jerk_psd: white-jerk power spectral density of the constant-acceleration model
-        [m^2/s^5]; larger follows manoeuvres faster but passes more noise into speed
-    :param gate_sigma: a fix farther than this many sigmas from the smoothed track is dropped
-    :param gate_floor_m: ...but never one closer than this [m] (protects very precise traces
-        from rejecting model mismatch)
-    :param speed_sigma_mps: one-sigma error of a reported speed [m/s]
-    :param course_sigma_deg: one-sigma error of a reported course [deg]
-    :param stop_doppler_mps: reported speeds below this mean the vehicle is stopped [m/s]
-    :param stop_min_s: shortest stop that is detected [s]
-    :param stop_max_mps: a run of fixes moving faster than this is never called a stop [m/s]
-    :param heading_min_speed_mps: below this speed the heading is held, not taken from noise
-    :param gap_s: a time between accepted fixes longer than this is reported as a gap [s]
-    :param min_noise_m: floor of the position noise [m]
-    :param noise_m: white position noise [m] if known; default estimated from the fixes
-    """
-
-    v_max_mps: float = 70.0
-    jerk_psd: float = 0.1
-    gate_sigma: float = 4.5
-    gate_floor_m: float = 0.5
-    speed_sigma_mps: float = 0.3
-    course_sigma_deg: float = 5.0
-    stop_doppler_mps: float = 0.25
-    stop_min_s: float = 1.5
-    stop_max_mps: float = 1.0
-    heading_min_speed_mps: float = 0.5
-    gap_s: float = 2.0
-    min_noise_m: float = 0.02
-    noise_m: float | None = None
+__all__ = ["TraceParams", "format_summary", "smooth_ego"]
 
 
 # --------------------------------------------------------------------------- public API
@@ -171,10 +145,10 @@ def smooth_ego(trace: GpsTrace, rate_hz: float = 10.0, gps_offset_s: float | Non
     vel_meas = np.column_stack((spd * np.cos(heading_rep), spd * np.sin(heading_rep)))
 
     # ---- 4. smooth, drop fixes far from the smoothed track, smooth again
-    stops_fix = _doppler_stops(t, spd, keep, p)
+    stops_fix = doppler_stops(t, spd, keep, p)
     used = keep.copy()
     for _ in range(4):
-        xs = _smooth(t, xy, sig, spd, vel_meas, crs_ok, used, stops_fix, p)
+        xs = smooth(t, xy, sig, spd, vel_meas, crs_ok, used, stops_fix, p)
         resid = np.hypot(*(xy - xs[:, :2]).T)
         far = resid > np.maximum(p.gate_sigma * sig, p.gate_floor_m)
         new_used = keep & ~far
@@ -186,10 +160,10 @@ def smooth_ego(trace: GpsTrace, rate_hz: float = 10.0, gps_offset_s: float | Non
                          "the trace is too noisy to use")
 
     # ---- 5. stops from positions; final smoothing with zero-velocity updates
-    stops_fix = stops_fix | _position_stops(t, xy, sig, spd, used, p)
-    xs = _smooth(t, xy, sig, spd, vel_meas, crs_ok, used, stops_fix, p)
+    stops_fix = stops_fix | position_stops(t, xy, sig, spd, used, p)
+    xs = smooth(t, xy, sig, spd, vel_meas, crs_ok, used, stops_fix, p)
     # Spans over the used fixes only: a rejected fix inside a stop must not split it.
-    stop_spans = _spans(t[used], stops_fix[used], p.stop_min_s)
+    stop_spans = spans(t[used], stops_fix[used], p.stop_min_s)
 
     # ---- 6. resample
     tu, xu = t[used], xs[used]
@@ -198,7 +172,7 @@ def smooth_ego(trace: GpsTrace, rate_hz: float = 10.0, gps_offset_s: float | Non
         raise InputError(path, f"fixes span {tu[-1] - tu[0]:.3f} s, less than one sample at "
                          f"{rate_hz} Hz", "use a higher --rate")
     tg = np.arange(k0, k1 + 1) / rate_hz
-    pos, vel = _hermite(tu, xu[:, 0:2], xu[:, 2:4], tg)
+    pos, vel = hermite(tu, xu[:, 0:2], xu[:, 2:4], tg)
     speed = np.hypot(vel[:, 0], vel[:, 1])
     stopped = np.zeros(len(tg), bool)
     for a, b in stop_spans:
@@ -207,14 +181,14 @@ def smooth_ego(trace: GpsTrace, rate_hz: float = 10.0, gps_offset_s: float | Non
             stopped |= m
             pos[m] = pos[m].mean(axis=0)  # one place for the whole stop: no creeping
     speed[stopped] = 0.0
-    heading = _held_heading(vel, speed, stopped, p.heading_min_speed_mps, crs)
+    heading = held_heading(vel, speed, stopped, p.heading_min_speed_mps, crs)
     if heading is None:
         heading = np.zeros(len(tg))
         warnings.append("the vehicle never moves: heading set to 0 (east)")
     else:
-        _stop_headings(heading, pos, stopped)
+        stop_headings(heading, pos, stopped)
 
-    z = np.interp(tg, tu, _median3(enu[used, 2]))
+    z = np.interp(tg, tu, median3(enu[used, 2]))
     lat_g, lon_g, _ = frame.to_geodetic(np.column_stack((pos, z)))
     has_alt = bool(np.any(~np.isnan(alt)))
     ego = EgoTrack(origin=origin, t_s=tg, x_m=pos[:, 0], y_m=pos[:, 1], heading_rad=heading,
@@ -243,21 +217,6 @@ def smooth_ego(trace: GpsTrace, rate_hz: float = 10.0, gps_offset_s: float | Non
     return ego, stats
 
 
-def write_ego_csv(ego: EgoTrack, path: str | Path) -> None:
-    """Write ``t_s,lat,lon,x_m,y_m,heading_rad,speed_mps`` atomically with fixed decimals
-    (mm in position, 1e-8 deg ~ 1 mm in lat/lon), so identical input gives identical bytes."""
-    cols = (
-        (ego.t_s, 3), (ego.lat_deg, 8), (ego.lon_deg, 8), (ego.x_m, 3), (ego.y_m, 3),
-        (ego.heading_rad, 5), (ego.speed_mps, 3),
-    )
-    # Adding 0.0 after rounding turns -0.0 into 0.0, so "-0.000" never appears.
-    cells = [[f"{v:.{d}f}" for v in (np.round(np.asarray(a, float), d) + 0.0)] for a, d in cols]
-    with atomic_open(path, "w", encoding="utf-8", newline="\n") as fh:
-        fh.write("t_s,lat,lon,x_m,y_m,heading_rad,speed_mps\n")
-        for row in zip(*cells, strict=True):
-            fh.write(",".join(row) + "\n")
-
-
 def format_summary(stats: TraceStats, out_path: str | Path | None = None) -> str:
     """A multi-line, human-readable summary of a trace run."""
     lines = [
@@ -280,19 +239,6 @@ def format_summary(stats: TraceStats, out_path: str | Path | None = None) -> str
     if out_path is not None:
         lines.append(f"wrote:       {out_path}")
     return "\n".join(lines)
-
-
-def run_trace(gps_file: str | Path, out_path: str | Path, rate_hz: float = 10.0,
-              gps_offset_s: float | None = None) -> str:
-    """Read ``gps_file``, smooth it, write ``out_path`` (ego.csv) and return a summary."""
-    from vid2sim.geo.readers import read_gps
-
-    if Path(out_path).is_dir():
-        raise InputError(out_path, "is a folder", "give the output file name, e.g. ego.csv")
-    trace = read_gps(Path(gps_file))
-    ego, stats = smooth_ego(trace, rate_hz=rate_hz, gps_offset_s=gps_offset_s)
-    write_ego_csv(ego, out_path)
-    return format_summary(stats, out_path)
 
 
 # --------------------------------------------------------------------------- outliers, noise
@@ -374,349 +320,3 @@ def _consistent_chain(t: np.ndarray, xy: np.ndarray, sig: np.ndarray, v_max_mps:
         keep[i] = True
         i = prev[i]
     return keep
-
-
-# --------------------------------------------------------------------------- Kalman / RTS
-
-# State: [x, y, vx, vy, ax, ay] in ENU [m, m/s, m/s^2]; constant acceleration driven by white
-# jerk (Bar-Shalom, Estimation with Applications to Tracking and Navigation, sec. 6.3.3).
-
-
-def _transitions(dt: np.ndarray, q: float) -> tuple[np.ndarray, np.ndarray]:
-    """(M, 6, 6) transition and process-noise matrices for steps of ``dt`` seconds."""
-    m = len(dt)
-    f1 = np.zeros((m, 3, 3))
-    f1[:, 0, 0] = f1[:, 1, 1] = f1[:, 2, 2] = 1.0
-    f1[:, 0, 1] = f1[:, 1, 2] = dt
-    f1[:, 0, 2] = 0.5 * dt * dt
-    q1 = np.empty((m, 3, 3))
-    q1[:, 0, 0] = dt**5 / 20
-    q1[:, 0, 1] = q1[:, 1, 0] = dt**4 / 8
-    q1[:, 0, 2] = q1[:, 2, 0] = dt**3 / 6
-    q1[:, 1, 1] = dt**3 / 3
-    q1[:, 1, 2] = q1[:, 2, 1] = dt**2 / 2
-    q1[:, 2, 2] = dt
-    q1 *= q
-    # The x and y axes are independent in the model: interleave the 3x3 blocks.
-    f = np.zeros((m, 6, 6))
-    qq = np.zeros((m, 6, 6))
-    for axis in (0, 1):
-        f[:, axis::2, axis::2] = f1
-        qq[:, axis::2, axis::2] = q1
-    return f, qq
-
-
-def _update_block(x: np.ndarray, P: np.ndarray, z: np.ndarray, lo: int,
-                  R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Kalman update with a measurement of state elements ``lo`` and ``lo + 1`` (positions
-    at 0, velocities at 2); a 2x2 innovation covariance inverted in closed form."""
-    S = P[lo:lo + 2, lo:lo + 2] + R
-    det = S[0, 0] * S[1, 1] - S[0, 1] * S[1, 0]
-    s_inv = np.array([[S[1, 1], -S[0, 1]], [-S[1, 0], S[0, 0]]]) / det
-    K = P[:, lo:lo + 2] @ s_inv
-    x = x + K @ (z - x[lo:lo + 2])
-    P = P - K @ P[lo:lo + 2, :]
-    # Re-symmetrise: the tiny zero-velocity variances would otherwise let rounding build up.
-    return x, 0.5 * (P + P.T)
-
-
-def _update_scalar(x: np.ndarray, P: np.ndarray, z: float, h: np.ndarray,
-                   r: float) -> tuple[np.ndarray, np.ndarray]:
-    """Kalman update with one scalar measurement z = h . x + noise of variance r."""
-    ph = P @ h
-    k = ph / (h @ ph + r)
-    x = x + k * (z - h @ x)
-    P = P - np.outer(k, ph)
-    return x, 0.5 * (P + P.T)
-
-
-def _smooth(t, xy, sig, spd, vel_meas, crs_ok, used, stopped, p: TraceParams):
-    """Forward Kalman filter + RTS smoother over the used fixes; returns the smoothed state
-    [x, y, vx, vy, ax, ay] at ALL fixes (unused ones get the Hermite interpolation of their
-    used neighbours, acceleration 0)."""
-    idx = np.flatnonzero(used)
-    m = len(idx)
-    xf = np.zeros((m, 6))
-    pf = np.zeros((m, 6, 6))
-    xp = np.zeros((m, 6))
-    pp = np.zeros((m, 6, 6))
-    fs, qs = _transitions(np.diff(t[idx], prepend=t[idx[0]]), p.jerk_psd)
-    x = np.zeros(6)
-    x[:2] = xy[idx[0]]
-    P = np.diag([sig[idx[0]] ** 2] * 2 + [30.0**2] * 2 + [3.0**2] * 2)
-    cs = math.radians(p.course_sigma_deg)
-    zupt_r = np.eye(2) * 1e-4
-    for k, i in enumerate(idx):
-        if k > 0:
-            F = fs[k]
-            x = F @ x
-            P = F @ P @ F.T + qs[k]
-        xp[k], pp[k] = x, P
-        x, P = _update_block(x, P, xy[i], 0, np.eye(2) * sig[i] ** 2)
-        if stopped[i]:
-            # Zero-velocity update: the vehicle is known to stand still.
-            x, P = _update_block(x, P, np.zeros(2), 2, zupt_r)
-        elif crs_ok[i]:
-            v = vel_meas[i]
-            s = float(spd[i])
-            u = v / s  # along-track unit vector
-            n = np.array([-u[1], u[0]])
-            R = (np.outer(u, u) * p.speed_sigma_mps**2
-                 + np.outer(n, n) * max(s * cs, p.speed_sigma_mps) ** 2)
-            x, P = _update_block(x, P, v, 2, R)
-        elif not np.isnan(spd[i]):
-            # Speed without course: |v| = s, linearised about the current velocity.
-            vn = float(np.hypot(x[2], x[3]))
-            if vn > 0.5:
-                h = np.zeros(6)
-                h[2:4] = x[2:4] / vn
-                x, P = _update_scalar(x, P, float(spd[i]) - vn + float(h @ x), h,
-                                      p.speed_sigma_mps**2)
-        xf[k], pf[k] = x, P
-    xs = xf.copy()
-    if m > 1:
-        # RTS gains for all steps at once: C_k = P_f,k F_k+1^T P_p,k+1^-1.
-        gains = np.linalg.solve(pp[1:], fs[1:] @ pf[:-1]).transpose(0, 2, 1)
-        for k in range(m - 2, -1, -1):
-            xs[k] = xf[k] + gains[k] @ (xs[k + 1] - xp[k + 1])
-    # Spread to all fixes: rejected ones get the Hermite interpolation of their neighbours.
-    out = np.zeros((len(t), 6))
-    pos, vel = _hermite(t[idx], xs[:, :2], xs[:, 2:4], t)
-    out[:, :2], out[:, 2:4] = pos, vel
-    out[idx] = xs
-    return out
-
-
-def _hermite(tk: np.ndarray, pk: np.ndarray, vk: np.ndarray,
-             tq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Cubic Hermite interpolation of positions ``pk`` with derivatives ``vk`` at ``tq``;
-    returns positions and their time derivative (clamped to the ends outside ``tk``)."""
-    tq = np.clip(tq, tk[0], tk[-1])
-    j = np.clip(np.searchsorted(tk, tq, side="right") - 1, 0, len(tk) - 2)
-    h = (tk[j + 1] - tk[j])[:, None]
-    s = ((tq - tk[j])[:, None]) / h
-    p0, p1, v0, v1 = pk[j], pk[j + 1], vk[j], vk[j + 1]
-    s2, s3 = s * s, s * s * s
-    pos = ((2 * s3 - 3 * s2 + 1) * p0 + (s3 - 2 * s2 + s) * h * v0
-           + (-2 * s3 + 3 * s2) * p1 + (s3 - s2) * h * v1)
-    vel = ((6 * s2 - 6 * s) * p0 / h + (3 * s2 - 4 * s + 1) * v0
-           + (-6 * s2 + 6 * s) * p1 / h + (3 * s2 - 2 * s) * v1)
-    return pos, vel
-
-
-# --------------------------------------------------------------------------- stops, heading
-
-
-def _doppler_stops(t, spd, keep, p: TraceParams) -> np.ndarray:
-    """Fixes whose reported (Doppler) speed says "stopped", in runs lasting >= stop_min_s."""
-    low = keep & ~np.isnan(spd) & (spd < p.stop_doppler_mps)
-    return _runs_mask(t, low, p.stop_min_s)
-
-
-def _position_stops(t, xy, sig, spd, used, p: TraceParams) -> np.ndarray:
-    """Fixes inside stops found from positions: maximal runs of fixes whose least-squares
-    velocity is not significantly different from 0 (|v| <= max(0.15, 2.5 sigma_v) and below
-    ``stop_max_mps``), each new fix lying within 4 sigma of the run's mean position, no
-    reported speed above ``2 x stop_doppler_mps``, lasting at least ``stop_min_s``.
-
-    This is a likelihood test of "standing" against "moving on a line": noise alone never
-    makes a parked car move, but driving slower than the noise can resolve over the run is
-    reported as stopped.
-    """
-    idx = np.flatnonzero(used)
-    tt, pp, ss, vv = t[idx], xy[idx], sig[idx], spd[idx]
-    m = len(idx)
-    out = np.zeros(len(t), bool)
-    if m < 3:
-        return out
-    # Typical noise around each fix (median over the next 50), for the slope's standard error.
-    win = min(50, m)
-    padded = np.concatenate((ss, np.full(win - 1, ss[-1])))
-    s_meds = np.median(np.lib.stride_tricks.sliding_window_view(padded, win), axis=1)[:m]
-    windows: list[tuple[int, int]] = []
-    i = 0
-    while i < m - 2:
-        n = st = stt = 0.0
-        sx = np.zeros(2)
-        stx = np.zeros(2)
-        last_ok = -1
-        s_med = float(s_meds[i])
-        for j in range(i, m):
-            if not np.isnan(vv[j]) and vv[j] > 2.0 * p.stop_doppler_mps:
-                break
-            tj = tt[j] - tt[i]
-            if n >= 1 and np.hypot(*(pp[j] - sx / n)) > 4.0 * ss[j] * math.sqrt(1 + 1 / n) + 0.5:
-                break
-            n += 1
-            st += tj
-            stt += tj * tj
-            sx += pp[j]
-            stx += tj * pp[j]
-            if n < 3:
-                continue
-            var_t = stt - st * st / n  # sum of squared centred times
-            v = (stx - st * sx / n) / var_t
-            speed = float(np.hypot(*v))
-            sigma_v = s_med / np.sqrt(var_t)
-            if sigma_v > 0.5 * p.stop_max_mps:
-                # Too few fixes to tell standing from slow driving yet: a stop is declared
-                # only once motion at stop_max_mps would show as a 2-sigma slope.
-                continue
-            if speed > min(max(0.15, 2.5 * sigma_v), p.stop_max_mps):
-                break
-            last_ok = j
-        if last_ok >= 0 and tt[last_ok] - tt[i] >= p.stop_min_s:
-            if windows and i <= windows[-1][1] + 1:
-                windows[-1] = (windows[-1][0], max(windows[-1][1], last_ok))
-            else:
-                windows.append((i, last_ok))
-            if last_ok == m - 1:
-                break
-            # A window that began in the braking before a stop can fail before the stop ends;
-            # windows starting later get their own chance (stepping by a quarter keeps long
-            # stops at 10 Hz affordable).
-            i += max(1, (last_ok - i) // 4)
-        else:
-            i += 1
-    # Overlapping windows belong to one stop; its ends are then placed once.
-    for i, j in windows:
-        a, b = _refine_stop(tt, pp, i, j)
-        if tt[b] - tt[a] >= p.stop_min_s:
-            out[idx[a:b + 1]] = True
-    return _merge_stops(tt, pp, ss, idx, out)
-
-
-def _merge_stops(tt, pp, ss, idx, out) -> np.ndarray:
-    """Join two stops separated by at most 10 s when their mean positions agree within
-    noise and every fix between lies near them: one noisy fix must not split a stop into two
-    with invented motion in between."""
-    runs = _run_bounds(out[idx])
-    k = 0
-    while k + 1 < len(runs):
-        (a1, b1), (a2, b2) = runs[k], runs[k + 1]
-        p1, p2 = pp[a1:b1].mean(axis=0), pp[a2:b2].mean(axis=0)
-        s = float(np.median(ss[a1:b2]))
-        merged = pp[a1:b2].mean(axis=0)
-        between = pp[b1:a2]
-        if (tt[a2] - tt[b1 - 1] <= 10.0
-                and np.hypot(*(p1 - p2)) <= max(1.0, 3.0 * s * math.sqrt(1 / (b1 - a1) + 1 / (b2 - a2)))
-                and np.all(np.hypot(*(between - merged).T) <= 4.0 * s + 0.5)):
-            out[idx[a1:b2]] = True
-            runs[k:k + 2] = [(a1, b2)]
-        else:
-            k += 1
-    return out
-
-
-def _refine_stop(tt: np.ndarray, pp: np.ndarray, a: int, b: int,
-                 k_in: int = 8, k_out: int = 6) -> tuple[int, int]:
-    """Move the ends of the stop ``a..b`` (fix indices) to the best change points.
-
-    The slope test accepts a little of the braking before and the pulling away after a stop
-    (slow motion is within its noise). Near each end, fixes are modelled as standing at the
-    stop's mean position up to fix k and, beyond it, as starting (or ending) a constant
-    acceleration from rest, x = P + c (t - t_k)^2 per axis; the k with the smallest squared
-    residual over the same window wins.
-    """
-    m = len(tt)
-
-    def ssr(k: int, lo: int, hi: int, leaving: bool) -> float:
-        stay = slice(lo, k + 1) if leaving else slice(k, hi + 1)
-        move = slice(k + 1, hi + 1) if leaving else slice(lo, k)
-        rs = pp[stay] - pp[stay].mean(axis=0)
-        total = float(np.sum(rs * rs))
-        if move.stop > move.start:
-            w = (tt[move] - tt[k]) ** 2
-            d = pp[move] - pp[stay].mean(axis=0)
-            c = (w @ d) / float(w @ w)
-            r = d - np.outer(w, c)
-            total += float(np.sum(r * r))
-        return total
-
-    if b < m - 1:
-        lo, hi = max(a, b - k_in), min(m - 1, b + k_out)
-        ks = range(max(a + 2, lo), b + 1)
-        if len(ks):
-            b = min(ks, key=lambda k: ssr(k, max(a, lo - k_in), hi, True))
-    if a > 0:
-        lo, hi = max(0, a - k_out), min(b, a + k_in)
-        ks = range(a, min(b - 2, hi) + 1)
-        if len(ks):
-            a = min(ks, key=lambda k: ssr(k, lo, min(b, hi + k_in), False))
-    return a, b
-
-
-def _run_bounds(mask: np.ndarray) -> list[tuple[int, int]]:
-    """[start, end) index pairs of the True runs of ``mask``."""
-    d = np.diff(np.concatenate(([0], mask.astype(np.int8), [0])))
-    return list(zip(np.flatnonzero(d == 1).tolist(), np.flatnonzero(d == -1).tolist(), strict=True))
-
-
-def _runs_mask(t, mask, min_s) -> np.ndarray:
-    out = np.zeros(len(mask), bool)
-    for a, b in _run_bounds(mask):
-        if t[b - 1] - t[a] >= min_s:
-            out[a:b] = True
-    return out
-
-
-def _spans(t, mask, min_s) -> list[tuple[float, float]]:
-    """(t_start, t_end) of the True runs of ``mask`` lasting at least ``min_s``."""
-    return [(float(t[a]), float(t[b - 1])) for a, b in _run_bounds(mask)
-            if t[b - 1] - t[a] >= min_s]
-
-
-def _held_heading(vel, speed, stopped, min_speed, crs) -> np.ndarray | None:
-    """Heading CCW from east [rad] from the velocity where moving; held (carried forward,
-    or back from the first motion) where stopped or too slow for the velocity's direction to
-    mean anything."""
-    moving = ~stopped & (speed >= min_speed)
-    heading = np.arctan2(vel[:, 1], vel[:, 0])
-    if not moving.any():
-        ok = ~np.isnan(crs)
-        if ok.any():
-            return np.full(len(speed), math.atan2(*_course_to_enu(float(crs[ok][0]))[::-1]))
-        return None
-    idx = np.where(moving, np.arange(len(speed)), -1)
-    np.maximum.accumulate(idx, out=idx)
-    first = int(np.argmax(moving))
-    idx[idx < 0] = first
-    return heading[idx]
-
-
-def _stop_headings(heading: np.ndarray, pos: np.ndarray, stopped: np.ndarray,
-                   baseline_m: float = 10.0) -> None:
-    """Give each stop the direction of the last ``baseline_m`` metres driven into it (or, for
-    a stop at the start, the first metres driven out of it), in place.
-
-    Near a stop the velocity is small and its direction noisy; a chord over 10 m of smoothed
-    path is a far steadier estimate of where the car points while it stands.
-    """
-    s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(pos, axis=0).T))))
-    for a, b in _run_bounds(stopped):
-        before = np.flatnonzero(s[:a] <= s[a] - baseline_m)
-        after = np.flatnonzero(s[b:] >= s[b - 1] + baseline_m)
-        if len(before):
-            k = before[-1]
-            d = pos[a] - pos[k]
-        elif len(after):
-            k = b + after[0]
-            d = pos[k] - pos[b - 1]
-        else:
-            continue
-        heading[a:b] = math.atan2(d[1], d[0])
-
-
-def _course_to_enu(course_deg: float) -> tuple[float, float]:
-    """Unit vector (east, north) of a course clockwise from north."""
-    c = math.radians(course_deg)
-    return math.sin(c), math.cos(c)
-
-
-def _median3(a: np.ndarray) -> np.ndarray:
-    """Running median of 3 (altitude spikes), ends unchanged."""
-    if len(a) < 3:
-        return a.copy()
-    out = a.copy()
-    out[1:-1] = np.median(np.stack((a[:-2], a[1:-1], a[2:])), axis=0)
-    return out

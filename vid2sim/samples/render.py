@@ -23,6 +23,14 @@ import cv2
 import numpy as np
 
 from vid2sim.camera import Camera
+from vid2sim.samples.vehicle_model import (
+    GLASS_BGR,
+    GLASS_SIDE_BGR,
+    box_faces,
+    outward_normal,
+    shade,
+    vehicle_model,
+)
 
 # Fixed-point precision of polygon vertices handed to OpenCV (2**4 = 1/16 px): sub-pixel
 # accurate edges without float support in fillPoly.
@@ -84,7 +92,7 @@ class RoadGeometry:
 
 
 @dataclass(frozen=True, slots=True)
-class VehicleState:
+class DrawnVehicle:
     """One vehicle to draw, in ENU.
 
     :param x_m, y_m: centre of the footprint [m]
@@ -146,190 +154,6 @@ class Building:
     depth_m: float
     height_m: float
     color_bgr: tuple[int, int, int]
-
-
-# --------------------------------------------------------------------------- vehicle models
-
-
-def _box_faces(x0: float, x1: float, y0: float, y1: float, z0: float, z1: float
-               ) -> list[tuple[str, np.ndarray, np.ndarray]]:
-    """The six faces of an axis-aligned box as (name, (4, 3) corners, outward normal)."""
-    return [
-        ("rear", np.array([[x0, y0, z0], [x0, y1, z0], [x0, y1, z1], [x0, y0, z1]]),
-         np.array([-1.0, 0, 0])),
-        ("front", np.array([[x1, y0, z0], [x1, y0, z1], [x1, y1, z1], [x1, y1, z0]]),
-         np.array([1.0, 0, 0])),
-        ("right", np.array([[x0, y0, z0], [x0, y0, z1], [x1, y0, z1], [x1, y0, z0]]),
-         np.array([0, -1.0, 0])),
-        ("left", np.array([[x0, y1, z0], [x1, y1, z0], [x1, y1, z1], [x0, y1, z1]]),
-         np.array([0, 1.0, 0])),
-        ("top", np.array([[x0, y0, z1], [x1, y0, z1], [x1, y1, z1], [x0, y1, z1]]),
-         np.array([0, 0, 1.0])),
-        ("bottom", np.array([[x0, y0, z0], [x0, y1, z0], [x1, y1, z0], [x1, y0, z0]]),
-         np.array([0, 0, -1.0])),
-    ]
-
-
-# Shading by face orientation: light from above and slightly behind the camera, so tops are
-# brightest, rears/fronts next, sides darkest (the classic three-tone look of a lit box).
-_SHADE = {"top": 1.0, "rear": 0.82, "front": 0.82, "right": 0.62, "left": 0.62, "bottom": 0.3}
-_TYRE_BGR = (28, 28, 30)
-_GLASS_BGR = (90, 80, 72)
-_GLASS_SIDE_BGR = (80, 68, 60)
-_TAIL_LIGHT_BGR = (40, 40, 170)
-_HEAD_LIGHT_BGR = (205, 235, 245)
-_PLATE_BGR = (225, 228, 230)
-# Car shape: beltline height as a share of the roof height; cabin setbacks [m] from the rear
-# and front of the body at the beltline and at the roof, and the roof's inset from the sides.
-_BELT_FRAC = 0.6
-_CABIN = (0.3, 1.3, 1.0, 2.1, 0.28)
-_BUMPER_BGR = (45, 45, 48)
-
-
-def _shade(color: tuple[int, int, int], factor: float) -> tuple[int, int, int]:
-    return tuple(int(min(255, round(c * factor))) for c in color)  # type: ignore[return-value]
-
-
-def _decal(face_x: float, sign: float, y0: float, y1: float, z0: float, z1: float
-           ) -> tuple[np.ndarray, np.ndarray]:
-    """A rectangle on the rear (sign -1) or front (sign +1) face at x = ``face_x``, pushed
-    1 cm outwards so it is unambiguously in front of its face."""
-    x = face_x + sign * 0.01
-    corners = np.array([[x, y0, z0], [x, y1, z0], [x, y1, z1], [x, y0, z1]])
-    return corners, np.array([sign, 0.0, 0.0])
-
-
-def vehicle_model(length_m: float, width_m: float, height_m: float,
-                  color_bgr: tuple[int, int, int], style: str = "car"
-                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Polygons of a simple vehicle in its body frame (x forward, y left, z up, origin at the
-    centre of the footprint on the road), in drawing order.
-
-    :return: (P, 4, 3) quad corners [m], (P, 3) outward normals, (P, 3) BGR colours
-    """
-    L, W, H = length_m, width_m, height_m
-    hx, hy = L / 2.0, W / 2.0
-    quads: list[np.ndarray] = []
-    normals: list[np.ndarray] = []
-    colors: list[tuple[int, int, int]] = []
-
-    def add_box(x0, x1, y0, y1, z0, z1, color, face_colors=None) -> None:
-        for name, corners, n in _box_faces(x0, x1, y0, y1, z0, z1):
-            if name == "bottom":
-                continue  # never seen from a camera above the road
-            c = face_colors.get(name, color) if face_colors else color
-            quads.append(corners)
-            normals.append(n)
-            colors.append(_shade(c, _SHADE[name]) if not face_colors or name not in face_colors
-                          else c)
-
-    def add_decal(corners_normal, color) -> None:
-        quads.append(corners_normal[0])
-        normals.append(corners_normal[1])
-        colors.append(color)
-
-    wheel_r = 0.33 if style == "car" else 0.36
-    clearance = 0.28 if style == "car" else 0.35
-    axle = min(0.85, 0.2 * L)
-    # Wheels first: the body drawn afterwards hides their upper part, leaving the dark
-    # tyres visible under the bumper and along the sills as on a real car.
-    for ax in (-hx + axle, hx - axle):
-        for side in (-1.0, 1.0):
-            y_out = side * (hy - 0.02)
-            y_in = side * (hy - 0.27)
-            add_box(ax - wheel_r, ax + wheel_r, min(y_out, y_in), max(y_out, y_in),
-                    0.0, 2 * wheel_r, _TYRE_BGR)
-    if style == "van":
-        body_top = 0.97 * H
-        add_box(-hx, hx, -hy, hy, clearance, body_top, color_bgr)
-        # Rear doors' windows high up, a dark windscreen band on the front.
-        add_decal(_decal(-hx, -1, -hy + 0.12, -0.04, 0.62 * H, 0.86 * H), _GLASS_BGR)
-        add_decal(_decal(-hx, -1, 0.04, hy - 0.12, 0.62 * H, 0.86 * H), _GLASS_BGR)
-        add_decal(_decal(hx, 1, -hy + 0.1, hy - 0.1, 0.58 * H, 0.9 * H), _GLASS_BGR)
-        light_z = (0.28 * H, 0.42 * H)
-        plate_z = (0.22 * H, 0.28 * H)
-    else:
-        body_top = _BELT_FRAC * H
-        add_box(-hx, hx, -hy, hy, clearance, body_top, color_bgr)
-        light_z = (body_top - 0.22, body_top - 0.06)
-        plate_z = (clearance + 0.12, clearance + 0.26)
-    # Rear: bumper band, tail lights at the outer corners, a light plate in the middle.
-    add_decal(_decal(-hx, -1, -hy + 0.02, hy - 0.02, clearance, clearance + 0.12), _BUMPER_BGR)
-    for side in (-1.0, 1.0):
-        y_a, y_b = side * (hy - 0.04), side * (hy - 0.38)
-        add_decal(_decal(-hx, -1, min(y_a, y_b), max(y_a, y_b), *light_z), _TAIL_LIGHT_BGR)
-        add_decal(_decal(hx, 1, min(y_a, y_b), max(y_a, y_b), *light_z), _HEAD_LIGHT_BGR)
-    add_decal(_decal(-hx, -1, -0.26, 0.26, *plate_z), _PLATE_BGR)
-    add_decal(_decal(hx, 1, -0.42, 0.42, plate_z[0], light_z[1] - 0.04), _BUMPER_BGR)
-    if style != "van":
-        # Cabin (greenhouse): a frustum on the body, its rear window and windscreen raked and
-        # its sides drawn in (tumblehome), glass all round, roof in body colour. A box here
-        # reads as a pickup's cab; the rake is what makes the outline a saloon's.
-        bottom = (-hx + _CABIN[0], hx - _CABIN[1], hy - 0.08, body_top)
-        top = (-hx + _CABIN[2], hx - _CABIN[3], hy - _CABIN[4], H)
-        glass = {"rear": _GLASS_BGR, "front": _GLASS_BGR, "right": _GLASS_SIDE_BGR,
-                 "left": _GLASS_SIDE_BGR}
-        inside = np.array([0.0, 0.0, (body_top + H) / 2])
-        for name, corners in _frustum_faces(bottom, top):
-            n = _outward_normal(corners, inside)
-            quads.append(corners)
-            normals.append(n)
-            colors.append(_shade(color_bgr, _SHADE[name]))
-            if name in glass:
-                # The window inset in its frame: body-coloured pillars and roof edge around
-                # dark glass are much of what makes a rear view read as a car.
-                quads.append(_inset(corners, 0.14 if name in ("rear", "front") else 0.08,
-                                    0.12) + 0.01 * n)
-                normals.append(n)
-                colors.append(glass[name])
-    return (np.asarray(quads, float), np.asarray(normals, float),
-            np.asarray(colors, float))
-
-
-def _frustum_faces(bottom: tuple[float, float, float, float],
-                   top: tuple[float, float, float, float]) -> list[tuple[str, np.ndarray]]:
-    """Rear, front, right, left and top quads of a solid between two centred rectangles,
-    each given as (x_rear, x_front, half_width, z)."""
-    def ring(r):
-        x0, x1, hw, z = r
-        return np.array([[x0, -hw, z], [x0, hw, z], [x1, hw, z], [x1, -hw, z]])
-
-    b, t = ring(bottom), ring(top)
-    return [
-        ("rear", np.array([b[0], b[1], t[1], t[0]])),
-        ("front", np.array([b[3], t[3], t[2], b[2]])),
-        ("right", np.array([b[0], t[0], t[3], b[3]])),
-        ("left", np.array([b[1], b[2], t[2], t[1]])),
-        ("top", np.array([t[0], t[1], t[2], t[3]])),
-    ]
-
-
-def _inset(quad: np.ndarray, side_frac: float, top_frac: float) -> np.ndarray:
-    """A face quad (two corners at its bottom, two at its top) shrunk towards its centre:
-    ``side_frac`` of its width from each side, ``top_frac`` of its height from the top and
-    a thin sill at the bottom; the winding is kept."""
-    zs = quad[:, 2]
-    ib = np.argsort(zs, kind="stable")[:2]
-    it = np.array([k for k in range(4) if k not in ib])
-    # Pair each bottom corner with the top corner on its side (the nearer one).
-    if (np.linalg.norm(quad[ib[0]] - quad[it[0]])
-            > np.linalg.norm(quad[ib[0]] - quad[it[1]])):
-        it = it[::-1]
-    out = quad.copy()
-    for k in range(2):
-        o = 1 - k
-        b = quad[ib[k]] + side_frac * (quad[ib[o]] - quad[ib[k]])
-        t = quad[it[k]] + side_frac * (quad[it[o]] - quad[it[k]])
-        out[ib[k]] = b + 0.06 * (t - b)
-        out[it[k]] = t + top_frac * (b - t)
-    return out
-
-
-def _outward_normal(quad: np.ndarray, inside: np.ndarray) -> np.ndarray:
-    """Unit normal of a planar quad, oriented away from a point inside the solid."""
-    n = np.cross(quad[1] - quad[0], quad[2] - quad[0])
-    n = n / np.linalg.norm(n)
-    return n if np.dot(n, quad[0] - inside) > 0 else -n
 
 
 # --------------------------------------------------------------------------- clipping
@@ -496,17 +320,17 @@ class SceneRenderer:
         centre = np.array([*(near.mean(axis=0) + far.mean(axis=0)) / 2.0, h / 2.0])
         quads, colors = [], []
         quads.append(quad(near[0], near[1], 0.0, h))
-        colors.append(_shade(b.color_bgr, 0.9))
+        colors.append(shade(b.color_bgr, 0.9))
         quads.append(quad(near[0], far[0], 0.0, h))
-        colors.append(_shade(b.color_bgr, 0.7))
+        colors.append(shade(b.color_bgr, 0.7))
         quads.append(quad(near[1], far[1], 0.0, h))
-        colors.append(_shade(b.color_bgr, 0.7))
+        colors.append(shade(b.color_bgr, 0.7))
         # Windows: 1.4 m x 1.5 m every 3.2 m along the facade, one row per 3.3 m storey
         # above a ground floor of shop windows.
         facade = near[1] - near[0]
         length = float(np.hypot(*facade))
         unit = facade / max(length, 1e-9)
-        normal_out = _outward_normal(quads[0], centre)
+        normal_out = outward_normal(quads[0], centre)
         inset = 0.02 * normal_out[:2]
         n_win = int((length - 1.0) // 3.2)
         for storey in range(int((h - 1.0) // 3.3)):
@@ -515,9 +339,9 @@ class SceneRenderer:
             for k in range(n_win):
                 a = near[0] + unit * (1.0 + k * 3.2) + inset
                 quads.append(quad(a, a + unit * (2.4 if storey == 0 else 1.4), z0, z1))
-                colors.append(_GLASS_BGR if (k + storey) % 3 else _GLASS_SIDE_BGR)
+                colors.append(GLASS_BGR if (k + storey) % 3 else GLASS_SIDE_BGR)
         quads_arr = np.asarray(quads, float)
-        normals = np.array([_outward_normal(q, centre) for q in quads_arr[:3]]
+        normals = np.array([outward_normal(q, centre) for q in quads_arr[:3]]
                            + [normal_out] * (len(quads_arr) - 3))
         s_mid = (b.s0_m + b.s1_m) / 2.0
         return s_mid, quads_arr, normals, [tuple(int(c) for c in col) for col in colors]
@@ -566,7 +390,7 @@ class SceneRenderer:
 
     # ------------------------------------------------------------------ vehicles
 
-    def _model(self, v: VehicleState):
+    def _model(self, v: DrawnVehicle):
         key = (v.length_m, v.width_m, v.height_m, tuple(v.color_bgr), v.style)
         if key not in self._models:
             quads, normals, colors = vehicle_model(v.length_m, v.width_m, v.height_m,
@@ -574,18 +398,18 @@ class SceneRenderer:
             self._models[key] = (quads, normals, [tuple(int(c) for c in col) for col in colors])
         return self._models[key]
 
-    def _body_to_enu(self, v: VehicleState, pts_body: np.ndarray) -> np.ndarray:
+    def _body_to_enu(self, v: DrawnVehicle, pts_body: np.ndarray) -> np.ndarray:
         c, s = math.cos(v.heading_rad), math.sin(v.heading_rad)
         x = v.x_m + c * pts_body[..., 0] - s * pts_body[..., 1]
         y = v.y_m + s * pts_body[..., 0] + c * pts_body[..., 1]
         return np.stack((x, y, pts_body[..., 2]), axis=-1)
 
-    def _silhouette_px(self, v: VehicleState, ego_xy, ego_heading
+    def _silhouette_px(self, v: DrawnVehicle, ego_xy, ego_heading
                        ) -> tuple[np.ndarray | None, bool]:
         """Projected vertices of the vehicle's full 3D box after near clipping (None if
         nothing is in front), and whether the whole box is in front of the camera."""
         hx, hy = v.length_m / 2.0, v.width_m / 2.0
-        faces = _box_faces(-hx, hx, -hy, hy, 0.0, v.height_m)
+        faces = box_faces(-hx, hx, -hy, hy, 0.0, v.height_m)
         pts = []
         whole = True
         for _, corners, _ in faces:
@@ -596,7 +420,7 @@ class SceneRenderer:
                 pts.append(self._project(cam))
         return (np.vstack(pts) if pts else None), whole
 
-    def _draw_shadow(self, img: np.ndarray, v: VehicleState, ego_xy, ego_heading) -> None:
+    def _draw_shadow(self, img: np.ndarray, v: DrawnVehicle, ego_xy, ego_heading) -> None:
         hx, hy = v.length_m / 2.0, v.width_m / 2.0
         for grow, color in ((0.28, SHADOW_OUTER_BGR), (0.06, SHADOW_INNER_BGR)):
             foot = np.array([[-hx - grow, -hy - grow, 0.0], [hx + grow, -hy - grow, 0.0],
@@ -604,7 +428,7 @@ class SceneRenderer:
             cam = self._enu_to_cam(self._body_to_enu(v, foot), ego_xy, ego_heading)
             self._fill(img, [cam], color, convex=True)
 
-    def _draw_vehicle(self, img: np.ndarray, v: VehicleState, ego_xy, ego_heading) -> None:
+    def _draw_vehicle(self, img: np.ndarray, v: DrawnVehicle, ego_xy, ego_heading) -> None:
         quads, normals, colors = self._model(v)
         c, s = math.cos(v.heading_rad), math.sin(v.heading_rad)
         n_enu = np.stack((c * normals[:, 0] - s * normals[:, 1],
@@ -614,7 +438,7 @@ class SceneRenderer:
     # ------------------------------------------------------------------ frame
 
     def render(self, ego_xy: tuple[float, float], ego_heading_rad: float, ego_s_m: float,
-               vehicles: list[VehicleState], *, draw_road: bool = True,
+               vehicles: list[DrawnVehicle], *, draw_road: bool = True,
                draw_shadows: bool = True) -> tuple[np.ndarray, list[VehicleView]]:
         """Draw one frame.
 
@@ -626,7 +450,7 @@ class SceneRenderer:
             Ego heading, counter-clockwise from east [rad].
         ego_s_m : float
             Ego arc length along the road [m] (to choose which part of the road to draw).
-        vehicles : list of VehicleState
+        vehicles : list of DrawnVehicle
             Other vehicles in ENU.
 
         Returns
