@@ -227,7 +227,7 @@ class TrackedBox:
 
 
 @dataclass(frozen=True, slots=True)
-class RangedBox:
+class RangedBox(TrackedBox):
     """A tracked box with its position relative to the camera (a row of ``tracks.csv``).
 
     :param range_m: longitudinal distance from the camera to the vehicle's rear [m]
@@ -238,15 +238,6 @@ class RangedBox:
     :param lane: "ego", "left", "right" (or "left2"/"right2"...) lane assignment
     """
 
-    frame: int
-    t_s: float
-    track_id: int
-    category: str
-    score: float
-    x1: float
-    y1: float
-    x2: float
-    y2: float
     range_m: float
     lateral_m: float
     range_rate_mps: float

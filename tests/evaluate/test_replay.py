@@ -15,11 +15,11 @@ from vid2sim.cli import main
 from vid2sim.evaluate.replay import (
     _env_available,
     project_box_clipped,
-    read_frames,
     replay_boxes,
     run_eval,
 )
 from vid2sim.scenario import Actor, Ego, Scenario, Source, Trajectory, save
+from vid2sim.videofile import read_frames
 
 # Actors that never hide each other: (id, forward [m], lateral [m], speed [m/s], t0, t1)
 VISIBLE = [("lead", 20.0, 0.0, 8.0, 0.0, 4.0), ("left", 12.0, 3.5, 12.0, 0.0, 4.0),

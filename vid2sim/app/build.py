@@ -208,7 +208,8 @@ def build(inputs: Inputs, out_dir: Path, settings: Settings | None = None,
                                                                      NoteKind.ESTIMATE)]
 
     # ---- assemble
-    options = {**inputs.recorded(), **settings.recorded(), "detector_used": boxes_label,
+    options = {**inputs.recorded(), **settings.recorded(detector_used=detector is not None),
+               "detector_used": boxes_label,
                "fps": info.fps}
     source = Source(inputs=inputs.fingerprints(), tool_version=__version__, options=options,
                     assumptions=[str(a) for a in assumptions])

@@ -106,13 +106,16 @@ class Settings:
         if not 0.1 <= self.rate_hz <= 100.0:
             raise InputError(None, f"--rate must be 0.1-100 Hz, got {self.rate_hz:g}")
 
-    def recorded(self) -> dict:
+    def recorded(self, detector_used: bool = True) -> dict:
         """The settings that change a scenario, as recorded in its ``source.options``.
 
         Not recorded: where weights or caches are, thread counts, progress bars (they change
-        how fast a scenario is made, not what it holds).
+        how fast a scenario is made, not what it holds), nor the detector's settings when the
+        boxes were imported (``detector_used`` False).
         """
         d = self.detector
-        return {"detector": d.name, "tiles": d.tiles, "refine": d.refine, "score": d.score,
-                "detect_every": d.detect_every, "rate_hz": self.rate_hz,
-                "allow_download": self.allow_download}
+        out = {"detect_every": d.detect_every, "score": d.score, "rate_hz": self.rate_hz,
+               "allow_download": self.allow_download}
+        if detector_used:
+            out.update({"detector": d.name, "tiles": d.tiles, "refine": d.refine})
+        return out

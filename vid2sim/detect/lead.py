@@ -1,5 +1,8 @@
 """Lane assignment of ranged vehicles and lead-vehicle selection with hysteresis.
 
+The lead's geometry is :mod:`vid2sim.lead` (nearest ahead in the ego corridor); this module
+adds what tracking needs on top: lane hysteresis and a delay before a rival takes over.
+
 The ego corridor is the lane the camera sits in: +-lane_width/2 about the camera's optical
 axis projected on the road (the camera's yaw is already removed by the camera model). Lanes
 to the left are 1, 2, ... and to the right -1, -2, ..., named "ego", "left", "right",
@@ -13,6 +16,7 @@ from typing import Protocol
 
 import numpy as np
 
+from vid2sim.lead import nearest_ahead
 from vid2sim.records import TrackedBox
 
 
@@ -105,11 +109,13 @@ def assign_lanes_and_lead(boxes: list[TrackedBox], range_m: np.ndarray, lateral_
     challenger: int | None = None
     challenge_frames = 0
     for frame in sorted(by_frame):
-        cands = [i for i in by_frame[frame] if lane_idx[i] == 0 and np.isfinite(range_m[i])
-                 and 0 < range_m[i] <= config.max_range_m]
-        if not cands:
+        members = np.asarray(by_frame[frame])
+        k = nearest_ahead(range_m[members], lane_idx[members] == 0, config.max_range_m)
+        if k < 0:
             continue
-        nearest = min(cands, key=lambda i: range_m[i])
+        nearest = int(members[k])
+        cands = [int(i) for i in members if lane_idx[i] == 0 and np.isfinite(range_m[i])
+                 and 0 < range_m[i] <= config.max_range_m]
         current = next((i for i in cands if boxes[i].track_id == lead_track), None)
         if current is None:
             is_lead[nearest] = True

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from vid2sim.defaults import LANE_WIDTH_M
 from vid2sim.fileio import write_bytes_atomic
 from vid2sim.records import RangedBox
 
@@ -72,7 +73,7 @@ def plot_lead(boxes: list[RangedBox], path: str | Path) -> Path:
     return path
 
 
-def plot_topdown(boxes: list[RangedBox], path: str | Path, lane_width_m: float = 3.6) -> Path:
+def plot_topdown(boxes: list[RangedBox], path: str | Path, lane_width_m: float = LANE_WIDTH_M) -> Path:
     """Top-down view of every track in the camera's frame (range up, left to the left).
 
     Each track is one line over time; lead rows are marked; the ego corridor is shaded.

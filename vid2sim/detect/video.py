@@ -9,69 +9,10 @@ import cv2
 import numpy as np
 
 from vid2sim.errors import InputError
-from vid2sim.records import Frame, VideoInfo
+from vid2sim.records import Frame
+from vid2sim.videofile import image_files, open_capture, video_info
 
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
-DEFAULT_FOLDER_FPS = 10.0
-"""Frame rate assumed for an image folder [frames/s] (KITTI records at 10 Hz)."""
-
-
-def _image_files(folder: Path) -> list[Path]:
-    files = sorted(p for p in folder.iterdir()
-                   if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
-    if not files:
-        raise InputError(folder, "folder holds no .png/.jpg images",
-                         "give a video file or a folder of frames named in time order")
-    return files
-
-
-def _open_capture(path: Path) -> cv2.VideoCapture:
-    if not path.exists():
-        raise InputError(path, "no such video file or folder")
-    cap = cv2.VideoCapture(str(path))
-    if not cap.isOpened():
-        cap.release()
-        raise InputError(path, "OpenCV cannot open this video",
-                         "check the file is a complete video (mp4/avi/mov) or convert it with ffmpeg")
-    return cap
-
-
-def video_info(path: Path, fps: float | None = None) -> VideoInfo:
-    """Size, frame rate and frame count of a video file or image folder.
-
-    Parameters
-    ----------
-    path : Path
-        Video file, or folder of images sorted by name.
-    fps : float, optional
-        Frame rate [frames/s] to assume for an image folder (default 10) or to override a
-        video's missing rate.
-
-    Raises
-    ------
-    InputError
-        If the path is missing or unreadable.
-    """
-    path = Path(path)
-    if path.is_dir():
-        files = _image_files(path)
-        first = cv2.imread(str(files[0]), cv2.IMREAD_COLOR)
-        if first is None:
-            raise InputError(files[0], "cannot read this image")
-        return VideoInfo(width=first.shape[1], height=first.shape[0],
-                         fps=float(fps or DEFAULT_FOLDER_FPS), n_frames=len(files))
-    cap = _open_capture(path)
-    try:
-        rate = cap.get(cv2.CAP_PROP_FPS)
-        rate = float(fps) if fps else (rate if rate and np.isfinite(rate) and rate > 0 else 0.0)
-        if rate <= 0:
-            raise InputError(path, "video declares no frame rate", "pass the frame rate explicitly")
-        return VideoInfo(width=int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)),
-                         height=int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT)),
-                         fps=rate, n_frames=int(cap.get(cv2.CAP_PROP_FRAME_COUNT)))
-    finally:
-        cap.release()
-
+__all__ = ["iter_frames", "video_info"]
 
 def iter_frames(path: Path, every: int = 1, fps: float | None = None) -> Iterator[Frame]:
     """Stream the frames of a video file or image folder, decoding only every N-th one.
@@ -112,7 +53,7 @@ def iter_frames(path: Path, every: int = 1, fps: float | None = None) -> Iterato
 
 
 def _iter_folder(folder: Path, every: int, fps: float) -> Iterator[Frame]:
-    for index, file in enumerate(_image_files(folder)):
+    for index, file in enumerate(image_files(folder)):
         image = None
         if index % every == 0:
             image = cv2.imread(str(file), cv2.IMREAD_COLOR)
@@ -122,7 +63,7 @@ def _iter_folder(folder: Path, every: int, fps: float) -> Iterator[Frame]:
 
 
 def _iter_video(path: Path, every: int, fps: float) -> Iterator[Frame]:
-    cap = _open_capture(path)
+    cap = open_capture(path)
     try:
         index = 0
         t0_ms: float | None = None

@@ -40,13 +40,14 @@ from shapely.geometry import box as shapely_box
 from shapely.ops import unary_union
 
 from vid2sim.camera import Camera, fit_camera_to_frames
-from vid2sim.errors import InputError
+from vid2sim.defaults import IMAGE_FOLDER_FPS
 from vid2sim.evaluate.annotations import describe, read_keyframes
 from vid2sim.evaluate.metrics import score_keyframes
 from vid2sim.evaluate.report import write_report
 from vid2sim.fileio import write_bytes_atomic, write_text_atomic
 from vid2sim.records import Keyframe, ProjectedBox
 from vid2sim.scenario import Actor, Scenario, load
+from vid2sim.videofile import image_files, read_frames, video_size_and_fps
 
 log = logging.getLogger(__name__)
 
@@ -62,8 +63,6 @@ NEAR_PLANE_M = 0.1
 """Depth in front of the camera [m] at which 3D boxes are cut before projection."""
 TIME_TOLERANCE_S = 1e-3
 """Slack when testing whether a keyframe lies within an actor's trajectory [s]."""
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")  # as the build's video reader: same frame indices
-FOLDER_FPS = 10.0
 """Frame rate assumed for an image folder without one [frames/s]: KITTI's camera rate, the
 same default as the video reader of the build."""
 ENV_ID = "vid2sim/Replay-v0"
@@ -314,82 +313,6 @@ def replay_boxes(scenario: Scenario, times_s: list[float], *, use_env: bool = Tr
 # --------------------------------------------------------------------------- video frames
 
 
-def image_folder_names(folder: Path) -> list[Path]:
-    """Images of a folder used as a video, in name order."""
-    files = sorted(p for p in Path(folder).iterdir()
-                   if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
-    if not files:
-        raise InputError(folder, "folder holds no images", "give a video file or a folder of frames")
-    return files
-
-
-def read_frames(video: Path, indices: list[int]) -> dict[int, np.ndarray]:
-    """Decode only the requested frames (0-based) of a video file or image folder.
-
-    A video is streamed once in order: frames between the wanted ones are grabbed (not
-    converted), long gaps are skipped by seeking. Missing frames are left out of the result.
-    """
-    video = Path(video)
-    wanted = sorted({int(i) for i in indices if i is not None and i >= 0})
-    out: dict[int, np.ndarray] = {}
-    if not wanted:
-        return out
-    if video.is_dir():
-        files = image_folder_names(video)
-        for i in wanted:
-            if i < len(files):
-                img = cv2.imread(str(files[i]), cv2.IMREAD_COLOR)
-                if img is not None:
-                    out[i] = img
-        return out
-    if not video.exists():
-        raise InputError(video, "no such video file")
-    cap = cv2.VideoCapture(str(video))
-    if not cap.isOpened():
-        raise InputError(video, "OpenCV cannot open this video", "convert it to mp4 with ffmpeg")
-    try:
-        pos = 0
-        for i in wanted:
-            if i - pos > 300:
-                # Seeking costs a keyframe decode; worth it only over long gaps.
-                cap.set(cv2.CAP_PROP_POS_FRAMES, i)
-                pos = i
-            while pos < i and cap.grab():
-                pos += 1
-            if pos != i:
-                break
-            ok, img = cap.read()
-            if not ok:
-                break
-            pos += 1
-            out[i] = img
-    finally:
-        cap.release()
-    return out
-
-
-def video_size_and_fps(video: Path) -> tuple[int, int, float | None]:
-    """(width, height) [px] of the first frame and the container frame rate (None for a
-    folder or where the container does not say)."""
-    video = Path(video)
-    if video.is_dir():
-        img = cv2.imread(str(image_folder_names(video)[0]), cv2.IMREAD_COLOR)
-        if img is None:
-            raise InputError(video, "cannot read the first image of the folder")
-        return img.shape[1], img.shape[0], None
-    if not video.exists():
-        raise InputError(video, "no such video file")
-    cap = cv2.VideoCapture(str(video))
-    try:
-        if not cap.isOpened():
-            raise InputError(video, "OpenCV cannot open this video", "convert it to mp4 with ffmpeg")
-        w, h = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
-        fps = float(cap.get(cv2.CAP_PROP_FPS))
-    finally:
-        cap.release()
-    return w, h, fps if math.isfinite(fps) and fps > 0 else None
-
-
 def draw_overlay(image_bgr: np.ndarray | None, camera: Camera, keyframe: Keyframe,
                  boxes: list[ProjectedBox], frame_stats: dict | None = None) -> bytes:
     """PNG bytes: the frame (or a grey canvas) with annotated boxes (green), ignore regions
@@ -495,14 +418,14 @@ def run_eval(scenario_path: str | Path, keyframes_path: str | Path, *, video: Pa
         video = Path(video)
         vw, vh, video_fps = video_size_and_fps(video)
         if video.is_dir():
-            frame_names = [p.name for p in image_folder_names(video)]
+            frame_names = [p.name for p in image_files(video)]
         camera, note = fit_camera_to_frames(camera, vw, vh, scenario_path)
         if note:
             warnings.append(f"scenario {note}")
     rate = fps or video_fps or _scenario_fps(scenario)
     if rate is None and video is not None and video.is_dir():
-        rate = FOLDER_FPS
-        warnings.append(f"no frame rate given for the image folder: assumed {FOLDER_FPS:g} "
+        rate = IMAGE_FOLDER_FPS
+        warnings.append(f"no frame rate given for the image folder: assumed {IMAGE_FOLDER_FPS:g} "
                         "frames/s as vid2sim build does (pass --fps)")
     keyframes = read_keyframes(keyframes_path, fps=rate, frame_names=frame_names)
     if rate is not None:

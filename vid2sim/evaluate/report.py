@@ -23,12 +23,12 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from vid2sim import __version__
+from vid2sim.defaults import LANE_WIDTH_M
 from vid2sim.errors import InputError
 from vid2sim.fileio import write_text_atomic
+from vid2sim.lead import in_ego_corridor
 from vid2sim.scenario import Scenario
 
-DEFAULT_LANE_WIDTH_M = 3.5
-"""Lane width assumed for the lead test where the scenario has no road [m]."""
 LEAD_SAMPLE_HZ = 10.0
 """Rate at which the lead vehicle is looked up for the plots [Hz]."""
 
@@ -101,12 +101,12 @@ def map_figure(scenario: Scenario) -> bytes:
 
 
 def _lane_width_m(scenario: Scenario) -> float:
-    return scenario.roads[0].lane_width_m if scenario.roads else DEFAULT_LANE_WIDTH_M
+    return scenario.roads[0].lane_width_m if scenario.roads else LANE_WIDTH_M
 
 
 def lead_series(scenario: Scenario, rate_hz: float = LEAD_SAMPLE_HZ) -> dict[str, np.ndarray]:
-    """Lead vehicle over time: the nearest actor ahead whose centre lies within half a lane
-    width of the ego's longitudinal axis.
+    """Lead vehicle over time (:mod:`vid2sim.lead`): the nearest actor ahead whose centre lies
+    within half a lane width of the ego's longitudinal axis.
 
     Returns
     -------
@@ -118,7 +118,7 @@ def lead_series(scenario: Scenario, rate_hz: float = LEAD_SAMPLE_HZ) -> dict[str
     n = max(2, math.floor(ego.duration_s * rate_hz) + 1)
     t = np.linspace(ego.t[0], ego.t[-1], n)
     e = ego.state_at(t)
-    half_lane = _lane_width_m(scenario) / 2.0
+    lane_width_m = _lane_width_m(scenario)
     rng = np.full(n, np.nan)
     lead_v = np.full(n, np.nan)
     lead_id = np.full(n, "", dtype=object)
@@ -133,7 +133,9 @@ def lead_series(scenario: Scenario, rate_hz: float = LEAD_SAMPLE_HZ) -> dict[str
         fwd = c * dx + s * dy
         lat = -s * dx + c * dy
         rear = fwd - a.length_m / 2.0
-        is_lead = active & (rear > 0) & (np.abs(lat) <= half_lane) & ~(rng <= rear)
+        # the lead's geometry (vid2sim.lead), vectorised over time: ahead, in the corridor,
+        # and nearer than the lead found among the actors so far
+        is_lead = active & (rear > 0) & in_ego_corridor(lat, lane_width_m) & ~(rng <= rear)
         rng[is_lead] = rear[is_lead]
         lead_v[is_lead] = st["speed"][is_lead]
         lead_id[is_lead] = a.id

@@ -32,6 +32,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from vid2sim.defaults import EGO_HEIGHT_M, EGO_LENGTH_M, EGO_WIDTH_M, LANE_WIDTH_M
 from vid2sim.errors import InputError
 from vid2sim.records import EgoTrack, RangedBox
 from vid2sim.scenario import Actor, Ego, Road, Scenario, Source, Trajectory
@@ -61,9 +62,9 @@ class AssembleConfig:
     motion of a few tenths of a m/s in random directions."""
     camera_ahead_m: float = 0.0
     camera_left_m: float = 0.0
-    ego_length_m: float = 4.5
-    ego_width_m: float = 1.8
-    ego_height_m: float = 1.5
+    ego_length_m: float = EGO_LENGTH_M
+    ego_width_m: float = EGO_WIDTH_M
+    ego_height_m: float = EGO_HEIGHT_M
     max_yaw_from_road_deg: float = 15.0
     """Largest angle between a vehicle's heading and the road axis (or its reverse, for
     oncoming traffic) [deg]. Monocular range rates are noisy, so the raw direction of motion of
@@ -75,7 +76,7 @@ class AssembleConfig:
     class_priors_m: dict[str, tuple[float, float, float]] = field(
         default_factory=lambda: dict(CLASS_PRIORS_M))
     straight_road_lanes: int = 3
-    straight_road_lane_width_m: float = 3.5
+    straight_road_lane_width_m: float = LANE_WIDTH_M
 
 
 # --------------------------------------------------------------------------- maths
@@ -198,7 +199,7 @@ def _ego_xyh(ego) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def straight_road_for(ego: EgoTrack | Ego | Trajectory, lanes: int = 3,
-                      lane_width_m: float = 3.5, ahead_m: float = 150.0,
+                      lane_width_m: float = LANE_WIDTH_M, ahead_m: float = 150.0,
                       behind_m: float = 50.0) -> Road:
     """A straight road under the ego for scenarios without a map.
 

@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from vid2sim.defaults import LANE_WIDTH_M
 from vid2sim.errors import InputError
 from vid2sim.fileio import atomic_open
 from vid2sim.geo.frames import EnuFrame
@@ -54,7 +55,7 @@ LANE_DEFAULTS: dict[str, tuple[int, int, float]] = {
     "road": (2, 1, 3.0),
 }
 #: lane width of a road derived from the trajectory, and of unknown highway types [m]
-DEFAULT_LANE_WIDTH_M = 3.5
+DEFAULT_LANE_WIDTH_M = LANE_WIDTH_M  # the project's default (vid2sim.defaults)
 #: lane widths outside this range in a ``width`` tag are taken as tagging errors [m]
 LANE_WIDTH_RANGE_M = (2.5, 4.5)
 #: centerline sample spacing, at most [m]

@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from vid2sim.defaults import EGO_RATE_HZ
 from vid2sim.errors import InputError
 from vid2sim.geo.frames import EnuFrame
 from vid2sim.geo.kalman import hermite, smooth
@@ -45,7 +46,7 @@ __all__ = ["TraceParams", "format_summary", "smooth_ego"]
 # --------------------------------------------------------------------------- public API
 
 
-def smooth_ego(trace: GpsTrace, rate_hz: float = 10.0, gps_offset_s: float | None = None,
+def smooth_ego(trace: GpsTrace, rate_hz: float = EGO_RATE_HZ, gps_offset_s: float | None = None,
                origin: Origin | None = None,
                params: TraceParams | None = None) -> tuple[EgoTrack, TraceStats]:
     """Turn GPS fixes into a smooth, uniformly sampled ego trajectory in ENU.
