@@ -1,5 +1,9 @@
 """``vid2sim build``: the whole pipeline for one video, written into a staged folder.
 
+Outputs: ``scenario.json``, ``scenario.xosc`` + ``road.xodr``, ``tracks.csv``, ``road.json``
+(with GPS: the matched road and each fix's match, as ``vid2sim road`` writes it),
+``report.html`` with its ``figures/``, and ``metrics.json`` + ``keyframes/`` with keyframes.
+
 trace -> road -> detect/track/range -> assemble -> export -> evaluate. Each stage is a
 function of a domain package that takes records and returns records; this module loads the
 inputs (through :mod:`vid2sim.app.loaders`), passes records along, sorts the stages' notes
@@ -41,8 +45,10 @@ from vid2sim.evaluate.replay import run_eval
 from vid2sim.evaluate.report import write_report
 from vid2sim.export.assemble import assemble_scenario
 from vid2sim.export.openscenario import write_openscenario
+from vid2sim.fileio import write_text_atomic
+from vid2sim.geo import roads as geo_roads
 from vid2sim.records import EgoTrack, Note, NoteKind, Origin, notes_of
-from vid2sim.scenario import Source
+from vid2sim.scenario import Source, dumps_canonical
 from vid2sim.tables import write_tracks_csv
 
 
@@ -227,6 +233,11 @@ def build(inputs: Inputs, out_dir: Path, settings: Settings | None = None,
         files["scenario"] = Path("scenario.json")
         write_tracks_csv(ranging.boxes, staging / "tracks.csv")
         files["tracks"] = Path("tracks.csv")
+        if road_result is not None:
+            # The road stage's own output, as `vid2sim road` writes it (matches per fix).
+            write_text_atomic(staging / "road.json",
+                              dumps_canonical(geo_roads.road_json(road_result)))
+            files["road"] = Path("road.json")
         xosc, xodr = stages.run("export OpenSCENARIO/OpenDRIVE", write_openscenario, scenario,
                                 staging)
         files["openscenario"] = Path(xosc.name)
