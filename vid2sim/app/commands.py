@@ -26,6 +26,7 @@ from vid2sim.app.loaders import (
 )
 from vid2sim.app.settings import Settings
 from vid2sim.detect.pipeline import detect_and_range, run_detect
+from vid2sim.detect.plots import plot_lead, plot_topdown
 from vid2sim.fileio import write_text_atomic
 from vid2sim.geo import roads as geo_roads
 from vid2sim.geo import trace as geo_trace
@@ -172,8 +173,6 @@ def run_track(inputs: Inputs, out_path: Path, settings: Settings | None = None,
     else:
         lines.append("no lead vehicle in the ego lane")
     if plot_dir is not None:
-        from vid2sim.detect.plots import plot_lead, plot_topdown  # matplotlib: only for plots
-
         plot_dir = Path(plot_dir)
         p1 = plot_lead(result.boxes, plot_dir / "lead.png")
         p2 = plot_topdown(result.boxes, plot_dir / "topdown.png", settings.ranging.lane_width_m)
