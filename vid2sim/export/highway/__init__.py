@@ -62,7 +62,8 @@ largest logged ego speed, at least 5 m/s); a simple progress-versus-safety trade
 Info (every step; finite numbers or ``inf``, never NaN or None, so that
 ``gymnasium.utils.env_checker.check_env`` can compare them): ``t_s`` scenario time [s],
 ``ego_mode``, ``ego_speed_mps``, ``ego_accel_mps2`` (over the last step), ``ego_lane`` (project
-numbering), ``lane_offset_m`` (ego centre from its lane's centre, positive left), ``crashed``,
+numbering), ``lane_offset_m`` (ego centre from its lane's centre, positive left),
+``lane_width_m``, ``crashed``, ``collision_with`` (id of the vehicle hit first, "" before),
 ``offroad``, ``handovers`` (count so far), and the lead, the nearest vehicle ahead whose centre
 is within half a lane width of the ego's path: ``has_lead``; ``lead_id`` ("" without a lead);
 ``gap_m`` bumper-to-bumper along the path [m] (``inf`` without a lead); ``lead_speed_mps`` and

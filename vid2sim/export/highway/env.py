@@ -197,6 +197,7 @@ class ReplayEnv(AbstractEnv):
         self._info_key = None  # invalidate the per-step caches
         self._traffic_key = None
         self.handovers = []
+        self.collision_with = ""
         self._rule = HandoverRule(**self.config["handover"])
         self.road = HwRoad(network=self._network, np_random=self.np_random,
                            record_history=self.config["show_trajectories"])
@@ -308,6 +309,8 @@ class ReplayEnv(AbstractEnv):
                     v.act()
             v_before = float(self.vehicle.speed)
             self.road.step(dt)
+            if self.vehicle.crashed and not self.collision_with:
+                self.collision_with = self._collided_with()
             self._odometer_m += 0.5 * (v_before + float(self.vehicle.speed)) * dt
             self.t_s = t_next
             self.steps += 1
@@ -321,6 +324,15 @@ class ReplayEnv(AbstractEnv):
         self._prev_speed, self._prev_heading = float(self.vehicle.speed), float(self.vehicle.heading)
         self._policy_steps += 1
         self.enable_auto_render = False
+
+    def _collided_with(self) -> str:
+        """Id of the vehicle the ego hit: the nearest one highway-env marked as crashed."""
+        ego = self.vehicle
+        hit = [v for v in self.road.vehicles if v is not ego and v.crashed]
+        if not hit:
+            return "?"
+        v = min(hit, key=lambda o: float(np.linalg.norm(o.position - ego.position)))
+        return str(getattr(v, "vehicle_id", "?"))
 
     # ----------------------------------------------------------------- outcome
 
@@ -387,7 +399,9 @@ class ReplayEnv(AbstractEnv):
             "ego_accel_mps2": float(self.ego_accel_mps2),
             "ego_lane": int(ego.lane),
             "lane_offset_m": float(ego.lane_offset_m),
+            "lane_width_m": float(ego.lane_width_m),
             "crashed": bool(self.vehicle.crashed),
+            "collision_with": self.collision_with,
             "offroad": bool(self.offroad()),
             "has_lead": False, "lead_id": "", "gap_m": math.inf, "lead_speed_mps": 0.0,
             "closing_speed_mps": 0.0, "ttc_s": math.inf, "time_headway_s": math.inf,
