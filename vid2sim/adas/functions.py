@@ -146,6 +146,21 @@ class AdaptiveCruise:
 # --------------------------------------------------------------------------- AEB
 
 
+def time_to_contact(gap_m: float, closing_mps: float, closing_accel_mps2: float) -> float:
+    """Time until the gap closes [s] at constant closing acceleration (the enhanced TTC of
+    GB/T 33577; the plain gap / closing speed when the acceleration is 0), ``inf`` if never."""
+    if gap_m <= 0.0:
+        return 0.0
+    a, v = closing_accel_mps2, closing_mps
+    if abs(a) < 1e-9:
+        return gap_m / v if v > 1e-9 else math.inf
+    disc = v * v + 2.0 * a * gap_m
+    if disc < 0.0:
+        return math.inf  # the closing stops first
+    t = (-v + math.sqrt(disc)) / a
+    return t if t > 0.0 else math.inf
+
+
 @dataclass
 class EmergencyBraking:
     """Forward collision warning, then staged autonomous braking, as a Euro NCAP car-to-car AEB
@@ -153,16 +168,17 @@ class EmergencyBraking:
     tests in ``tests/adas/test_functions.py`` run them).
 
     Stages are entered on time-to-collision thresholds that grow with the closing speed
-    ``dv`` (the time a stage needs to cancel ``dv`` plus a delay), or when the deceleration
-    required to avoid the collision (counting a braking target's own deceleration, which a
-    constant-speed TTC misses) exceeds what the previous stage offers:
+    ``dv``: the time a stage's deceleration needs to cancel ``dv`` (``dv / (2 a)``) plus a
+    delay. The time to collision is the enhanced TTC of GB/T 33577 (ETTC: constant relative
+    acceleration, so a braking target counts; its deceleration is estimated from the range
+    rate's slope). The deceleration ``a_req`` required to stop short of the target (which may
+    brake to a stop) escalates:
 
-    - FCW (warning only): ``TTC < reaction_time_s + dv / (2 driver_decel_mps2)`` or
-      ``a_req > 0.5 partial_decel_mps2``;
-    - partial braking at ``partial_decel_mps2``: ``TTC < system_delay_s + dv / (2 partial)``
-      or ``a_req > 0.75 partial``;
-    - full braking at ``full_decel_mps2``: ``TTC < system_delay_s + dv / (2 full)`` or
-      ``a_req > 0.9 partial``.
+    - FCW (warning only): ``ETTC < reaction_time_s + dv / (2 driver_decel_mps2)`` or
+      ``a_req > driver_decel_mps2`` (a warned driver must brake harder than comfortable);
+    - partial braking at ``partial_decel_mps2``: ``ETTC < system_delay_s + dv / (2 partial)``;
+    - full braking at ``full_decel_mps2``: ``ETTC < system_delay_s + dv / (2 full)`` or
+      ``a_req > partial_decel_mps2`` (partial braking would not do).
 
     A stage holds until the threat is over (no longer closing and ``a_req`` below 1 m/s^2) or
     the lead is gone. Braked to a standstill behind a lead that stays (slower than 1 m/s,
@@ -185,6 +201,9 @@ class EmergencyBraking:
     """Sensor latency (0.1 s), policy period (0.1 s), brake build-up (0.3 s) and 0.1 s margin."""
     margin_m: float = 1.0
     """Gap left when computing the required deceleration [m]."""
+    braking_target_mps2: float = -1.0
+    """A lead decelerating harder than this is a braking target [m/s^2] (below, range-rate
+    noise would fake one)."""
     lead_accel_window_s: float = 1.0
     hold_range_m: float = 10.0
     stage: int = 0
@@ -214,7 +233,7 @@ class EmergencyBraking:
         g = max(lead.range_m - self.margin_m, 0.05)
         if v_l < 0.5:  # a stopped (or stopping) lead: stop behind it
             return v_e * v_e / (2.0 * g)
-        if lead_accel_mps2 < -1.0:
+        if lead_accel_mps2 < self.braking_target_mps2:
             b = -lead_accel_mps2
             stop_ego = v_e * v_e / (2.0 * (g + v_l * v_l / (2.0 * b)))
             if stop_ego > 0 and v_e / stop_ego >= v_l / b:  # the lead stops first
@@ -235,17 +254,19 @@ class EmergencyBraking:
             else:
                 return min(requested_mps2, -self.partial_decel_mps2)
         closing = -lead.range_rate_mps
-        ttc = lead.range_m / closing if closing > 1e-6 else math.inf
-        a_req = self.required_decel(frame, self._lead_accel(frame))
+        lead_accel = self._lead_accel(frame)
+        a_lead = lead_accel if lead_accel < self.braking_target_mps2 else 0.0
+        ettc = time_to_contact(lead.range_m, closing, frame.accel_mps2 - a_lead)
+        a_req = self.required_decel(frame, lead_accel)
+        dv = max(closing, 0.0)
         stage = 0
-        if ttc < self.reaction_time_s + closing / (2 * self.driver_decel_mps2) or (
-                a_req > 0.5 * self.partial_decel_mps2):
+        if ettc < self.reaction_time_s + dv / (2 * self.driver_decel_mps2) or (
+                a_req > self.driver_decel_mps2):
             stage = 1
-        if ttc < self.system_delay_s + closing / (2 * self.partial_decel_mps2) or (
-                a_req > 0.75 * self.partial_decel_mps2):
+        if ettc < self.system_delay_s + dv / (2 * self.partial_decel_mps2):
             stage = 2
-        if ttc < self.system_delay_s + closing / (2 * self.full_decel_mps2) or (
-                a_req > 0.9 * self.partial_decel_mps2):
+        if ettc < self.system_delay_s + dv / (2 * self.full_decel_mps2) or (
+                a_req > self.partial_decel_mps2):
             stage = 3
         if self.stage >= 2 and frame.speed_mps < 0.3:  # braked to a stop: hold it there
             self.holding = True
