@@ -292,8 +292,9 @@ class LaneKeeping:
     """Lane keeping: steer the ego's centre to its lane's centre from the lane model.
 
     A cascade as highway-env's lane follower, on measurements: the lateral offset gives a
-    lateral-speed command (``-k_lateral y``) hence a heading reference; the heading error gives
-    a yaw-rate command on top of the lane curvature's ``v kappa``; the kinematic bicycle model
+    lateral-speed command (``-k_lateral y``) hence a course reference, less the steady-turn
+    sideslip; the heading error gives a yaw-rate command on top of the lane curvature's
+    ``v kappa``; the kinematic bicycle model
     (highway-env's: yaw rate ``v sin(beta) / (L/2)``, ``tan(beta) = tan(delta) / 2``) turns it
     into a front-wheel angle. Without a lane model the last angle is held.
     """
@@ -312,10 +313,13 @@ class LaneKeeping:
         if lane is None:
             return self._last_rad
         v = max(frame.speed_mps, 1.0)
-        heading_ref = math.asin(float(np.clip(-self.k_lateral_per_s * lane.lateral_offset_m / v,
-                                              -0.5, 0.5)))
+        course_ref = math.asin(float(np.clip(-self.k_lateral_per_s * lane.lateral_offset_m / v,
+                                             -0.5, 0.5)))
+        # in a steady turn the bicycle model's velocity points sin(beta) = kappa L / 2 inside
+        # its heading, so the heading that keeps the course lies that much outside
+        slip = math.asin(float(np.clip(lane.curvature_per_m * self.length_m / 2.0, -1.0, 1.0)))
         yaw_rate = v * lane.curvature_per_m + self.k_heading_per_s * (
-            heading_ref - lane.heading_error_rad)
+            course_ref - slip - lane.heading_error_rad)
         beta = math.asin(float(np.clip(yaw_rate * self.length_m / 2.0 / v, -1.0, 1.0)))
         self._last_rad = math.atan(2.0 * math.tan(beta))
         return self._last_rad

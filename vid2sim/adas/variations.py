@@ -255,12 +255,11 @@ def scale_deceleration(traj: Trajectory, scale: float, from_t_s: float = -math.i
     half = max(round(SMOOTH_WINDOW_S / dt / 2), 1)
     kernel = np.ones(2 * half + 1) / (2 * half + 1)
     smooth = np.convolve(np.pad(accel, half, mode="edge"), kernel, mode="valid")
-    new_accel = accel + (scale - 1.0) * np.minimum(smooth, 0.0) * (t >= from_t_s - 1e-9)
-    speed = np.empty_like(v)
-    speed[0] = v[0]
-    for i in range(1, len(t)):  # stepwise, so a stopped vehicle stays stopped
-        speed[i] = max(speed[i - 1] + 0.5 * (new_accel[i - 1] + new_accel[i]) * (t[i] - t[i - 1]),
-                       0.0)
+    extra_accel = (scale - 1.0) * np.minimum(smooth, 0.0) * (t >= from_t_s - 1e-9)
+    # added to the logged speed (not re-integrated), so nothing changes before from_t_s; a
+    # vehicle braked to a stop stays stopped until its logged speed outgrows the deficit
+    extra_speed = np.r_[0.0, np.cumsum(0.5 * (extra_accel[1:] + extra_accel[:-1]) * np.diff(t))]
+    speed = np.maximum(v + extra_speed, 0.0)
     extra = np.r_[0.0, np.cumsum(0.5 * ((speed - v)[1:] + (speed - v)[:-1]) * np.diff(t))]
     return _move_along(traj, _arc_length(traj) + extra, speed)
 
