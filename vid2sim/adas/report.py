@@ -44,6 +44,8 @@ th,td{border:1px solid #dde1e8;padding:4px 8px;text-align:right;vertical-align:t
 th{background:#eef1f5} td.l,th.l{text-align:left}
 tr.bad td{background:#fde8e8} tr.skip td{color:#8a93a6}
 .grid{display:grid;grid-template-columns:repeat(auto-fill,minmax(520px,1fr));gap:12px}
+.wide{display:grid;grid-template-columns:repeat(auto-fill,minmax(860px,1fr));gap:12px}
+.scroll{overflow-x:auto}
 figure{margin:0;min-width:0}
 figure img{width:100%;height:auto;border:1px solid #dde1e8;display:block}
 figcaption{font-size:12px;color:#4a5468;margin-top:3px}
@@ -165,8 +167,7 @@ def heat_figure(entry, episodes, axes) -> str | None:
             (ax_c, coll, cmap_c, 1.0, "collision (red) / none (green); grey: skipped"),
             (ax_t, ttc, ttc_cmap, HEAT_TTC_MAX_S, (f"minimum TTC [s] (>= {HEAT_TTC_MAX_S:g} "
              "green)"))):
-        cm = cmap.copy()
-        cm.set_bad("#c8ccd4")
+        cm = cmap.with_extremes(bad="#c8ccd4")
         im = ax.imshow(np.ma.masked_invalid(data), origin="lower", cmap=cm, vmin=0.0,
                        vmax=vmax, aspect="auto")
         ax.set_xticks(range(len(xs)), [f"{v:.3g}" for v in xs])
@@ -243,7 +244,7 @@ def _scenario_rows(entries, episodes) -> str:
             "<th>collisions</th><th>min TTC [s]</th><th>min headway [s]</th><th>min gap [m]"
             "</th><th>max decel [m/s²]</th><th>max jerk [m/s³]</th><th>lane departures</th>"
             "<th>handovers</th><th>recorded min gap [m]</th><th>recorded min TTC [s]</th></tr>")
-    return f"<table>{head}{''.join(rows)}</table>"
+    return f"<div class='scroll'><table>{head}{''.join(rows)}</table></div>"
 
 
 def _episode_rows(entries, spec, episodes) -> str:
@@ -272,7 +273,7 @@ def _episode_rows(entries, spec, episodes) -> str:
                     "</tr>")
     more = (f"<p class='small'>First {MAX_TABLE_ROWS} of {len(episodes)} episodes; all are in "
             "results.csv.</p>" if len(episodes) > MAX_TABLE_ROWS else "")
-    return f"<table>{head}{''.join(rows)}</table>{more}"
+    return f"<div class='scroll'><table>{head}{''.join(rows)}</table></div>{more}"
 
 
 def render_summary(*, entries, spec, episodes, axes, options) -> str:
@@ -306,7 +307,7 @@ def render_summary(*, entries, spec, episodes, axes, options) -> str:
                         "the varied parameters (worst case over any others)</figcaption>"
                         "</figure>")
     if heat:
-        parts.append("<section><h2>Variations</h2><div class='grid'>" + "".join(heat)
+        parts.append("<section><h2>Variations</h2><div class='wide'>" + "".join(heat)
                      + "</div></section>")
     plots = []
     for si, entry in enumerate(entries):
