@@ -236,6 +236,7 @@ class CameraSensor(gymnasium.Wrapper):
         super().__init__(env)
         self.config = config or SensorConfig()
         sim = env.unwrapped
+        sim.observe_kinematics = False  # replaced by this observation: not computed
         self.camera = camera or CameraGeometry.from_record(sim.scenario.camera)
         self.observation_space = gymnasium.spaces.Box(
             -np.inf, np.inf, (2 + OBJECT_ROWS, COLUMNS), np.float32)

@@ -114,6 +114,9 @@ class ReplayEnv(AbstractEnv):
         self.t_s = self._ego_track.t0
         self.actors: list[ReplayVehicle | ReactiveVehicle] = []
         self.handovers: list[Handover] = []
+        self.observe_kinematics = True
+        """False: the Kinematics observation is all zeros (a wrapper that replaces the
+        observation sets it, to skip its cost)."""
         if render_mode == "rgb_array":
             os.environ.setdefault("SDL_VIDEODRIVER", "offscreen")
         super().__init__(config=config, render_mode=render_mode)

@@ -22,7 +22,7 @@ from highway_env.vehicle.behavior import IDMVehicle
 from highway_env.vehicle.controller import ControlledVehicle
 from highway_env.vehicle.kinematics import Vehicle
 
-from vid2sim.export.highway.network import ScenarioLane, enu_to_hw
+from vid2sim.export.highway.network import ScenarioLane, enu_to_hw, nearby_lane_index
 from vid2sim.scenario import Trajectory
 
 
@@ -54,8 +54,45 @@ def set_box(v: Vehicle, length_m: float, width_m: float) -> None:
     v.diagonal = math.hypot(v.LENGTH, v.WIDTH)
 
 
+class _NearbyLane:
+    """Lane bookkeeping by :func:`nearby_lane_index` instead of a search of every lane."""
+
+    def on_state_update(self) -> None:
+        if self.road:
+            self.lane_index, self.lane = nearby_lane_index(
+                self.road.network, getattr(self, "lane_index", None), self.position,
+                self.heading)
+            if self.road.record_history:
+                self.history.appendleft(self.create_from(self))
+
+
 class ReplayVehicle(Vehicle):
-    """A vehicle placed on its logged trajectory at every step (no dynamics, no IDM)."""
+    """A vehicle placed on its logged trajectory at every step (no dynamics, no IDM).
+
+    Its lane is looked up only when something asks for it (``lane_index``/``lane``): a log
+    does not need one to move, and most substeps nobody asks.
+    """
+
+    @property
+    def lane_index(self):
+        if self._lane_stale:
+            self._lane_index, self._lane = nearby_lane_index(
+                self.road.network, self._lane_index, self.position, self.heading)
+            self._lane_stale = False
+        return self._lane_index
+
+    @lane_index.setter
+    def lane_index(self, value) -> None:
+        self._lane_index, self._lane_stale = value, False
+
+    @property
+    def lane(self):
+        self.lane_index  # noqa: B018 - refreshes a stale lane
+        return self._lane
+
+    @lane.setter
+    def lane(self, value) -> None:
+        self._lane = value
 
     def __init__(self, road: HwRoad, vehicle_id: str, track: LogTrack, length_m: float,
                  width_m: float, height_m: float, t_s: float):
@@ -75,13 +112,9 @@ class ReplayVehicle(Vehicle):
         pass  # a log does not take actions
 
     def on_state_update(self) -> None:
-        # A replayed vehicle usually stays on its lane: one projection instead of a search
-        # over every lane of the network (the dominant cost of a step with many actors).
-        if self.lane is not None:
-            s, lat = self.lane.local_coordinates(self.position)
-            if abs(lat) <= self.lane.width_at(s) / 2.0 and 0.0 <= s <= self.lane.length:
-                return
-        super().on_state_update()
+        self._lane_stale = True
+        if self.road is not None and self.road.record_history:
+            self.history.appendleft(self.create_from(self))
 
     def step(self, dt: float) -> None:
         # The env places replayed vehicles before the road steps; collision impulses must not
@@ -89,7 +122,7 @@ class ReplayVehicle(Vehicle):
         self.impact = None
 
 
-class ReactiveVehicle(IDMVehicle):
+class ReactiveVehicle(_NearbyLane, IDMVehicle):
     """A recorded actor handed over to highway-env's IDM (longitudinal) and MOBIL (lane
     changes), started from its logged state; it keeps its id, box and log for reference."""
 
@@ -157,7 +190,7 @@ def conflict(gap_m: float, closing_mps: float, follower_speed_mps: float,
     return None
 
 
-class LaneFollowingEgo(ControlledVehicle):
+class LaneFollowingEgo(_NearbyLane, ControlledVehicle):
     """The policy-driven ego: acceleration from the action, steering from the lane follower.
 
     highway-env's ``ContinuousAction(lateral=False)`` sends steering 0, which drives straight
@@ -177,7 +210,7 @@ class LaneFollowingEgo(ControlledVehicle):
         self.speed = max(self.speed, 0.0)
 
 
-class PathEgo(Vehicle):
+class PathEgo(_NearbyLane, Vehicle):
     """The policy-driven ego on its logged path: the action sets the acceleration, the path
     (the log's positions, prolonged straight at both ends) sets where it goes.
 
@@ -215,7 +248,7 @@ class PathEgo(Vehicle):
         self.on_state_update()
 
 
-class SteeredEgo(Vehicle):
+class SteeredEgo(_NearbyLane, Vehicle):
     """The policy-driven ego with lateral control: acceleration and front-wheel steering angle
     from the action, integrated by highway-env's kinematic bicycle model."""
 
