@@ -7,6 +7,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from tests.export.scenarios import (
     ORIGIN,
@@ -174,3 +176,26 @@ def test_lane_keeping_brings_an_offset_ego_back_to_the_lane_centre():
         offsets.append(info["lane_offset_m"])
     assert abs(offsets[-1]) < 0.1
     assert min(offsets) > -0.3  # no large overshoot to the right
+
+
+def _not_tiny(lo, hi):  # speeds and accelerations of 1e-190 overflow the check below
+    return st.floats(lo, hi).filter(lambda x: x == 0.0 or abs(x) > 1e-6)
+
+
+@given(st.floats(0.1, 200.0), _not_tiny(-30.0, 30.0), _not_tiny(-10.0, 10.0))
+def test_time_to_contact_is_the_first_root(gap, closing, accel):
+    t = time_to_contact(gap, closing, accel)
+    if math.isinf(t):
+        # never: the gap stays positive for all times (its minimum over t >= 0)
+        if accel < 0 and closing > 0:
+            assert gap - closing**2 / (-2 * accel) > -1e-6
+        else:
+            assert closing <= 1e-9 and accel <= 1e-9
+        return
+    assert t > 0
+    scale = gap + abs(closing * t) + abs(0.5 * accel * t * t)  # the terms that cancel
+    assert gap - closing * t - 0.5 * accel * t * t == pytest.approx(0.0, abs=1e-9 * scale)
+    # no earlier contact
+    for f in (0.25, 0.5, 0.9):
+        tt = f * t
+        assert gap - closing * tt - 0.5 * accel * tt * tt > -1e-9

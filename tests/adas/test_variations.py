@@ -165,3 +165,16 @@ def test_impossible_variants_are_skipped_with_a_reason():
     assert varied is None and reason == "vehicles lead and front overlap at t=0.0 s"
     varied, reason = apply_variation(sc, {"cut_in": 1.0}, roles)
     assert varied is None and reason == "no cut-in in the log"
+
+
+@given(st.floats(-50.0, 50.0), st.floats(1.0, 20.0))
+def test_shifting_along_the_path_is_reversible(shift, speed):
+    from tests.export.scenarios import _traj_along, left_turn_centerline
+
+    t = np.round(np.arange(0.0, 8.0 + 1e-9, 0.1), 6)
+    tr = _traj_along(left_turn_centerline(), 20.0 + speed * t, t)
+    back = shift_along(shift_along(tr, shift), -shift)
+    np.testing.assert_allclose(back.x, tr.x, atol=0.05)
+    np.testing.assert_allclose(back.y, tr.y, atol=0.05)
+    moved = shift_along(tr, shift)  # every point moved by |shift| along the path or less
+    assert np.all(np.hypot(moved.x - tr.x, moved.y - tr.y) <= abs(shift) + 1e-6)

@@ -152,13 +152,14 @@ def time_to_contact(gap_m: float, closing_mps: float, closing_accel_mps2: float)
     if gap_m <= 0.0:
         return 0.0
     a, v = closing_accel_mps2, closing_mps
-    if abs(a) < 1e-9:
-        return gap_m / v if v > 1e-9 else math.inf
     disc = v * v + 2.0 * a * gap_m
     if disc < 0.0:
         return math.inf  # the closing stops first
-    t = (-v + math.sqrt(disc)) / a
-    return t if t > 0.0 else math.inf
+    # the smaller positive root of gap = v t + a t^2 / 2, in the form that does not cancel
+    root = math.sqrt(disc)
+    if v >= 0.0:
+        return 2.0 * gap_m / (v + root) if v + root > 0.0 else math.inf
+    return (root - v) / a if a > 0.0 else math.inf  # opening now, closing later
 
 
 @dataclass
