@@ -299,7 +299,8 @@ def export(scenario_file: Path, fmt: str, out_dir: Path) -> None:
 
 
 @cli.command("test-policy")
-@click.argument("scenarios", nargs=-1, required=True, type=EXISTING_PATH)
+@click.argument("scenarios", nargs=-1, required=True, type=EXISTING_PATH,
+                metavar="SCENARIO_OR_DIR...")
 @click.option("--policy", required=True, metavar="NAME|module:callable",
               help="log (the recorded ego), acc, aeb, acc+aeb, lka (any +-combination of acc, "
                    "aeb, lka), or your own: module:callable or file.py:callable (a function "
