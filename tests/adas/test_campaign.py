@@ -73,6 +73,21 @@ def test_the_pool_gives_the_same_results_as_one_process(scenario_dir, tmp_path):
     assert "fcw@" in outs[0]
 
 
+def test_noise_levels_and_impossible_grid_points(scenario_dir, tmp_path):
+    path = scenario_dir / "curve_a" / "scenario.json"
+    out = tmp_path / "out"
+    assert main(["-q", "test-policy", str(path), "--policy", "acc+aeb", "--vary",
+                 "noise=0/2,gap=-0.5:1:4", "--out", str(out)]) == 0
+    rows = {r["variation"]: r for r in _rows(out / "results.csv")}
+    assert len(rows) == 8
+    for noise in ("0", "2"):  # scales -0.5 and 0 cannot be: skipped, not an error
+        assert rows[f"noise={noise} gap=-0.5"]["skip_reason"].startswith("initial gap of -12.8")
+        assert rows[f"noise={noise} gap=0"]["skip_reason"] == "initial gap of 0.0 m (scale 0)"
+        assert rows[f"noise={noise} gap=1"]["collision"] == "0"
+    # the noisy camera changes what ACC sees, hence what it does
+    assert rows["noise=0 gap=1"]["min_gap_m"] != rows["noise=2 gap=1"]["min_gap_m"]
+
+
 def test_random_samples_and_noise_seeds(scenario_dir, tmp_path):
     path = scenario_dir / "curve_a" / "scenario.json"
     out = tmp_path / "noise"

@@ -43,13 +43,15 @@ from vid2sim.export.highway import ReplayEnv, enu_to_hw, hw_to_enu
 from vid2sim.scenario import Scenario, Trajectory
 
 PARAMETERS = {
-    "lead_decel": ("scale of the lead's deceleration", 1.0, 0.0),
-    "gap": ("scale of the initial gap to the lead", 1.0, 1e-6),
+    "lead_decel": ("scale of the lead's deceleration", 1.0, None),
+    "gap": ("scale of the initial gap to the lead", 1.0, None),
     "ego_speed": ("offset of the ego's speed [m/s]", 0.0, None),
     "cut_in": ("time shift of the cut-in [s]", 0.0, None),
     "noise": ("sensor noise level", 0.0, 0.0),
 }
-"""name -> (meaning, neutral value, smallest allowed value or None)."""
+"""name -> (meaning, neutral value, smallest value --vary accepts or None). Values that make a
+variant physically impossible (a gap scale of 0 or less, a negative deceleration scale) are
+accepted and their variants skipped with the reason, so that a grid can span them."""
 MAX_GRID = 10_000
 """Most variations one --vary grid may hold (a typo like 0:1:1000000 fails fast)."""
 SMOOTH_WINDOW_S = 1.0
@@ -341,6 +343,9 @@ def apply_variation(scenario: Scenario, values: dict[str, float], roles: LogRole
             if name == "noise" or value == neutral:
                 continue
             if name == "lead_decel":
+                if value < 0.0:
+                    raise _Skip(f"negative deceleration scale ({value:g}: braking would "
+                                "become accelerating)")
                 need(roles.lead_id, "lead vehicle")
                 a = actors[roles.lead_id]
                 actors[a.id] = replace(a, trajectory=scale_deceleration(
@@ -352,7 +357,8 @@ def apply_variation(scenario: Scenario, values: dict[str, float], roles: LogRole
                 a = actors[roles.lead_id]
                 shift = (value - 1.0) * roles.lead_first_gap_m
                 if value * roles.lead_first_gap_m <= 0.0:
-                    raise _Skip(f"negative initial gap ({value * roles.lead_first_gap_m:.1f} m)")
+                    raise _Skip(f"initial gap of {value * roles.lead_first_gap_m:.1f} m (scale "
+                                f"{value:g})")
                 actors[a.id] = replace(a, trajectory=shift_along(a.trajectory, shift))
                 changed.append(a.id)
                 notes.append(f"lead {a.id} initial gap x{value:g}")
