@@ -17,9 +17,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from tests.export.scenarios import ORIGIN, _traj_along
+from vid2sim.adas.policies import AccPolicy, AebPolicy, run_episode
 from vid2sim.export.highway import ReplayEnv
 from vid2sim.export.openscenario import write_openscenario
-from vid2sim.export.policies import AccPolicy, AebPolicy, run_episode
 from vid2sim.scenario import Actor, Ego, Road, Scenario, Source
 
 

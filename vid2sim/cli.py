@@ -315,6 +315,52 @@ def export(scenario_file: Path, fmt: str, out_dir: Path) -> None:
     echo(run_export(scenario_file, fmt, out_dir))
 
 
+# --------------------------------------------------------------------------- test-policy
+
+
+@cli.command("test-policy")
+@click.argument("scenarios", nargs=-1, required=True, type=EXISTING_PATH,
+                metavar="SCENARIO_OR_DIR...")
+@click.option("--policy", required=True, metavar="NAME|module:callable",
+              help="log (the recorded ego), acc, aeb, acc+aeb, lka (any +-combination of acc, "
+                   "aeb, lka), or your own: module:callable or file.py:callable (a function "
+                   "(observation, info) -> action, or an agent with predict/act).")
+@click.option("--reactive", is_flag=True,
+              help="Recorded actors hand over to IDM/MOBIL when the ego's deviation makes "
+                   "their log implausible (default: they replay their logs).")
+@click.option("--sensor-noise", type=float, default=0.0, show_default=True, metavar="LEVEL",
+              help="Camera noise level of the observation (0 exact; 1 the project's measured "
+                   "monocular accuracy, with latency, dropouts and field of view).")
+@click.option("--vary", default=None, metavar="SPEC",
+              help="Variations, e.g. lead_decel=0.5:1.5:5,gap=0.6:1.2:5 (NAME=LO:HI:N, V, "
+                   "V1/V2/..; names lead_decel, gap, ego_speed, cut_in, noise).")
+@click.option("--samples", type=int, default=None, metavar="N",
+              help="N seeded random variations (LO:HI ranges drawn uniformly) instead of the "
+                   "grid; without --vary, N noise seeds of the recorded scenario.")
+@click.option("--seed", type=int, default=0, show_default=True,
+              help="Seed of the random variations and of the sensor noise.")
+@click.option("--jobs", type=click.IntRange(min=1), default=None,
+              help="Episodes run at once, one process each [default: the cores, at most 4].")
+@click.option("--write-scenarios", is_flag=True,
+              help="Also write each variant as scenario.json + scenario.xosc (varied "
+                   "parameters in ParameterDeclarations) + road.xodr under OUT/scenarios/.")
+@click.option("--out", "out_dir", type=EXISTING_PATH, required=True,
+              help="Output folder: results.csv, summary.html.")
+def test_policy_cmd(scenarios: tuple[Path, ...], policy: str, reactive: bool,
+                    sensor_noise: float, vary: str | None, samples: int | None, seed: int,
+                    jobs: int | None, write_scenarios: bool, out_dir: Path) -> None:
+    """Score a driving policy on SCENARIO_OR_DIR... (scenario.json files, or folders searched
+    for them) and on variations of them: results.csv (one row per episode) and summary.html."""
+    from vid2sim.adas.campaign import CampaignOptions, default_jobs, run_campaign
+
+    check_out_dir(out_dir)
+    opts = CampaignOptions(inputs=tuple(scenarios), policy=policy, out_dir=out_dir,
+                           reactive=reactive, sensor_noise=sensor_noise, vary=vary,
+                           samples=samples, seed=seed, jobs=jobs or default_jobs(),
+                           write_scenarios=write_scenarios)
+    echo(run_campaign(opts, progress=show_progress()))
+
+
 # --------------------------------------------------------------------------- build, demo
 
 

@@ -64,3 +64,62 @@ def straight_scenario(**kw) -> Scenario:
 
 def left_turn_scenario(**kw) -> Scenario:
     return make_scenario(left_turn_centerline(), **kw)
+
+
+def _s_profile(t_s: np.ndarray, v0_mps: float, brake_at_s: float, decel_mps2: float,
+               v_end_mps: float) -> tuple[np.ndarray, np.ndarray]:
+    """Speed and distance of a vehicle at ``v0`` that brakes at ``decel`` from ``brake_at``
+    down to ``v_end`` and holds it (exact integrals)."""
+    t_stop = brake_at_s + (v0_mps - v_end_mps) / decel_mps2
+    v = np.where(t_s < brake_at_s, v0_mps,
+                 np.where(t_s < t_stop, v0_mps - decel_mps2 * (t_s - brake_at_s), v_end_mps))
+    s = np.where(t_s < brake_at_s, v0_mps * t_s,
+                 np.where(t_s < t_stop,
+                          v0_mps * t_s - 0.5 * decel_mps2 * (t_s - brake_at_s) ** 2,
+                          v0_mps * t_stop - 0.5 * decel_mps2 * (t_stop - brake_at_s) ** 2
+                          + v_end_mps * (t_s - t_stop)))
+    return v, s
+
+
+BRAKING_LEAD = {"speed_mps": 14.0, "lead_ahead_m": 30.0, "lead_brake_s": 3.0,
+                "decel_mps2": 4.0, "end_speed_mps": 4.0, "reaction_s": 1.0}
+"""The hand-made braking-lead scenario's numbers: both at 14 m/s, the lead 30 m ahead
+(centre to centre) brakes at 4 m/s^2 from 3 s down to 4 m/s; the recorded driver does the
+same 1 s later. Gap 25.55 m at first, 15.55 m at least (lost: 2 + 6 + 2 m)."""
+
+
+def braking_lead_scenario(duration_s: float = 12.0, dt_s: float = 0.1) -> Scenario:
+    """A 2-lane LEFT curve (radius 60 m); ego in the right lane, a lead ahead in the same lane
+    that brakes (see :data:`BRAKING_LEAD`), a car in the left lane overtaking at 16 m/s."""
+    p = BRAKING_LEAD
+    line = left_turn_centerline(radius_m=60.0)
+    t = np.round(np.arange(0.0, duration_s + 1e-9, dt_s), 6)
+    road = Road("r1", "Curve", "primary", "osm", [1], 2, 3.5, line)
+    right = -1.75  # the right lane's centre, left of the centerline negative
+    _, s_ego = _s_profile(t, p["speed_mps"], p["lead_brake_s"] + p["reaction_s"],
+                          p["decel_mps2"], p["end_speed_mps"])
+    _, s_lead = _s_profile(t, p["speed_mps"], p["lead_brake_s"], p["decel_mps2"],
+                           p["end_speed_mps"])
+    ego = _traj_along(line, 5.0 + s_ego, t, right)
+    lead = Actor("lead", "car", 4.4, 1.8, 1.5,
+                 _traj_along(line, 5.0 + p["lead_ahead_m"] + s_lead, t, right))
+    passing = Actor("left", "car", 4.6, 1.85, 1.5,
+                    _traj_along(line, -10.0 + 16.0 * t, t, right + 3.5))
+    return Scenario(ORIGIN, [road], Ego(4.5, 1.8, 1.5, ego), [lead, passing],
+                    {"fx": 720.0, "height_m": 1.4, "image_width": 1280},
+                    Source(tool_version="test"))
+
+
+def follower_scenario(duration_s: float = 8.0, dt_s: float = 0.1,
+                      follower_behind_m: float = 15.0, lanes: int = 2) -> Scenario:
+    """Straight road of ``lanes`` lanes: the ego at 10 m/s in the right lane with a follower
+    ``follower_behind_m`` behind (centre to centre) at the same speed, no lead."""
+    line = np.array([[0.0, 0.0], [400.0, 0.0]])
+    t = np.round(np.arange(0.0, duration_s + 1e-9, dt_s), 6)
+    road = Road("r1", "Straight", "primary", "osm", [1], lanes, 3.5, line)
+    right = -(lanes - 1) * 3.5 / 2
+    ego = _traj_along(line, 50.0 + 10.0 * t, t, right)
+    follower = Actor("follower", "car", 4.5, 1.8, 1.5,
+                     _traj_along(line, 50.0 - follower_behind_m + 10.0 * t, t, right))
+    return Scenario(ORIGIN, [road], Ego(4.5, 1.8, 1.5, ego), [follower], {},
+                    Source(tool_version="test"))

@@ -8,13 +8,13 @@ import gymnasium
 import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 import vid2sim  # noqa: F401  registers the environment
+from vid2sim.adas.policies import AccPolicy, AebPolicy, FollowLogPolicy, run_episode
 from vid2sim.errors import InputError
 from vid2sim.export.highway import ReplayEnv, enu_to_hw, hw_to_enu
-from vid2sim.export.policies import AccPolicy, AebPolicy, FollowLogPolicy, run_episode
 from vid2sim.scenario import save
 
 from .scenarios import left_turn_scenario, straight_scenario
@@ -208,3 +208,156 @@ def test_leaving_the_road_terminates_in_policy_mode():
     assert infos[-1]["terminated"] and infos[-1]["offroad"] and not infos[-1]["crashed"]
     end_x = env.vehicle_states()[0].x_m
     assert 110.0 < end_x < 125.0  # past the extended end (110 m) plus at most a car length
+
+
+# --------------------------------------------------------------------------- issue 14 additions
+
+
+def test_fast_kinematics_equals_highway_envs_observation():
+    from highway_env.envs.common.observation import KinematicObservation
+
+    env = ReplayEnv(straight_scenario(), ego_mode="log")
+    env.reset(seed=0)
+    cfg = dict(env.config["observation"])
+    cfg.pop("type")
+    reference = KinematicObservation(env, **cfg)
+    for _ in range(60):
+        obs, *_ = env.step(ZERO)
+        np.testing.assert_array_equal(obs, reference.observe())
+
+
+def test_lanes_are_numbered_from_the_right():
+    from vid2sim.export.highway import hw_lane, lane_centerlines_enu, project_lane
+
+    road = straight_scenario().roads[0]
+    right, left = lane_centerlines_enu(road, extension_m=0.0)
+    assert right[0, 1] == pytest.approx(-1.75) and left[0, 1] == pytest.approx(1.75)
+    assert project_lane(1, 2) == 0 and hw_lane(0, 2) == 1 and project_lane(0, 3) == 2
+    env = ReplayEnv(straight_scenario(), ego_mode="log")
+    _, info = env.reset(seed=0)
+    assert info["ego_lane"] == 0  # the ego drives in the right lane
+    assert env.vehicle.lane_index[2] == 1  # highway-env's index of the same lane
+
+
+def test_info_without_a_lead_is_finite_and_none_free():
+    sc = straight_scenario(with_actors=False, duration_s=3.0)
+    env = ReplayEnv(sc)
+    _, info = env.reset(seed=0)
+    assert not info["has_lead"] and info["lead_id"] == ""
+    assert info["gap_m"] == math.inf and info["ttc_s"] == math.inf
+    assert info["lead_speed_mps"] == 0.0 and info["closing_speed_mps"] == 0.0
+    for value in info.values():
+        assert value is not None and not (isinstance(value, float) and math.isnan(value))
+    check_env(ReplayEnv(sc), skip_render_check=True)
+
+
+def test_policy_ego_follows_the_logged_path_at_its_own_speed():
+    # a wavy ego path off the lane centres: whatever its speed, the ego stays on that path
+    sc = left_turn_scenario(with_actors=False)
+    traj = sc.ego.trajectory
+    traj.y = traj.y + 0.8 * np.sin(traj.t / 2.0)
+    fine = np.linspace(0.0, 1.0, 4000)
+    px = np.interp(fine, np.linspace(0.0, 1.0, len(traj)), traj.x)
+    py = np.interp(fine, np.linspace(0.0, 1.0, len(traj)), traj.y)
+    for accel in (0.0, -0.25, 0.1):  # coast, brake gently, speed up (action units)
+        env = ReplayEnv(sc)
+        env.reset(seed=0)
+        for _ in range(env.n_steps):
+            _, _, terminated, _, info = env.step(np.array([accel], np.float32))
+            assert not terminated
+            ego = env.vehicle_states()[0]
+            if ego.x_m > traj.x[-1]:
+                break  # beyond the log: straight on
+            off = np.min(np.hypot(px - ego.x_m, py - ego.y_m))
+            assert off < 0.05, (accel, info["t_s"], off)
+
+
+def test_ego_path_lane_option_steers_along_the_lane():
+    sc = left_turn_scenario(with_actors=False, duration_s=17.0)
+    sc.ego.trajectory.y = sc.ego.trajectory.y + 0.5  # logged 0.5 m off the lane centre
+    env = ReplayEnv(sc, config={"ego_path": "lane"})
+    _, info = env.reset(seed=0)
+    for _ in range(env.n_steps):
+        _, _, terminated, _, info = env.step(ZERO)
+        assert not terminated
+    assert abs(info["lane_offset_m"]) < 0.05  # the lane follower centred it
+    with pytest.raises(ValueError):
+        ReplayEnv(sc, config={"ego_path": "road"})
+
+
+def test_lateral_control_action_and_steering_sign():
+    sc = straight_scenario(with_actors=False, duration_s=4.0)
+    env = ReplayEnv(sc, config={"lateral_control": True})
+    _, info = env.reset(seed=0)
+    assert env.action_space.shape == (2,)
+    for _ in range(20):
+        *_, info = env.step(np.array([0.0, 0.05], np.float32))
+    # positive steering turns right (highway-env's mirrored frame): ENU heading decreases
+    assert env.vehicle_states()[0].heading_rad < -0.05
+    assert info["lane_offset_m"] < 0.0
+    check_env(ReplayEnv(sc, config={"lateral_control": True}), skip_render_check=True)
+
+
+def test_collision_names_the_vehicle_hit():
+    env = ReplayEnv(straight_scenario())
+    env.reset(seed=0)
+    full = np.ones(1, dtype=np.float32)
+    for _ in range(env.n_steps):
+        *_, terminated, _, info = env.step(full)
+        if terminated:
+            break
+    assert info["crashed"] and info["collision_with"] == "7"
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.floats(-40.0, 240.0))
+def test_path_pose_lies_on_the_path(s_m):
+    env = ReplayEnv(left_turn_scenario(with_actors=False), ego_mode="log")
+    path = env.path
+    point, heading = path.pose_at(s_m + path.start_offset_m)
+    s_back, lat = path.local_coordinates(point)
+    assert s_back == pytest.approx(s_m + path.start_offset_m, abs=0.05)
+    assert lat == pytest.approx(0.0, abs=0.05)
+    assert abs(utils_wrap(heading - path.heading_at(s_back))) < 0.03
+
+
+def utils_wrap(angle: float) -> float:
+    return (angle + math.pi) % (2 * math.pi) - math.pi
+
+
+def test_exported_replay_script_runs(tmp_path):
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from vid2sim.cli import main
+
+    from .scenarios import braking_lead_scenario
+
+    path = tmp_path / "scenario.json"
+    save(braking_lead_scenario(), path)
+    out = tmp_path / "hw"
+    assert main(["-q", "export", str(path), "--format", "highway-env", "--out", str(out)]) == 0
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])}
+    for args in ([], ["--log"]):
+        proc = subprocess.run([sys.executable, str(out / "replay.py"), *args], env=env,
+                              capture_output=True, text=True, timeout=300, check=False)
+        assert proc.returncode == 0, proc.stderr[-2000:]
+        assert "collision=False" in proc.stdout
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.floats(0.0, 230.0), st.floats(-5.0, 5.0), st.integers(0, 1))
+def test_nearby_lane_matches_highway_envs_closest_lane(s_m, lat_m, start):
+    from vid2sim.export.highway import build_network
+    from vid2sim.export.highway.network import nearby_lane_index
+
+    # On the line between the two lanes both are equally near: either answer is right.
+    assume(abs(lat_m - 3.5) > 1e-6)
+    net = build_network(left_turn_scenario().roads)
+    lane0 = net.get_lane(("road0:start", "road0:end", 0))
+    point = lane0.position(s_m, lat_m - 1.75)  # across both lanes and a little beyond
+    index, lane = nearby_lane_index(net, ("road0:start", "road0:end", start), point)
+    assert lane is net.get_lane(index)
+    assert index == net.get_closest_lane_index(point)

@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
+from vid2sim.adas.policies import AccPolicy, AebPolicy, accel_to_action, run_episode
 from vid2sim.export.highway import ReplayEnv
-from vid2sim.export.policies import AccPolicy, AebPolicy, accel_to_action, run_episode
 
 from .scenarios import straight_scenario
 

@@ -8,8 +8,10 @@ FORMATS = ("highway-env", "openscenario")
 
 _REPLAY_SCRIPT = '''"""Replay {name} in highway-env (written by `vid2sim export --format highway-env`).
 
-    python replay.py            # ACC (IDM) ego with AEB, actors replay their logs
+    python replay.py            # ACC + AEB of vid2sim.adas through the camera model
     python replay.py --log      # ego on its logged trajectory (what the evaluator does)
+
+The actors replay their logs; `vid2sim test-policy` runs the same with variations and reports.
 """
 import sys
 from pathlib import Path
@@ -17,18 +19,26 @@ from pathlib import Path
 import gymnasium
 
 import vid2sim  # noqa: F401  registers vid2sim/Replay-v0
-from vid2sim.export.policies import AccPolicy, AebPolicy, run_episode
+from vid2sim import scenario as scenario_io
+from vid2sim.adas.metrics import episode_metrics
+from vid2sim.adas.registry import parse_policy
+from vid2sim.adas.sensor import CameraSensor
 
 here = Path(__file__).resolve().parent
-env = gymnasium.make("vid2sim/Replay-v0", scenario=here / "scenario.json")
-log_mode = "--log" in sys.argv
-policy = AebPolicy(base=AccPolicy(desired_speed_mps={v_ref:.1f}))
-infos = run_episode(env, policy, seed=0, options={{"ego_mode": "log" if log_mode else "policy"}})
-ttc = min(i["ttc_s"] for i in infos)
-gaps = [i["gap_m"] for i in infos if i["lead_id"] is not None]
+scenario = scenario_io.load(here / "scenario.json")
+spec = parse_policy("log" if "--log" in sys.argv else "acc+aeb")
+env = CameraSensor(gymnasium.make("vid2sim/Replay-v0", scenario=scenario, ego_mode=spec.ego_mode))
+policy = spec.make(scenario, env.unwrapped.config)
+obs, info = env.reset(seed=0)
+infos = [info]
+done = False
+while not done:
+    obs, reward, terminated, truncated, info = env.step(policy(obs, info))
+    infos.append(info)
+    done = terminated or truncated
+m = episode_metrics(infos, 1.0 / env.unwrapped.config["policy_frequency"], scenario.ego.width_m)
 print(f"{{len(infos) - 1}} steps, {{infos[-1]['t_s']:.1f}} s simulated, "
-      f"crashed={{any(i['crashed'] for i in infos)}}, min TTC {{ttc:.2f}} s, "
-      f"min gap {{min(gaps) if gaps else float('nan'):.1f}} m")
+      f"collision={{m.collision}}, min TTC {{m.min_ttc_s:.2f}} s, min gap {{m.min_gap_m:.1f}} m")
 '''
 
 
@@ -37,7 +47,8 @@ def run_export(scenario_path: Path, fmt: str, out_dir: Path) -> str:
 
     ``openscenario``: ``out_dir/scenario.xosc`` + ``out_dir/road.xodr``.
     ``highway-env``: ``out_dir/scenario.json`` (canonical copy), ``out_dir/replay.py`` (runnable
-    example: ACC + AEB ego, or ``--log``) and ``out_dir/preview.png`` (top view of the replay
+    example: the ACC + AEB of :mod:`vid2sim.adas` through its camera model, or ``--log``) and
+    ``out_dir/preview.png`` (top view of the replay
     with the logged ego at mid-scenario).
     """
     from vid2sim import scenario as scenario_io

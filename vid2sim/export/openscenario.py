@@ -361,8 +361,13 @@ def _sim_time_trigger(name: str, t_s: float):
                              xosc.SimulationTimeCondition(max(t_s, 0.0), xosc.Rule.greaterThan))
 
 
-def build_openscenario(scenario: Scenario, road_file: str = XODR_NAME):
-    """The scenario as a scenariogeneration ``Scenario`` (OpenSCENARIO 1.2)."""
+def build_openscenario(scenario: Scenario, road_file: str = XODR_NAME,
+                       parameters: dict[str, float] | None = None):
+    """The scenario as a scenariogeneration ``Scenario`` (OpenSCENARIO 1.2).
+
+    ``parameters`` are declared in ``ParameterDeclarations`` (type double), e.g. the values of
+    a ``vid2sim test-policy --vary`` variant, so the file records which variant it is.
+    """
     from scenariogeneration import xosc
 
     t0 = float(scenario.ego.trajectory.t[0])
@@ -416,8 +421,12 @@ def build_openscenario(scenario: Scenario, road_file: str = XODR_NAME):
     story.add_act(act)
     storyboard = xosc.StoryBoard(init, _stop_trigger(t_end))
     storyboard.add_story(story)
+    declarations = xosc.ParameterDeclarations()
+    for name, value in (parameters or {}).items():
+        declarations.add_parameter(xosc.Parameter(name, xosc.ParameterType.double,
+                                                  format(float(value), ".12g")))
     return xosc.Scenario(
-        "vid2sim replay", "vid2sim", xosc.ParameterDeclarations(), entities, storyboard,
+        "vid2sim replay", "vid2sim", declarations, entities, storyboard,
         xosc.RoadNetwork(roadfile=road_file), xosc.Catalog(), osc_minor_version=2)
 
 
@@ -475,9 +484,11 @@ def _write_xml(root: ET.Element, path: Path) -> None:
     ET.ElementTree(root).write(path, encoding="utf-8", xml_declaration=True)
 
 
-def write_openscenario(scenario: Scenario, out_dir: Path) -> tuple[Path, Path]:
+def write_openscenario(scenario: Scenario, out_dir: Path,
+                       parameters: dict[str, float] | None = None) -> tuple[Path, Path]:
     """Write ``out_dir/scenario.xosc`` (OpenSCENARIO 1.2) and ``out_dir/road.xodr``
     (OpenDRIVE 1.8), both atomically (written in a temporary folder, then renamed).
+    ``parameters``: declared in the OpenSCENARIO file (see :func:`build_openscenario`).
 
     Returns
     -------
@@ -487,7 +498,8 @@ def write_openscenario(scenario: Scenario, out_dir: Path) -> tuple[Path, Path]:
     out_dir.mkdir(parents=True, exist_ok=True)
     odr_root = build_opendrive(scenario).get_element()
     _set_header_bounds(odr_root, scenario.roads or [straight_road_for(scenario.ego)])
-    osc_root = build_openscenario(scenario, road_file=XODR_NAME).get_element()
+    osc_root = build_openscenario(scenario, road_file=XODR_NAME,
+                                  parameters=parameters).get_element()
     tmp = Path(tempfile.mkdtemp(prefix=".vid2sim-export-", dir=out_dir))
     try:
         _write_xml(odr_root, tmp / XODR_NAME)

@@ -1,9 +1,12 @@
-"""Reference ego policies for ``vid2sim/Replay-v0``: follow the log, ACC (IDM), AEB.
+"""Minimal reference policies on the simulator's exact values: follow the log, ACC (IDM), AEB.
 
-A policy is a callable ``policy(obs, info) -> action``; it reads the environment's ``info``
-(``t_s``, ``ego_speed_mps``, ``gap_m``, ``closing_speed_mps``, ``ttc_s``, ...; see
-:mod:`vid2sim.export.highway`) and returns the action array: one value in [-1, 1] mapped linearly
-to the acceleration range ``acceleration_range_mps2`` of the environment's config.
+A policy is a callable ``policy(obs, info) -> action``; these read the environment's ``info``
+(``t_s``, ``ego_speed_mps``, ``has_lead``, ``gap_m``, ``closing_speed_mps``, ``ttc_s``, ...;
+see :mod:`vid2sim.export.highway`) and return the action array: one value in [-1, 1] mapped
+linearly to the acceleration range ``acceleration_range_mps2`` of the environment's config.
+They are short examples for the raw environment; the driving functions that
+``vid2sim test-policy`` runs (ISO-limited ACC, staged AEB, LKA, through a camera model) are in
+:mod:`vid2sim.adas.functions`.
 """
 
 from __future__ import annotations
@@ -14,18 +17,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from vid2sim.adas.functions import DEFAULT_ACCEL_RANGE_MPS2, accel_to_action, idm_acceleration
 from vid2sim.scenario import Trajectory
 
 Policy = Callable[[np.ndarray, dict], np.ndarray]
-DEFAULT_ACCEL_RANGE_MPS2 = (-8.0, 8.0)
-
-
-def accel_to_action(accel_mps2: float,
-                    accel_range_mps2: tuple[float, float] = DEFAULT_ACCEL_RANGE_MPS2) -> np.ndarray:
-    """Inverse of the environment's linear map from [-1, 1] to ``accel_range_mps2`` (clipped)."""
-    lo, hi = accel_range_mps2
-    a = 2.0 * (float(accel_mps2) - lo) / (hi - lo) - 1.0
-    return np.array([np.clip(a, -1.0, 1.0)], dtype=np.float32)
+__all__ = ["DEFAULT_ACCEL_RANGE_MPS2", "AccPolicy", "AebPolicy", "FollowLogPolicy", "Policy",
+           "accel_to_action", "run_episode"]
 
 
 @dataclass
@@ -76,15 +73,13 @@ class AccPolicy:
 
     def acceleration(self, info: dict) -> float:
         """IDM acceleration [m/s^2] for the state in ``info``."""
-        v = max(float(info["ego_speed_mps"]), 0.0)
-        a = self.max_accel_mps2 * (1.0 - (v / max(self.desired_speed_mps, 0.1)) ** 4)
         gap = float(info.get("gap_m", math.inf))
-        if info.get("lead_id") is not None and math.isfinite(gap):
-            dv = float(info.get("closing_speed_mps", 0.0))
-            s_star = self.min_gap_m + max(
-                0.0, v * self.time_headway_s
-                + v * dv / (2.0 * math.sqrt(self.max_accel_mps2 * self.comfort_decel_mps2)))
-            a -= self.max_accel_mps2 * (s_star / max(gap, 0.1)) ** 2
+        has_lead = info.get("has_lead", info.get("lead_id") is not None)
+        a = idm_acceleration(
+            float(info["ego_speed_mps"]), self.desired_speed_mps, gap if has_lead else None,
+            float(info.get("closing_speed_mps", 0.0)), time_gap_s=self.time_headway_s,
+            min_gap_m=self.min_gap_m, max_accel_mps2=self.max_accel_mps2,
+            comfort_decel_mps2=self.comfort_decel_mps2)
         return max(a, -self.max_decel_mps2)
 
     def __call__(self, obs: np.ndarray, info: dict) -> np.ndarray:
