@@ -137,9 +137,9 @@ class LaneMarkingConfig:
     edge_min_rows: int = 8
     edge_min_share: float = 0.4
     edge_inlier_m: float = 0.25
-    #: a line whose own fitted shape parts from the road's by more than this over the
-    #: stretch it was seen on is not a road line (a shadow's border, a crack, a car's edge)
-    shape_tolerance_m: float = 0.4
+    #: a line whose points scatter about the road's joint shape by more than this (RMS) is
+    #: not a road line (a shadow's border, a crack, a car's edge); paint scatters 3-8 cm
+    shape_tolerance_m: float = 0.15
 
 
 # --------------------------------------------------------------------------- the detector
@@ -303,34 +303,41 @@ class LaneMarkingDetector:
                                       best_heading[candidates], x_ref)
         if not fitted:
             return [], None
-        # The road's shape: the confidence-weighted median heading (at x_ref) and curvature
-        # of the lines; lines that are not parallel to it are shadows, cracks or cars.
+        # The road's direction: the confidence-weighted median heading of the lines at
+        # x_ref (where it is best measured); lines not parallel to it are not road lines.
         conf = np.array([ln.confidence * ln.seen_m for ln in fitted])
         h_ref = np.array([ln.heading_rad + ln.curvature_inv_m * x_ref for ln in fitted])
-        curv = np.array([ln.curvature_inv_m for ln in fitted])
         h0 = weighted_median(h_ref, conf)
-        c0 = weighted_median(curv, conf)
-        # A line's own shape may differ from the road's within what its seen length allows:
-        # the two curves, laid over each other at x_ref, part by at most shape_tolerance_m.
-        reach = np.array([max(abs(ln.x_near_m - x_ref), abs(ln.x_far_m - x_ref))
-                          for ln in fitted])
-        parting = np.abs(h_ref - h0) * reach + 0.5 * np.abs(curv - c0) * reach ** 2
-        keep = np.flatnonzero((np.abs(h_ref - h0) <= cfg.parallel_tolerance_rad)
-                              & (parting <= cfg.shape_tolerance_m))
+        keep = np.flatnonzero(np.abs(h_ref - h0) <= cfg.parallel_tolerance_rad)
         if keep.size == 0:
             return [], None
         # Then all parallel lines are fitted together (one shape), near rows weighted up:
         # a grid row's lateral error grows with distance (one pixel covers x / f metres).
+        # A line whose points stray from the joint shape is not a road line (a shadow's
+        # border, a crack, a car's edge): it is dropped and the rest fitted again.
         near = np.minimum(1.0, (cfg.near_weight_m / grid.x_m) ** 2)
-        coef, std = fit_parallel_lines(
-            grid.x_m, ys[keep], ws[keep] * near[None, :],
-            np.array([fitted[i].offset_m for i in keep]),
-            curvature_prior_inv_m=cfg.curvature_prior_inv_m,
-            curvature_rate_prior_inv_m2=cfg.curvature_rate_prior_inv_m2,
-            pitch_bias_prior_inv_m=cfg.pitch_bias_prior_inv_m)
+        for attempt in range(3):
+            guess = np.array([fitted[i].offset_m for i in keep])
+            coef, std = fit_parallel_lines(
+                grid.x_m, ys[keep], ws[keep] * near[None, :], guess,
+                curvature_prior_inv_m=cfg.curvature_prior_inv_m,
+                curvature_rate_prior_inv_m2=cfg.curvature_rate_prior_inv_m2,
+                pitch_bias_prior_inv_m=cfg.pitch_bias_prior_inv_m)
+            xx = grid.x_m[None, :]
+            model = (coef[:, :1] + coef[:, 1:2] * xx + 0.5 * coef[:, 2:3] * xx ** 2
+                     + coef[:, 3:4] * xx ** 3 / 6.0)
+            wk = ws[keep]
+            rms = np.sqrt((wk * (ys[keep] - model) ** 2).sum(axis=1)
+                          / np.maximum(wk.sum(axis=1), 1e-12))
+            good = rms <= cfg.shape_tolerance_m
+            if good.all() or not good.any() or attempt == 2:
+                break
+            keep = keep[good]
+        keep_coef = dict(zip(keep.tolist(), coef, strict=True))
+        keep_std = dict(zip(keep.tolist(), std, strict=True))
         lines: list[LaneBoundary] = []
-        for i in sorted(keep, key=lambda i: -fitted[i].confidence):
-            c, sd = coef[keep == i][0], std[keep == i][0]
+        for i in sorted(keep.tolist(), key=lambda i: -fitted[i].confidence):
+            c, sd = keep_coef[i], keep_std[i]
             line = replace(fitted[i], offset_m=float(c[0]), heading_rad=float(c[1]),
                            curvature_inv_m=float(c[2]), curvature_rate_inv_m2=float(c[3]),
                            offset_std_m=float(max(sd, fitted[i].offset_std_m)))
