@@ -402,6 +402,47 @@ class LaneTrack:
 
 
 @dataclass(slots=True)
+class EgoLateral:
+    """The ego's place across its road: lane markings fused with GPS
+    (:func:`vid2sim.geo.lateral.fuse_lateral`).
+
+    Arrays share the length of ``ego.t_s``.
+
+    :param ego: the ego track with its lateral position corrected (positions, headings,
+        lat/lon; times and speeds as before)
+    :param lane: lane index per sample, 0 = the rightmost lane in the travel direction (on
+        a road derived from the trajectory: counted from the lines the video shows right
+        of the ego)
+    :param offset_in_lane_m: the ego from the middle of its lane (between the markings'
+        centres), positive left [m]; NaN where the markings were not measured
+    :param offset_from_centerline_m: the corrected ego from the road's centerline, positive
+        left [m] (NaN on a trajectory road, whose centerline is the ego path)
+    :param correction_m: lateral shift applied to each sample, positive left [m]
+    :param lane_width_m: the ego lane's width from the markings [m] (NaN where unknown)
+    :param lane_changes: the ego's lane changes, lanes as in ``lane``
+    :param lane_center_xy_m: (N, 2) ENU path of the middle of the lane the clip starts in,
+        with the ego's wander and lane changes taken out: the reference line of a road
+        built from the trajectory; None where not measured
+    :param source: what placed the ego across the road: ``"lane markings + map"``, ``"lane
+        markings (no map)"`` or ``"gps"``
+    :param lanes: the lane track re-filtered with the ego's speed, if there was one
+    :param notes: estimates and warnings for the summary
+    """
+
+    ego: EgoTrack
+    lane: np.ndarray
+    offset_in_lane_m: np.ndarray
+    offset_from_centerline_m: np.ndarray
+    correction_m: np.ndarray
+    lane_width_m: np.ndarray
+    lane_changes: list[LaneChange] = field(default_factory=list)
+    lane_center_xy_m: np.ndarray | None = None
+    source: str = "gps"
+    lanes: LaneTrack | None = None
+    notes: list[str] = field(default_factory=list)
+
+
+@dataclass(slots=True)
 class RangingResult:
     """What ``vid2sim.detect.ranging.range_tracks`` found for all tracks of one video.
 

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from vid2sim.defaults import LANE_WIDTH_M
+from vid2sim.detect.lane_geometry import with_yaw_correction
 from vid2sim.records import LaneBoundary, LaneChange, LaneObservation, LaneTrack, MarkingKind
 
 
@@ -167,9 +168,9 @@ def lane_track(observations: list[LaneObservation], config: LaneTrackConfig | No
         In time order (one per measured frame).
     config : LaneTrackConfig, optional
     speed_mps : array, optional
-        The ego's speed at each observation [m/s] (e.g. from GPS). With it the lateral
-        motion is tied to the heading against the lane (``dL/dt = -v * heading``), which
-        steadies both; without it the lateral rate is free.
+        The ego's speed at each observation [m/s] (e.g. from GPS; NaN where unknown). With
+        it the lateral motion is tied to the heading against the lane
+        (``dL/dt = -v * heading``), which steadies both; without it the lateral rate is free.
 
     Returns
     -------
@@ -184,11 +185,11 @@ def lane_track(observations: list[LaneObservation], config: LaneTrackConfig | No
     widths = np.array([o.lane_width_m if lo <= o.lane_width_m <= hi else np.nan
                        for o in observations], float)
     width = _rolling_median(widths, cfg.width_window, cfg.default_lane_width_m)
-    v = (np.zeros(n) if speed_mps is None
-         else np.nan_to_num(np.asarray(speed_mps, float), nan=0.0))
+    v_raw = np.full(n, np.nan) if speed_mps is None else np.asarray(speed_mps, float)
+    v = np.nan_to_num(v_raw, nan=0.0)
     # Without the speed the free lateral rate carries the lane changes; with it, only what
     # the heading does not explain (measurement biases, slope).
-    rate_std = cfg.accel_std_mps2 if speed_mps is None else cfg.rate_drift_std_mps2
+    rate_std = np.where(np.isfinite(v_raw), cfg.rate_drift_std_mps2, cfg.accel_std_mps2)
 
     # ---- forward Kalman filter on (L, heading, free lateral rate) with gated association
     x_f = np.full((n, 3), np.nan)
@@ -205,9 +206,9 @@ def lane_track(observations: list[LaneObservation], config: LaneTrackConfig | No
         if x is not None:
             dt = max(t[i] - t[i - 1], 1e-3)
             f = np.array([[1.0, -v[i] * dt, dt], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
-            q = np.diag([0.0, cfg.heading_rate_std_radps ** 2 * dt, rate_std ** 2 * dt])
-            q[0, 0] = rate_std ** 2 * dt ** 3 / 3.0
-            q[0, 2] = q[2, 0] = rate_std ** 2 * dt ** 2 / 2.0
+            qr = rate_std[i] ** 2
+            q = np.diag([qr * dt ** 3 / 3.0, cfg.heading_rate_std_radps ** 2 * dt, qr * dt])
+            q[0, 2] = q[2, 0] = qr * dt ** 2 / 2.0
             f_all[i] = f
             x = f @ x
             p = f @ p @ f.T + q
@@ -374,3 +375,13 @@ def _vote(kinds: list[str], window: int) -> list[str]:
         else:
             out.append(MarkingKind.UNKNOWN.value if kinds[i] else "")
     return out
+
+
+def track_lanes(observations: list[LaneObservation], yaw_correction_rad: float = 0.0,
+                config: LaneTrackConfig | None = None) -> LaneTrack:
+    """:func:`lane_track` of observations measured with a camera yaw that was corrected
+    afterwards by ``yaw_correction_rad`` (new minus old, positive left): the streaming
+    stage's call, before the ego's speed is known."""
+    if yaw_correction_rad:
+        observations = [with_yaw_correction(o, yaw_correction_rad) for o in observations]
+    return lane_track(observations, config)
