@@ -182,8 +182,11 @@ class LaneMarkingDetector:
         top = int(max(0, math.floor(rows.min()) - 2)) if rows.size else 0
         self._scale = scale
         self._top = top
-        map_u = np.where(inside, map_u, -10.0) * scale
-        map_v = np.where(inside, (map_v - top) * scale, -10.0)
+        # A downscaled pixel i averages full pixels k i .. k i + k - 1: its centre is
+        # (k - 1) / 2 full pixels past k i.
+        half = 0.5 * (1.0 / scale - 1.0)
+        map_u = np.where(inside, (map_u - half) * scale, -10.0)
+        map_v = np.where(inside, (map_v - top - half) * scale, -10.0)
         self._maps = cv2.convertMaps(map_u.astype(np.float32), map_v.astype(np.float32),
                                      cv2.CV_16SC2)
         # Pixels whose ridge filter reaches outside the image are not measured.
@@ -459,7 +462,8 @@ class LaneMarkingDetector:
         if ok.sum() < cfg.edge_min_rows:
             return None
         x = grid.x_m[rows[ok]]
-        y = side * (cfg.edge_search_from_m + first[ok] * cfg.lateral_step_m)
+        # The roughness is averaged over 5 columns, so it rises 2 columns before the edge.
+        y = side * (cfg.edge_search_from_m + (first[ok] + 2) * cfg.lateral_step_m)
         if shape is not None:
             c1, c2 = shape
             o = y - (c1 * x + 0.5 * c2 * x * x)

@@ -110,6 +110,28 @@ def _smooth_polyline(xy: np.ndarray, sigma_m: float, step_m: float = 0.5) -> np.
                             for k in (0, 1)])
 
 
+def _project_along(line: np.ndarray, xy: np.ndarray, t: np.ndarray, speed: np.ndarray,
+                   chunk: int = 10) -> tuple[np.ndarray, np.ndarray]:
+    """Arc length and signed offset of each ego sample on ``line``, each second's samples
+    searched near where the previous second ended plus the distance driven (a route that
+    passes a place twice is not confused; GPS wander does not accumulate)."""
+    s_out = np.full(len(xy), np.nan)
+    d_out = np.full(len(xy), np.nan)
+    s_prev = t_prev = None
+    for k0 in range(0, len(xy), chunk):
+        sl = slice(k0, k0 + chunk)
+        if s_prev is None:
+            s_c, d_c = signed_offsets(line, xy[sl])
+        else:
+            ahead = s_prev + np.maximum(speed[sl], 0.0) * (t[sl] - t_prev)
+            s_c, d_c = signed_offsets(line, xy[sl], ahead)
+        s_out[sl], d_out[sl] = s_c, d_c
+        last = np.flatnonzero(np.isfinite(s_c))
+        if last.size:
+            s_prev, t_prev = float(s_c[last[-1]]), float(t[sl][last[-1]])
+    return s_out, d_out
+
+
 def _frame_on_line(line: np.ndarray, s_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Points and left normals of a polyline at arc lengths ``s_m``."""
     seg = np.diff(line, axis=0)
@@ -198,10 +220,8 @@ def fuse_lateral(ego: EgoTrack, lanes: LaneTrack | None, road: RoadResult | None
 
     # ---- along the map road
     line = _smooth_polyline(np.asarray(main.centerline, float), cfg.centerline_smoothing_m)
-    xy = np.column_stack((ego.x_m, ego.y_m))
-    driven = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))))
-    s0, _ = signed_offsets(line, xy[:1])
-    s, d_gps = signed_offsets(line, xy, s0[0] + driven)
+    s, d_gps = _project_along(line, np.column_stack((ego.x_m, ego.y_m)), ego.t_s,
+                              ego.speed_mps)
     total = int(main.lanes)
     forward = int(road.lanes_forward) if road.lanes_forward else total
     w = np.where(np.isfinite(width), width, w_video)
