@@ -87,9 +87,11 @@ def _measure(camera, frames, fps: float, repeat: int):
     return obs, best
 
 
-def _row(name: str, s: dict) -> str:
+def _row(name: str, s: dict, bias: bool = True) -> str:
+    # Against KITTI the reference is a fitted curve, whose offset absorbs any bias.
+    b = f"bias {s['bias_m']:+.3f}  " if bias else ""
     return (f"  {name:<44} n {s['n']:>4}  RMS {s['rms_m']:.3f}  p95 {s['p95_m']:.3f}  "
-            f"bias {s['bias_m']:+.3f}  max {s['max_m']:.3f} m")
+            f"{b}max {s['max_m']:.3f} m")
 
 
 def bench_kitti(repeat: int) -> None:
@@ -134,11 +136,11 @@ def bench_kitti(repeat: int) -> None:
                                                                      poses)),
     ]
     for name, s in rows:
-        print(_row(name, s) + f"  lag1 {s['lag1']:+.2f}")
+        print(_row(name, s, bias=False) + f"  lag1 {s['lag1']:+.2f}")
     resid = rows[-1][1]["residual_m"]
     for label, mask in (("  ... frames with both boundaries", both),
                         ("  ... frames with one or none", ~both)):
-        print(_row(label, summary(resid[mask])))
+        print(_row(label, summary(resid[mask]), bias=False))
 
 
 def _demo_dirs(demo_dir: Path | None) -> tuple[Path, Path]:

@@ -67,15 +67,16 @@ def kitti_camera_poses(drive: Path, camera_stamps: str = "image_00_timestamps.tx
     x = np.interp(t_cam, t_oxts, enu[:, 0])
     y = np.interp(t_cam, t_oxts, enu[:, 1])
     h = np.interp(t_cam, t_oxts, yaw)
-    lever = _camera_in_imu(drive)
+    lever = kitti_camera_lever_arm(drive)
     c, s = np.cos(h), np.sin(h)
     return {"t_s": t_cam - t_cam[0], "x_m": x + c * lever[0] - s * lever[1],
             "y_m": y + s * lever[0] + c * lever[1], "yaw_rad": h,
             "speed_mps": np.interp(t_cam, t_oxts, table[:, _VF])}
 
 
-def _camera_in_imu(drive: Path) -> np.ndarray:
-    """(x forward, y left) of the camera in the OXTS unit's frame [m]."""
+def kitti_camera_lever_arm(drive: Path) -> np.ndarray:
+    """(x forward, y left) of the left grey camera in the OXTS unit's frame [m], from a
+    KITTI raw drive's ``calib_imu_to_velo.txt`` and ``calib_velo_to_cam.txt``."""
     def rigid(name: str) -> tuple[np.ndarray, np.ndarray]:
         values = parse_kitti_calib((drive / name).read_text(encoding="utf-8"))
         return values["R"].reshape(3, 3), values["T"].reshape(3)
