@@ -333,7 +333,7 @@ def _without_map(ego: EgoTrack, track: LaneTrack, offset: np.ndarray, width: np.
     notes.append(Note.estimate(
         f"lane markings measured on {coverage:.0%} of the frames: ego in lane {j0} counted "
         f"from the right at the start, {len(changes)} lane change(s), lane width "
-        f"{w_video:.2f} m; no map, so the ego's position stays the GPS's"))
+        f"{w_video:.2f} m; no map to place the ego against, so its path is kept as it was"))
     return EgoLateral(ego=ego, lane=lane, offset_in_lane_m=offset,
                       offset_from_centerline_m=np.full(n, np.nan), correction_m=np.zeros(n),
                       lane_width_m=width, lane_changes=changes, lane_center_xy_m=centre,
