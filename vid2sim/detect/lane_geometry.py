@@ -1,8 +1,9 @@
 """Geometry of lane markings on the ground plane: the pure functions behind
-:mod:`vid2sim.detect.lane_markings` (arrays in, arrays out; no images, no state).
+:mod:`vid2sim.detect.lane_markings` (arrays in, arrays out; no state).
 
 Ground coordinates are the vehicle frame's: x forward, y left [m]. A line on the road is
-``y(x) = c0 + c1 x + c2 x^2 / 2`` (offset [m], heading [rad], curvature [1/m]).
+``y(x) = c0 + c1 x + c2 x^2 / 2 + c3 x^3 / 6`` (offset [m], heading [rad], curvature [1/m],
+curvature rate [1/m^2]).
 """
 
 from __future__ import annotations

@@ -10,12 +10,17 @@ Method (classical, OpenCV + numpy; no learned model):
    the response is the smaller of the two centre-minus-side contrasts (a step edge such as a
    shadow's border gives one side only), divided by the local brightness so that markings in
    shade count as much as in sun. Lateral local maxima above a threshold are marking points.
-3. **Lines.** A Hough vote over (offset, heading) finds the straight candidates; each is
-   refined by a robust weighted least-squares fit of ``y = c0 + c1 x + c2 x^2 / 2`` to the
-   row centroids of its points (:class:`~vid2sim.records.LaneBoundary`).
+3. **Lines.** A Hough vote over (offset, heading) of the near points finds straight
+   candidates near the strongest line's direction (lines on a road are parallel); each is
+   refined on the row centroids of its points, and those that still run parallel are fitted
+   together: one clothoid shape ``c1 x + c2 x^2 / 2 + c3 x^3 / 6`` for all, each its own
+   offset ``c0`` (:func:`~vid2sim.detect.lane_geometry.fit_parallel_lines`), so a dashed line
+   seen as two dashes borrows the solid line's direction.
 4. **Kind.** Along the fitted line, the rows where paint was found give its pattern: one long
-   run is solid, several short runs with gaps are dashed; a line whose far side is textured
-   (gravel, grass, track bed) rather than smooth asphalt is the road's edge.
+   run is solid, several short runs with gaps are dashed. Separately, on each side the first
+   stretch of rough surface (gravel, grass, a track bed, a parked car) outwards from the
+   camera is the road's edge (a kerb without paint is found this way); lines beyond it are
+   not on the road.
 5. **Ego lane.** The nearest line on each side is the lane's boundary when the pair makes a
    plausible lane; the others are the further lines.
 
@@ -24,8 +29,8 @@ maps a straight ground line ``y = c0 + c1 x`` to ``y' = c0 + (c1 + c0 d / (h f))
 warped view (``h`` camera height, ``f`` focal length): its offset at x = 0 is unchanged;
 only its heading is biased, by opposite amounts for lines on opposite sides.
 
-The pure functions (:func:`fit_line`, :func:`pattern_kind`, :func:`pick_ego_lane`) take
-arrays; :class:`LaneMarkingDetector` holds the precomputed warp and measures one frame.
+The pure geometry lives in :mod:`vid2sim.detect.lane_geometry`; :class:`LaneMarkingDetector`
+holds the precomputed warp and measures one frame (about 2.5 ms at 1242x375 on one core).
 """
 
 from __future__ import annotations
@@ -124,14 +129,15 @@ class LaneMarkingConfig:
     #: dashes 3 m / gaps 6 m, Finnish 3 / 9, US 3 / 9: gaps are 1.5-4x the dash)
     solid_coverage: float = 0.75
     min_gap_m: float = 1.5
-    #: the far side of a line is "not road" when its texture exceeds the ego lane's by this
-    #: factor (gravel and track beds are 3-10x rougher than asphalt in the warped view)
+    #: the surface is "not road" where its roughness exceeds that under the ego's path by
+    #: this factor (gravel and track beds are 3-10x rougher than asphalt in the warped view)
     edge_texture_ratio: float = 2.5
     #: texture is compared this near only (farther, one pixel covers several grid cells)
     texture_far_m: float = 15.0
     #: road edges are searched from this far beside the camera outwards (inside it lies the
-    #: ego's own lane), need this many rough-edge rows (2 m), this share of the near rows,
-    #: and inliers within this distance of the fitted edge
+    #: ego's own lane); rough over most of ``edge_min_run_m`` (a painted line's own edges
+    #: are rough over under 0.6 m); seen on this many rows (2 m) and this share of the near
+    #: rows, with inliers within this distance of the fitted edge
     edge_search_from_m: float = 0.5
     edge_min_run_m: float = 0.8
     edge_min_rows: int = 8
@@ -193,7 +199,6 @@ class LaneMarkingDetector:
         k = self._side_px + 3
         self._valid = cv2.erode(inside.astype(np.uint8), np.ones((3, 2 * k + 1), np.uint8)
                                 ).astype(bool)
-        self._visible = inside
         # Rows where texture can be told (see ``texture_far_m``) with any valid pixel.
         self._texture_rows = np.flatnonzero((self.grid.x_m <= self.config.texture_far_m)
                                             & self._valid.any(axis=1))

@@ -266,7 +266,10 @@ def fuse_lateral(ego: EgoTrack, lanes: LaneTrack | None, road: RoadResult | None
     pts, normal = _frame_on_line(line, s)
     x_new = pts[:, 0] + normal[:, 0] * d_new
     y_new = pts[:, 1] + normal[:, 1] * d_new
-    on_road = np.isfinite(d_gps) & (np.abs(d_gps) <= total * w_video + 10.0)
+    # Samples beyond the road's ends, or far off it (another piece of a broken route), stay.
+    length = float(np.hypot(*np.diff(line, axis=0).T).sum())
+    on_road = (np.isfinite(d_gps) & (np.abs(d_gps) <= total * w_video + 10.0)
+               & (s > 0.0) & (s < length))
     x_new = np.where(on_road, x_new, ego.x_m)
     y_new = np.where(on_road, y_new, ego.y_m)
     correction = np.where(on_road, d_new - d_gps_filled, 0.0)
