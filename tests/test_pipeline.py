@@ -13,6 +13,8 @@ from vid2sim.app.demo import run_demo
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.settings import DetectorSettings, Settings
 from vid2sim.cli import main
+from vid2sim.evaluate.lanes import ego_cross_error, summary
+from vid2sim.samples.demo_truth import truth_scenario
 
 QUIET = Settings(progress=False, allow_download=False)
 
@@ -174,3 +176,25 @@ def test_scenario_does_not_depend_on_where_the_inputs_are(demo_result, tmp_path,
     monkeypatch.chdir(tmp_path / "elsewhere")
     relative = run(Path("inputs"), tmp_path / "b")
     assert absolute == relative
+
+
+def test_demo_ego_sits_in_its_lane(demo_result):
+    """Issue 19: the lane markings place the scenario's ego across the road. Acceptance:
+    lateral error against the true ego path <= 0.3 m RMS and <= 0.6 m p95 (the smoothed GPS
+    alone: 1.5 m RMS, 2.5 m p95); the tighter bounds are regression floors a little above
+    what the method achieves (0.11 m RMS, 0.28 m p95 at a2556fa; figures by regime in
+    benchmarks/bench_lanes.py)."""
+    out, result = demo_result
+    built = scenario_io.load(out / "build" / "scenario.json")
+    truth = truth_scenario(out / "sample" / "truth.json")
+    _, cross = ego_cross_error(built.origin, built.ego.trajectory, truth)
+    s = summary(cross)
+    print(f"demo ego lateral error: RMS {s['rms_m']:.3f} p95 {s['p95_m']:.3f} bias "
+          f"{s['bias_m']:+.3f} m")
+    assert s["n"] > 200
+    assert s["rms_m"] <= 0.3 and s["p95_m"] <= 0.6
+    assert s["rms_m"] <= 0.15 and s["p95_m"] <= 0.35 and abs(s["bias_m"]) <= 0.08
+    lateral = result.lateral
+    assert lateral.source == "lane markings + map"
+    assert (lateral.lane == 0).all() and lateral.lane_changes == []  # the ego holds its lane
+    assert lateral.lanes.detection_rate >= 0.8

@@ -248,6 +248,200 @@ class RangedBox(TrackedBox):
     lane: str = ""
 
 
+# --------------------------------------------------------------------------- lane markings
+
+
+class MarkingKind(str, Enum):
+    """What a line on the road is, as far as one frame (or a track of frames) can tell."""
+
+    #: a continuous painted line
+    SOLID = "solid"
+    #: a broken painted line (dashes and gaps along the road)
+    DASHED = "dashed"
+    #: the edge of the road surface (kerb, verge): no road beyond it
+    ROAD_EDGE = "road_edge"
+    #: a line whose pattern could not be told (too short, occluded)
+    UNKNOWN = "unknown"
+
+
+@dataclass(frozen=True, slots=True)
+class LaneBoundary:
+    """One line on the road in the vehicle frame's ground plane (x forward, y left).
+
+    The line is ``y(x) = offset_m + heading_rad * x + curvature_inv_m * x**2 / 2
+    + curvature_rate_inv_m2 * x**3 / 6`` (the small-angle clothoid of lane-detection
+    literature), valid over ``x_near_m..x_far_m``.
+
+    :param offset_m: lateral offset of the line at x = 0, i.e. beside the camera's ground
+        point, positive left [m]
+    :param heading_rad: angle of the line to the vehicle's x axis, positive turning left [rad]
+    :param curvature_inv_m: curvature at x = 0, positive bending left [1/m]
+    :param kind: solid, dashed, road edge or unknown (:class:`MarkingKind` values)
+    :param confidence: 0..1, from the length of line seen and the fit's scatter
+    :param offset_std_m: one-sigma uncertainty of ``offset_m`` from the fit [m]
+    :param x_near_m, x_far_m: nearest and farthest ground distance the line was seen at [m]
+    :param seen_m: length of painted (or edge) line found along it [m]
+    :param curvature_rate_inv_m2: change of curvature per metre ahead [1/m^2]
+    """
+
+    offset_m: float
+    heading_rad: float
+    curvature_inv_m: float
+    kind: str = MarkingKind.UNKNOWN.value
+    confidence: float = 0.0
+    offset_std_m: float = float("nan")
+    x_near_m: float = float("nan")
+    x_far_m: float = float("nan")
+    seen_m: float = 0.0
+    curvature_rate_inv_m2: float = 0.0
+
+    def y_at(self, x_m: float | np.ndarray) -> float | np.ndarray:
+        """Lateral position of the line [m, positive left] at ground distance ``x_m``."""
+        return (self.offset_m + self.heading_rad * x_m + 0.5 * self.curvature_inv_m * x_m * x_m
+                + self.curvature_rate_inv_m2 * x_m ** 3 / 6.0)
+
+
+@dataclass(frozen=True, slots=True)
+class LaneObservation:
+    """What one video frame shows of the ego lane and the lines beside it.
+
+    :param frame: 0-based frame index; ``t_s`` its time on the scenario clock [s]
+    :param left, right: the ego lane's boundaries (the nearest line on each side), None where
+        not seen
+    :param lane_width_m: distance between the two boundaries at x = 0 [m] (NaN unless both)
+    :param ego_offset_m: the camera's ground point from the lane's middle, positive left [m]
+        (NaN unless both boundaries are seen; :class:`LaneTrack` fills one-sided frames)
+    :param lines_left, lines_right: further lines beyond each boundary, nearest first
+    :param cost_ms: processing time of the frame [ms] (for the benchmark)
+    """
+
+    frame: int
+    t_s: float
+    left: LaneBoundary | None = None
+    right: LaneBoundary | None = None
+    lane_width_m: float = float("nan")
+    ego_offset_m: float = float("nan")
+    lines_left: tuple[LaneBoundary, ...] = ()
+    lines_right: tuple[LaneBoundary, ...] = ()
+    cost_ms: float = float("nan")
+
+    @property
+    def found(self) -> bool:
+        """Both boundaries of the ego lane were seen."""
+        return self.left is not None and self.right is not None
+
+
+@dataclass(frozen=True, slots=True)
+class LaneChange:
+    """The ego (or an actor) crossing a lane boundary.
+
+    :param t_s: time the boundary was crossed, scenario clock [s]
+    :param from_lane, to_lane: lane indices before and after; in a :class:`LaneTrack` counted
+        from the lane the clip starts in (0), +1 per lane to the left; in an
+        :class:`EgoLateral` 0 is the rightmost lane in the travel direction
+    """
+
+    t_s: float
+    from_lane: int
+    to_lane: int
+
+    def as_tuple(self) -> tuple[float, int, int]:
+        return (self.t_s, self.from_lane, self.to_lane)
+
+
+@dataclass(slots=True)
+class LaneTrack:
+    """The ego lane over a clip: per-frame lane measurements filtered in time.
+
+    Arrays share one length, one entry per measured (decoded) frame. Lateral quantities are
+    in the vehicle frame (positive left) [m]; NaN where nothing usable was seen nearby.
+
+    :param frame, t_s: frame index and scenario time [s]
+    :param found: both boundaries of the ego lane seen in the frame
+    :param ego_offset_raw_m: the frame's own offset of the camera from its lane's middle
+    :param ego_offset_m: the filtered offset from the middle of the lane the ego is in
+    :param offset_std_m: one-sigma uncertainty of ``ego_offset_m``
+    :param lateral_m: continuous lateral position from the middle of the clip's first lane,
+        lane changes included (``ego_offset_m + lane * lane_width``)
+    :param lane: lanes moved since the clip's first lane (+1 one lane to the left)
+    :param lane_width_m: filtered lane width
+    :param heading_rad: the lane's direction relative to the vehicle's x axis, positive left
+    :param curvature_inv_m: the lane's curvature, positive bending left [1/m]
+    :param left_kind, right_kind: the boundaries' kinds (:class:`MarkingKind` values), taken
+        over the recent frames
+    :param lines_left, lines_right: number of lines seen beyond each boundary
+    :param lane_changes: the ego's crossings of a lane boundary, lanes as in ``lane``
+    :param observations: the per-frame measurements the track was made from
+    """
+
+    frame: np.ndarray
+    t_s: np.ndarray
+    found: np.ndarray
+    ego_offset_raw_m: np.ndarray
+    ego_offset_m: np.ndarray
+    offset_std_m: np.ndarray
+    lateral_m: np.ndarray
+    lane: np.ndarray
+    lane_width_m: np.ndarray
+    heading_rad: np.ndarray
+    curvature_inv_m: np.ndarray
+    left_kind: list[str] = field(default_factory=list)
+    right_kind: list[str] = field(default_factory=list)
+    lines_left: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    lines_right: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    lane_changes: list[LaneChange] = field(default_factory=list)
+    observations: list[LaneObservation] = field(default_factory=list)
+
+    def __len__(self) -> int:
+        return len(self.t_s)
+
+    @property
+    def detection_rate(self) -> float:
+        """Share of measured frames where both ego-lane boundaries were seen."""
+        return float(np.mean(self.found)) if len(self.found) else 0.0
+
+
+@dataclass(slots=True)
+class EgoLateral:
+    """The ego's place across its road: lane markings fused with GPS
+    (:func:`vid2sim.geo.lateral.fuse_lateral`).
+
+    Arrays share the length of ``ego.t_s``.
+
+    :param ego: the ego track with its lateral position corrected (positions, headings,
+        lat/lon; times and speeds as before)
+    :param lane: lane index per sample, 0 = the rightmost lane in the travel direction (on
+        a road derived from the trajectory: counted from the lines the video shows right
+        of the ego)
+    :param offset_in_lane_m: the ego from the middle of its lane (between the markings'
+        centres), positive left [m]; NaN where the markings were not measured
+    :param offset_from_centerline_m: the corrected ego from the road's centerline, positive
+        left [m] (NaN on a trajectory road, whose centerline is the ego path)
+    :param correction_m: lateral shift applied to each sample, positive left [m]
+    :param lane_width_m: the ego lane's width from the markings [m] (NaN where unknown)
+    :param lane_changes: the ego's lane changes, lanes as in ``lane``
+    :param lane_center_xy_m: (N, 2) ENU path of the middle of the lane the clip starts in,
+        with the ego's wander and lane changes taken out: the reference line of a road
+        built from the trajectory; None where not measured
+    :param source: what placed the ego across the road: ``"lane markings + map"``, ``"lane
+        markings (no map)"`` or ``"gps"``
+    :param lanes: the lane track re-filtered with the ego's speed, if there was one
+    :param notes: estimates and warnings for the summary
+    """
+
+    ego: EgoTrack
+    lane: np.ndarray
+    offset_in_lane_m: np.ndarray
+    offset_from_centerline_m: np.ndarray
+    correction_m: np.ndarray
+    lane_width_m: np.ndarray
+    lane_changes: list[LaneChange] = field(default_factory=list)
+    lane_center_xy_m: np.ndarray | None = None
+    source: str = "gps"
+    lanes: LaneTrack | None = None
+    notes: list[str] = field(default_factory=list)
+
+
 @dataclass(slots=True)
 class RangingResult:
     """What ``vid2sim.detect.ranging.range_tracks`` found for all tracks of one video.
@@ -267,6 +461,8 @@ class RangingResult:
     horizon_source: str
     width_m_by_track: dict[int, float] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
+    #: the ego lane measured from the lane markings while the frames streamed, if it was
+    lanes: LaneTrack | None = None
 
 
 # --------------------------------------------------------------------------- evaluation

@@ -39,6 +39,7 @@ from vid2sim.app.loaders import (
     smooth_trace,
 )
 from vid2sim.app.settings import Settings
+from vid2sim.detect.lane_track import lane_track
 from vid2sim.detect.pipeline import detect_and_range
 from vid2sim.errors import InputError
 from vid2sim.evaluate.replay import run_eval
@@ -47,7 +48,8 @@ from vid2sim.export.assemble import assemble_scenario
 from vid2sim.export.openscenario import write_openscenario
 from vid2sim.fileio import write_text_atomic
 from vid2sim.geo import roads as geo_roads
-from vid2sim.records import EgoTrack, Note, NoteKind, Origin, notes_of
+from vid2sim.geo.lateral import fuse_lateral
+from vid2sim.records import EgoLateral, EgoTrack, Note, NoteKind, Origin, notes_of
 from vid2sim.scenario import Source, dumps_canonical
 from vid2sim.tables import write_tracks_csv
 
@@ -66,6 +68,8 @@ class BuildResult:
     metrics: dict | None
     warnings: list[str]
     stage_seconds: dict[str, float] = field(default_factory=dict)
+    #: the ego's lane, lane changes and lateral correction (from the lane markings)
+    lateral: EgoLateral | None = None
 
     def summary(self) -> str:
         lines = [(f"scenario: {self.duration_s:.1f} s, ego distance {self.distance_m:.0f} m, "
@@ -209,6 +213,13 @@ def build(inputs: Inputs, out_dir: Path, settings: Settings | None = None,
         f"horizon at row {ranging.horizon_y_px:.1f} px (pitch {ranging.pitch_deg_estimated:.2f} "
         f"deg) from {ranging.horizon_source}"))
     camera_used = camera.with_pitch(ranging.pitch_deg_estimated)
+    # ---- the ego's lateral position from the lane markings (GPS keeps the along-track one)
+    lateral = stages.run("ego lateral position", fuse_lateral, ego, ranging.lanes, road_result,
+                         speed_known=inputs.gps is not None,
+                         refilter=lambda track, speed: lane_track(
+                             track.observations, settings.lanes, speed_mps=speed))
+    ego = lateral.ego
+    notes.extend(lateral.notes)
     warnings = notes_of(notes, NoteKind.WARNING)
     assumptions = [n for n in notes if getattr(n, "kind", None) in (NoteKind.ASSUMPTION,
                                                                      NoteKind.ESTIMATE)]
@@ -276,5 +287,5 @@ def build(inputs: Inputs, out_dir: Path, settings: Settings | None = None,
         out_dir=out_dir, files={k: out_dir / v for k, v in files.items()},
         duration_s=scenario.duration_s, distance_m=path_length_m(ego),
         n_actors=len(scenario.actors), lead_share=lead["lead_share"], lead_range_m=lead_range,
-        metrics=metrics, warnings=warnings, stage_seconds=stages.seconds)
+        metrics=metrics, warnings=warnings, stage_seconds=stages.seconds, lateral=lateral)
 

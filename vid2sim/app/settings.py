@@ -11,6 +11,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from vid2sim.defaults import EGO_RATE_HZ
+from vid2sim.detect.lane_track import LaneTrackConfig
 from vid2sim.detect.models import DEFAULT_DETECTOR
 from vid2sim.detect.ranging import RangingConfig
 from vid2sim.detect.tracker import TrackerConfig
@@ -78,6 +79,8 @@ class Settings:
     :param tracker: tracker thresholds (``detector.score`` adjusts them, see
         :meth:`tracker_config`)
     :param ranging: monocular ranging priors and noise
+    :param lanes: the lane-marking track (re-run with the ego's GPS speed before the ego is
+        placed across the road)
     :param trace: GPS smoothing
     :param assemble: scenario assembly
     :param rate_hz: ego trajectory sample rate [Hz]
@@ -89,6 +92,7 @@ class Settings:
     detector: DetectorSettings = field(default_factory=DetectorSettings)
     tracker: TrackerConfig = field(default_factory=TrackerConfig)
     ranging: RangingConfig = field(default_factory=RangingConfig)
+    lanes: LaneTrackConfig = field(default_factory=LaneTrackConfig)
     trace: TraceParams = field(default_factory=TraceParams)
     assemble: AssembleConfig = field(default_factory=AssembleConfig)
     rate_hz: float = EGO_RATE_HZ

@@ -6,12 +6,15 @@ tracker, lane markings, ranging) one frame at a time.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 
 from vid2sim.camera import Camera
 from vid2sim.detect.detector import Detector
+from vid2sim.detect.lane_markings import LaneMarkingDetector
+from vid2sim.detect.lane_track import track_lanes
 from vid2sim.detect.lanes import HorizonEstimator, yaw_for_vanishing_column
 from vid2sim.detect.ranging import RangingConfig, range_tracks
 from vid2sim.detect.tracker import Tracker, TrackerConfig
@@ -110,7 +113,8 @@ def detect_and_range(video: Path, camera: Camera, *, detector, detections=None,
 
     While frames stream, lane markings give per-frame horizon rows and the vanishing column;
     the column corrects the camera's yaw (so the ego corridor follows the lane) when enough
-    frames agree and the correction is plausible for a mounting.
+    frames agree and the correction is plausible for a mounting. The ego lane is measured
+    from the same frames (``result.lanes``, a :class:`~vid2sim.records.LaneTrack`).
 
     Parameters
     ----------
@@ -137,11 +141,18 @@ def detect_and_range(video: Path, camera: Camera, *, detector, detections=None,
     # Every decoded frame: about 6 ms at 640 px wide, and the per-frame rows follow the
     # horizon's drift (see lane_horizon_offsets).
     horizon_est = HorizonEstimator(camera, every=1)
+    # The lane markings as a measurement (the ego lane per frame, ~3 ms at 1242x375).
+    markings = LaneMarkingDetector(camera)
+    lane_obs = []
+
+    def on_frame(frame: Frame) -> None:
+        horizon_est.add_frame(frame.image_bgr, frame.index)
+        lane_obs.append(markings.measure(frame.image_bgr, frame.index, frame.t_s))
+
     boxes = run_detect(video, detector=detector, detections=detections,
                        detect_every=detect_every, progress=progress, fps=fps,
-                       tracker_config=tracker_config,
-                       on_frame=lambda frame: horizon_est.add_frame(frame.image_bgr,
-                                                                    frame.index))
+                       tracker_config=tracker_config, on_frame=on_frame)
+    yaw_before = camera.yaw_deg
     # Lane markings also say where straight ahead is: correct the camera's yaw so the ego
     # corridor runs along the lane rather than along a slightly turned camera axis.
     column, n_col = horizon_est.estimate_column()
@@ -158,4 +169,5 @@ def detect_and_range(video: Path, camera: Camera, *, detector, detections=None,
                 "implausible for a mounting, yaw not changed"))
     result = range_tracks(boxes, camera, horizon_hints_px=horizon_est.rows_px,
                           horizon_hint_frames=horizon_est.frames, config=config)
+    result.lanes = track_lanes(lane_obs, math.radians(camera.yaw_deg - yaw_before))
     return result, camera, notes
