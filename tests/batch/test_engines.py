@@ -14,6 +14,7 @@ import pytest
 from tests.batch.conftest import offline
 from vid2sim.app.batch import driver, run_batch, storage
 from vid2sim.cli import main
+from vid2sim.errors import InputError
 from vid2sim.fileio import sha256_file
 
 OK_ROWS = ("full", "plain")
@@ -139,6 +140,15 @@ def test_engine_ray_without_ray_installed_is_one_error_line(clip, tmp_path, monk
     assert captured.err.startswith("error: --engine ray needs Ray, which is not installed")
     assert 'pip install "vid2sim[ray]"' in captured.err
     assert not out.exists(), "nothing done"
+
+
+def test_a_job_larger_than_any_ray_node_is_refused(clip, ray_runtime, tmp_path):
+    manifest = tmp_path / "m.csv"
+    manifest.write_text(f"video,detections\n{clip / 'demo.mp4'},{clip / 'detections.txt'}\n",
+                        encoding="utf-8")
+    with pytest.raises(InputError, match="--cpus-per-job 3 but the largest Ray node has 2 CPUs"):
+        run_batch(manifest, tmp_path / "out", offline(), engine="ray", cpus_per_job=3)
+    assert ray_runtime.is_initialized(), "a runtime the caller started is left running"
 
 
 def test_batch_report_command(ray_run, tmp_path):

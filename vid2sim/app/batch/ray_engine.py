@@ -83,6 +83,12 @@ def run_ray(tasks: list[tuple[int, RowTask]], *, address: str | None, jobs: int 
     """Run ``tasks`` (row index, task) as Ray tasks; ``finished`` gets each outcome."""
     ray = require_ray()
     started = connect(address, None if jobs is None else jobs * cpus_per_job)
+    try:
+        _check_fits(ray, cpus_per_job)
+    except InputError:
+        if started:
+            ray.shutdown()
+        raise
     remote = ray.remote(_ray_row)
     in_flight: dict = {}  # ObjectRef -> (row index, task, submit time)
     queue = list(reversed(tasks))
@@ -120,6 +126,15 @@ def run_ray(tasks: list[tuple[int, RowTask]], *, address: str | None, jobs: int 
     finally:
         if started:
             ray.shutdown()
+
+
+def _check_fits(ray, cpus_per_job: int) -> None:
+    """A task needing more CPUs than any node has would wait forever: say so instead."""
+    largest = max((float(n.get("Resources", {}).get("CPU", 0.0)) for n in ray.nodes()
+                   if n.get("Alive")), default=0.0)
+    if cpus_per_job > largest:
+        raise InputError(None, f"--cpus-per-job {cpus_per_job} but the largest Ray node has "
+                         f"{largest:g} CPUs", "give at most that many CPUs per job")
 
 
 def _window(ray, jobs: int | None, cpus_per_job: int) -> int:
