@@ -44,7 +44,14 @@ from vid2sim.app.batch.manifest import (
 )
 from vid2sim.app.batch.ray_engine import require_ray, run_ray
 from vid2sim.app.batch.storage import Where
-from vid2sim.app.batch.worker import ATTEMPTS_DIR, RowTask, attempts_dir, done_outcome
+from vid2sim.app.batch.worker import (
+    ATTEMPTS_DIR,
+    RowTask,
+    attempts_dir,
+    clean_stale,
+    done_outcome,
+    staging_owner,
+)
 from vid2sim.app.settings import Settings
 from vid2sim.errors import InputError
 
@@ -54,10 +61,13 @@ ENGINES = ("local", "ray")
 #: Default retries of a row whose worker died: a node lost to preemption or a kill by the
 #: out-of-memory killer is often transient; a deterministic crash then costs 3 builds.
 DEFAULT_MAX_RETRIES = 2
-#: Seconds between index rewrites while rows finish: rewriting a 100,000-row index after
-#: every row would cost the driver O(rows^2); a kill loses at most this much of the record
-#: (those rows are found built by the next run's workers and skipped).
+#: Least seconds between index rewrites while rows finish: rewriting a 100,000-row index
+#: after every row would cost the driver O(rows^2); a kill loses at most this much of the
+#: record (those rows are found built by the next run's workers and skipped).
 FLUSH_INTERVAL_S = 1.0
+#: ... and at least this many times the last rewrite's duration, so that the driver spends
+#: at most a tenth of its time rewriting a large index.
+FLUSH_COST_FACTOR = 10.0
 HASH_CACHE = (STATE_DIR, "hashes.csv")
 
 
@@ -141,6 +151,7 @@ def run_batch(manifest: str | os.PathLike, out_dir: str | os.PathLike, settings:
         raise InputError(out, "is a file, not a folder", "give an output folder")
     say = report or (lambda _msg: None)
     cache_path = storage.join(out, *HASH_CACHE)
+    _clean_leftovers(out, rows)
     previous = read_index(out)
     cache = HashCache.load(cache_path)
     outcomes = [RowOutcome(name=r.name, status="pending", line=r.line) for r in rows]
@@ -152,7 +163,6 @@ def run_batch(manifest: str | os.PathLike, out_dir: str | os.PathLike, settings:
         else:
             outcomes[i] = planned
     storage.makedirs(out)
-    _clean_driver_leftovers(out)
     record = _Record(out, rows, outcomes, cache, cache_path)
     record.flush()
     n_kept = len(rows) - len(todo)
@@ -244,16 +254,22 @@ def _built(out: Where, name: str) -> bool:
         storage.join(row_dir, "report.html"))
 
 
-def _clean_driver_leftovers(out: Where) -> None:
-    """Remove what a killed earlier driver left: its temporary index files and the attempt
-    markers of rows it had in flight (one batch writes into a folder at a time)."""
+def _clean_leftovers(out: Where, rows: list[BatchRow]) -> None:
+    """Remove what a killed earlier run left: the driver's temporary index files, the
+    attempt markers of rows it had in flight, the staging folders of workers killed with it
+    (one listing of the folder; one batch writes into a folder at a time)."""
     storage.remove(storage.join(out, *ATTEMPTS_DIR))
-    if isinstance(out, Path):
-        ours = (INDEX_CSV, INDEX_PARQUET, BATCH_CSV, FLEET_HTML)
-        for folder, names in ((out, ours), (out / STATE_DIR, (HASH_CACHE[-1],))):
-            for entry in storage.listdir(folder):
-                if entry.endswith(".tmp") and any(entry.startswith(f".{n}.") for n in names):
-                    storage.remove(folder / entry)
+    if not isinstance(out, Path):
+        return
+    names = {r.name for r in rows}
+    entries = storage.listdir(out)
+    for name in sorted({staging_owner(e) for e in entries} & names):
+        clean_stale(out, name, entries)
+    ours = (INDEX_CSV, INDEX_PARQUET, BATCH_CSV, FLEET_HTML)
+    for folder, files in ((out, ours), (out / STATE_DIR, (HASH_CACHE[-1],))):
+        for entry in entries if folder == out else storage.listdir(folder):
+            if entry.endswith(".tmp") and any(entry.startswith(f".{n}.") for n in files):
+                storage.remove(folder / entry)
 
 
 class _Record:
@@ -263,7 +279,7 @@ class _Record:
                  cache: HashCache, cache_path: Where):
         self.out, self.rows, self.outcomes = out, rows, outcomes
         self.cache, self.cache_path = cache, cache_path
-        self.flushed = 0.0
+        self.flushed, self.flush_s = 0.0, 0.0
 
     def finished(self, i: int, outcome: RowOutcome) -> None:
         marker_dir = attempts_dir(self.out, outcome.name)
@@ -274,12 +290,15 @@ class _Record:
         for path, entry in outcome.hash_entries.items():
             self.cache.add(path, entry)
         self.outcomes[i] = outcome
-        if time.monotonic() - self.flushed >= FLUSH_INTERVAL_S:
+        if time.monotonic() - self.flushed >= max(FLUSH_INTERVAL_S,
+                                                  FLUSH_COST_FACTOR * self.flush_s):
             self.flush()
 
     def flush(self) -> None:
+        t0 = time.monotonic()
         write_index(self.out, [index_record(r, o) for r, o in zip(self.rows, self.outcomes,
                                                                   strict=True)])
         write_batch_csv(storage.join(self.out, BATCH_CSV), self.outcomes)
         self.cache.save(self.cache_path)
         self.flushed = time.monotonic()
+        self.flush_s = self.flushed - t0

@@ -87,7 +87,7 @@ def run_row(task: RowTask) -> RowOutcome:
     outcome = RowOutcome(name=row.name, status="ok", line=row.line, host=socket.gethostname(),
                          started_utc=datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ"))
     try:
-        _mark_attempt(task.out_dir, row.name, outcome)
+        retry = _mark_attempt(task.out_dir, row.name, outcome)
         with tempfile.TemporaryDirectory(prefix="vid2sim-row-") as tmp:
             local = _download_inputs(row, Path(tmp) / "inputs")
             outcome.sha256, outcome.hash_entries = hash_inputs(row.sources(), task.known, local)
@@ -98,7 +98,7 @@ def run_row(task: RowTask) -> RowOutcome:
             else:
                 settings = replace(task.settings, progress=False)
                 result = _build_row(row.inputs(local), task.out_dir, row.name, settings,
-                                    Path(tmp))
+                                    Path(tmp), retry)
                 _record_build(outcome, result)
     except InputError as exc:
         outcome.status, outcome.error = "failed", one_line(str(exc))
@@ -122,12 +122,16 @@ def _take_figures(outcome: RowOutcome, done: RowOutcome) -> None:
         setattr(outcome, name, getattr(done, name))
 
 
-def _mark_attempt(out_dir: Where, name: str, outcome: RowOutcome) -> None:
+def _mark_attempt(out_dir: Where, name: str, outcome: RowOutcome) -> bool:
     """Leave a marker for this attempt (the driver counts them: Ray retries a killed task
-    without telling the driver); it names the host and process, so a test can kill it."""
+    without telling the driver); it names the host and process, so a test can kill it.
+    True when an earlier attempt of this run left one (it died: this is a retry)."""
+    folder = attempts_dir(out_dir, name)
+    earlier = bool(storage.listdir(folder))
     marker = {"host": outcome.host, "pid": os.getpid(), "started_utc": outcome.started_utc}
-    storage.write_bytes(storage.join(attempts_dir(out_dir, name), f"{uuid.uuid4().hex}.json"),
+    storage.write_bytes(storage.join(folder, f"{uuid.uuid4().hex}.json"),
                         json.dumps(marker).encode("utf-8"))
+    return earlier
 
 
 def _download_inputs(row: BatchRow, folder: Path) -> dict[str, Path]:
@@ -141,14 +145,21 @@ def _download_inputs(row: BatchRow, folder: Path) -> dict[str, Path]:
     return local
 
 
-def _build_row(inputs, out_dir: Where, name: str, settings: Settings, tmp: Path) -> BuildResult:
-    """``build`` into ``out_dir/<name>`` so that the row folder appears whole (module doc)."""
+def _build_row(inputs, out_dir: Where, name: str, settings: Settings, tmp: Path,
+               retry: bool) -> BuildResult:
+    """``build`` into ``out_dir/<name>`` so that the row folder appears whole (module doc).
+
+    ``retry``: an earlier attempt died, so its leftovers are cleaned first (the driver
+    cleans those of earlier runs when it starts: listing a folder of 100,000 rows once per
+    row would cost O(rows^2)).
+    """
     if not isinstance(out_dir, Path):
         result = build(inputs, tmp / "out" / name, settings)
         storage.upload_folder(tmp / "out" / name, storage.join(out_dir, name))
         return result
     row_dir = out_dir / name
-    clean_stale(out_dir, name)
+    if retry:
+        clean_stale(out_dir, name)
     aside = None
     if row_dir.exists():
         aside = out_dir / f".{name}.old-{uuid.uuid4().hex[:8]}"
@@ -164,21 +175,30 @@ def _build_row(inputs, out_dir: Where, name: str, settings: Settings, tmp: Path)
     return result
 
 
-def clean_stale(out_dir: Path, name: str) -> list[str]:
+def staging_owner(entry: str) -> str | None:
+    """The row whose build staging (``.<name>.<random>``) or aside folder
+    (``.<name>.old-<hex>``) ``entry`` is, or None (the random part never holds a dot)."""
+    if not entry.startswith(".") or entry.count(".") < 2:
+        return None
+    name, _, suffix = entry[1:].rpartition(".")
+    return name if name and suffix else None
+
+
+def clean_stale(out_dir: Path, name: str, entries: list[str] | None = None) -> list[str]:
     """Delete what killed attempts at row ``name`` left in ``out_dir``; the names removed.
 
     Build staging folders (``.<name>.<random>``) go; an aside folder (``.<name>.old-<hex>``)
     is renamed back to ``<name>`` when the row folder is missing (the kill came between the
     two renames), else deleted. Only folders whose suffix after ``.<name>.`` has no dot are
-    touched, so row ``a`` never deletes the staging of row ``a.b``.
+    touched, so row ``a`` never deletes the staging of row ``a.b``. ``entries``: the
+    folder's listing when the caller has it.
     """
     removed: list[str] = []
-    prefix = f".{name}."
     row_dir = out_dir / name
-    for entry in storage.listdir(out_dir):
-        suffix = entry[len(prefix):]
-        if not entry.startswith(prefix) or not suffix or "." in suffix:
+    for entry in storage.listdir(out_dir) if entries is None else entries:
+        if staging_owner(entry) != name:
             continue
+        suffix = entry[len(name) + 2:]
         path = out_dir / entry
         if not path.is_dir():
             continue  # atomic_open's temporary files are files, and not ours
