@@ -15,7 +15,6 @@ Object stores have no rename: a URL row folder is uploaded file by file with
 from __future__ import annotations
 
 import hashlib
-import os
 import posixpath
 import shutil
 from pathlib import Path
@@ -273,13 +272,6 @@ def host_path(where: Where) -> str:
     return str(where.absolute()) if isinstance(where, Path) else where
 
 
-def same_file_system(a: Where, b: Where) -> bool:
-    """Both local, or both URLs of one protocol."""
-    if isinstance(a, Path) or isinstance(b, Path):
-        return isinstance(a, Path) and isinstance(b, Path)
-    return a.split("://", 1)[0] == b.split("://", 1)[0]
-
-
 def makedirs(where: Where) -> None:
     if isinstance(where, Path):
         where.mkdir(parents=True, exist_ok=True)
@@ -287,9 +279,3 @@ def makedirs(where: Where) -> None:
     fs, path = _fs(where)
     fs.makedirs(path, exist_ok=True)
 
-
-def umask_mode(mode: int = 0o777) -> int:
-    """``mode`` less the process umask (the permissions a new folder of the user gets)."""
-    mask = os.umask(0)
-    os.umask(mask)
-    return mode & ~mask
