@@ -42,7 +42,7 @@ from vid2sim.app.batch.manifest import (
     BatchRow,
     read_manifest,
 )
-from vid2sim.app.batch.ray_engine import require_ray, run_ray
+from vid2sim.app.batch.ray_engine import check_ray, run_ray
 from vid2sim.app.batch.storage import Where
 from vid2sim.app.batch.worker import (
     ATTEMPTS_DIR,
@@ -139,7 +139,7 @@ def run_batch(manifest: str | os.PathLike, out_dir: str | os.PathLike, settings:
     if engine not in ENGINES:
         raise InputError(None, f"unknown engine '{engine}'", f"one of {', '.join(ENGINES)}")
     if engine == "ray":
-        require_ray()  # before any work: one clear line when Ray is not installed
+        check_ray()  # before any work: one clear line when Ray is not installed
     for option, value, least in (("--jobs", jobs, 1), ("--cpus-per-job", cpus_per_job, 1),
                                  ("--max-retries", max_retries, 0)):
         if value is not None and value < least:

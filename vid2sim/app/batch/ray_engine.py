@@ -15,6 +15,7 @@ the functions that need it.
 
 from __future__ import annotations
 
+import importlib.util
 import logging
 import os
 import time
@@ -36,6 +37,21 @@ WINDOW_PER_SLOT = 2
 CLUSTER_POLL_S = 10.0
 
 
+_NO_RAY = ("--engine ray needs Ray, which is not installed",
+           'pip install "vid2sim[ray]", or use --engine local')
+
+
+def check_ray() -> None:
+    """:class:`InputError` (one line) when Ray is not installed, found without importing it
+    (a batch with nothing left to build never needs it)."""
+    try:
+        found = importlib.util.find_spec("ray") is not None
+    except (ImportError, ValueError, AttributeError):  # e.g. sys.modules["ray"] is None
+        found = False
+    if not found:
+        raise InputError(None, *_NO_RAY)
+
+
 def require_ray():
     """The ``ray`` module, or :class:`InputError` (one line) when it is not installed."""
     try:
@@ -43,8 +59,7 @@ def require_ray():
         # needs it, so it is imported here and nowhere else.
         import ray
     except ImportError:
-        raise InputError(None, "--engine ray needs Ray, which is not installed",
-                         'pip install "vid2sim[ray]", or use --engine local') from None
+        raise InputError(None, *_NO_RAY) from None
     return ray
 
 
