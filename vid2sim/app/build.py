@@ -16,6 +16,7 @@ an earlier build's files.
 
 from __future__ import annotations
 
+import os
 import shutil
 import tempfile
 import time
@@ -271,12 +272,20 @@ def build(inputs: Inputs, out_dir: Path, settings: Settings | None = None,
             write_report(staging / "report.html", scenario=scenario, metrics=None,
                          extra_figures=figures, warnings=warnings, inputs=report_inputs)
         files["report"] = Path("report.html")
-        out_dir.mkdir(parents=True, exist_ok=True)
-        for child in staging.iterdir():
-            target = out_dir / child.name
-            if target.is_dir() and not target.is_symlink():
-                shutil.rmtree(target)
-            child.replace(target)
+        if not out_dir.exists():
+            # A new output folder appears whole, in one rename: a process killed at any
+            # moment leaves no folder or a complete one (vid2sim batch relies on it).
+            # mkdtemp made the staging folder 0700; the user's own folders are 0777 - umask.
+            mask = os.umask(0)
+            os.umask(mask)
+            staging.chmod(0o777 & ~mask)
+            staging.rename(out_dir)
+        else:
+            for child in staging.iterdir():
+                target = out_dir / child.name
+                if target.is_dir() and not target.is_symlink():
+                    shutil.rmtree(target)
+                child.replace(target)
     finally:
         shutil.rmtree(staging, ignore_errors=True)
 
