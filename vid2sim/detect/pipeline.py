@@ -57,7 +57,7 @@ def run_detect(source: Path, *, detector: Detector | None,
     list of TrackedBox
         One row per confirmed track per frame it is alive in, sorted by frame then track id.
     """
-    from tqdm import tqdm
+    from tqdm import tqdm  # progress bars only where frames are streamed
 
     if detector is None and detections is None:
         raise ValueError("run_detect needs a detector or imported detections")
