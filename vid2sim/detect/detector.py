@@ -382,7 +382,8 @@ class PicodetDetector(OnnxDetector):
     STD_RGB = np.array([0.229, 0.224, 0.225], dtype=np.float32)
 
     def __init__(self, model_path: Path, *, score_threshold: float = SCORE_THRESHOLD,
-                 nms_iou: float = PICODET_NMS_IOU, small_object_mode: bool = False, threads: int = 2,
+                 nms_iou: float = PICODET_NMS_IOU, small_object_mode: bool = False,
+                 threads: int = 2,
                  **refine_options):
         super().__init__(model_path, score_threshold=score_threshold, nms_iou=nms_iou,
                          small_object_mode=small_object_mode, threads=threads, **refine_options)

@@ -159,7 +159,8 @@ def expansion_cost(prev_px: np.ndarray, dt_s: np.ndarray, dets_px: np.ndarray, *
            else np.nan_to_num(np.asarray(closing_rate_per_s, dtype=float).reshape(-1)) * dt)
     passed = own >= PASSED_CLOSING
     ln_r0 = -np.log(1.0 - np.clip(own, -MAX_OWN_CLOSING, PASSED_CLOSING))      # (n,)
-    u = np.linspace(-LN_SCALE_GRID_SIGMAS, LN_SCALE_GRID_SIGMAS, n_grid)                               # ln r in units of s_lnr
+    # ln r in units of s_lnr
+    u = np.linspace(-LN_SCALE_GRID_SIGMAS, LN_SCALE_GRID_SIGMAS, n_grid)
     rate = np.where(u > 0, config.growth_rate_per_s, config.shrink_rate_per_s)
     r = np.exp(ln_r0[:, None] + u[None, :] * rate[None, :] * dt[:, None])[:, None, :, None]
     # The inner edge of a box off to one side of the FOE (the edge nearer to it) is the far

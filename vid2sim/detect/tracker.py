@@ -13,8 +13,8 @@ shifted by one car. Three additions handle it:
 
 * an ego-motion association stage (:func:`vid2sim.detect.egomotion.expansion_cost`): a
   vehicle that is parked or drives parallel to the ego keeps its lateral offset and height,
-  so its box scales about the focus of expansion (FOE) by the range ratio. The cost is a chi-square over the box
-  edges: either "static", the ratio fixed by one ego closing rate shared by every vehicle
+  so its box scales about the focus of expansion (FOE) by the range ratio. The cost is a
+  chi-square over the box edges: either "static", the ratio fixed by one ego closing rate shared by every vehicle
   in the frame (searched per frame) and the box height, or "moving", any ratio under a
   prior centred on the track's own measured closing rate, plus a penalty; a translation
   for lateral motion is allowed; priors grow with the elapsed time; border-cut edges only
