@@ -14,12 +14,13 @@ shifted by one car. Three additions handle it:
 * an ego-motion association stage (:func:`vid2sim.detect.egomotion.expansion_cost`): a
   vehicle that is parked or drives parallel to the ego keeps its lateral offset and height,
   so its box scales about the focus of expansion (FOE) by the range ratio. The cost is a
-  chi-square over the box edges: either "static", the ratio fixed by one ego closing rate shared by every vehicle
-  in the frame (searched per frame) and the box height, or "moving", any ratio under a
-  prior centred on the track's own measured closing rate, plus a penalty; a translation
-  for lateral motion is allowed; priors grow with the elapsed time; border-cut edges only
-  bound the fit. In sparse input (detected frames ``sparse_interval_s`` or more apart) it
-  runs before the IoU stages, in dense video after them for what IoU left unmatched.
+  chi-square over the box edges: either "static", the ratio fixed by one ego closing rate
+  shared by every vehicle in the frame (searched per frame) and the box height, or
+  "moving", any ratio under a prior centred on the track's own measured closing rate, plus
+  a penalty; a translation for lateral motion is allowed; priors grow with the elapsed
+  time; border-cut edges only bound the fit. In sparse input (detected frames
+  ``sparse_interval_s`` or more apart) it runs before the IoU stages, in dense video after
+  them for what IoU left unmatched.
 * tracks end when their own closing rate says the camera has passed them, so a car that
   left the view at the side is not revived by the next car to appear.
 * confirmation that knows the detection rate: a tentative track is deleted as a false
