@@ -163,6 +163,8 @@ class Track:
     :param confirmed: a vehicle, not a false detection (kept by :meth:`Tracker.finalize`)
     :param state: ``TRACKED`` or ``LOST``
     :param votes: summed score per category
+    :param shown_box_px: box reported on the last frame [px] (detected, measured or
+        predicted)
     """
 
     track_id: int
@@ -180,6 +182,7 @@ class Track:
     confirmed: bool = False
     state: str = TRACKED
     votes: dict[str, float] = field(default_factory=lambda: defaultdict(float))
+    shown_box_px: np.ndarray | None = None
 
     @property
     def category(self) -> str:
@@ -239,11 +242,13 @@ class Tracker:
         self._all: dict[int, Track] = {}  # every track ever started, by id (for finalize)
         self._next_id = 1
         self._last_detect_t_s: float | None = None
+        # last frame on which tracks were measured (detected, or carried by optical flow)
+        self._last_measured_t_s: float | None = None
 
     # ----------------------------------------------------------------- public
 
-    def update(self, frame: int, t_s: float, detections: list[Detection] | None
-               ) -> list[TrackedBox]:
+    def update(self, frame: int, t_s: float, detections: list[Detection] | None,
+               measured: dict[int, np.ndarray] | None = None) -> list[TrackedBox]:
         """Advance to ``frame`` (time ``t_s`` [s]) and return the boxes alive there.
 
         Parameters
@@ -254,23 +259,27 @@ class Tracker:
             Frame time [s], used for the lost-track timeout and the ego-motion gate.
         detections : list of Detection or None
             Boxes found in this frame, or None when the detector did not run on it: tracks
-            are then only predicted and carried with their last score.
+            are then carried with their last score.
+        measured : dict, optional
+            On a frame without detections: boxes of tracks measured another way (track id ->
+            (x1, y1, x2, y2) [px], e.g. carried by optical flow, see
+            :mod:`vid2sim.detect.flow`). They correct the track's filter and are its row;
+            they neither confirm a track nor count as a detection.
 
         Returns
         -------
         list of TrackedBox
             One row per tracked (not lost) track: the detection box on a matched frame, the
-            predicted box on a carried frame.
+            measured or else the predicted box on a carried frame.
         """
         self._predict(frame)
         if detections is None:
-            return [t.row(frame, t_s, t.kf.box_px, t.score)
-                    for t in self._tracks if t.state == TRACKED]
+            return self._carry(frame, t_s, measured or {})
         cfg = self.config
-        # Sparse input: boxes move too far between detected frames for IoU to come first.
-        sparse = (self._last_detect_t_s is not None
-                  and t_s - self._last_detect_t_s >= cfg.sparse_interval_s)
-        self._last_detect_t_s = t_s
+        # Sparse input: boxes move too far between measured frames for IoU to come first.
+        sparse = (self._last_measured_t_s is not None
+                  and t_s - self._last_measured_t_s >= cfg.sparse_interval_s)
+        self._last_detect_t_s = self._last_measured_t_s = t_s
         dets = [d for d in detections if d.score >= cfg.low_score]
         high = [d for d in dets if d.score >= cfg.high_score]
         low = [d for d in dets if d.score < cfg.high_score]
@@ -313,7 +322,43 @@ class Tracker:
                                   x1=r.x1, y1=r.y1, x2=r.x2, y2=r.y2))
         return out
 
+    def shown_boxes(self) -> tuple[list[int], np.ndarray]:
+        """Ids and boxes (n, 4) [px] of the tracks reported on the last frame (tracked, not
+        lost): what optical flow carries into the next frame."""
+        shown = [t for t in self._tracks if t.state == TRACKED]
+        boxes = np.array([t.shown_box_px for t in shown], dtype=float).reshape(-1, 4)
+        return [t.track_id for t in shown], boxes
+
+    def border_cut_ids(self) -> set[int]:
+        """Ids of the shown tracks whose box touches the image border."""
+        ids, boxes = self.shown_boxes()
+        cut = border_cut(boxes, self.image_size_px, self.config.border_margin_px).any(axis=1)
+        return {tid for tid, c in zip(ids, cut, strict=True) if c}
+
+    def tracks(self) -> list[Track]:
+        """The alive tracks (tracked or lost), for schedules that look at their state."""
+        return list(self._tracks)
+
     # ----------------------------------------------------------------- the steps of update
+
+    def _carry(self, frame: int, t_s: float, measured: dict[int, np.ndarray]
+               ) -> list[TrackedBox]:
+        """Rows of a frame without detections: measured boxes correct their filters."""
+        rows = []
+        for t in self._tracks:
+            if t.state != TRACKED:
+                continue
+            box = measured.get(t.track_id)
+            if box is None:
+                box = t.kf.box_px
+            else:
+                box = np.asarray(box, dtype=float)
+                t.kf.update(box)
+            t.shown_box_px = box
+            rows.append(t.row(frame, t_s, box, t.score))
+        if measured:
+            self._last_measured_t_s = t_s
+        return rows
 
     def _predict(self, frame: int) -> None:
         """Every alive track's filter predicted to ``frame``."""
@@ -481,7 +526,7 @@ class Tracker:
         box = np.asarray(det.box_px, dtype=float)
         track = Track(track_id=self._next_id, kf=BoxKalman(box), frame=frame,
                       last_seen_t_s=t_s, score=det.score, last_box_px=box,
-                      last_seen_frame=frame, born_t_s=t_s, weak=weak)
+                      last_seen_frame=frame, born_t_s=t_s, weak=weak, shown_box_px=box)
         track.votes[det.category] += det.score
         track.confirmed = self.config.min_hits <= 1 and not weak
         self._next_id += 1
@@ -521,7 +566,7 @@ class Tracker:
                 moved - track.drift_px_s)
         track.state = TRACKED
         track.last_seen_t_s = t_s
-        track.last_box_px = box
+        track.last_box_px = track.shown_box_px = box
         track.last_seen_frame = frame
         track.score = det.score
         track.votes[det.category] += det.score

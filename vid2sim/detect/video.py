@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import queue
+import threading
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -12,6 +14,9 @@ from vid2sim.errors import InputError
 from vid2sim.records import Frame, VideoInfo
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
+PREFETCH_FRAMES = 4
+"""Frames decoded ahead by :func:`prefetch`: enough to cover a keyframe's detector time at
+30 fps, little memory (4 x 6 MB at 1080p)."""
 DEFAULT_FOLDER_FPS = 10.0
 """Frame rate assumed for an image folder [frames/s] (KITTI records at 10 Hz)."""
 
@@ -149,3 +154,53 @@ def _iter_video(path: Path, every: int, fps: float) -> Iterator[Frame]:
             raise InputError(path, "video has no decodable frames")
     finally:
         cap.release()
+
+
+def prefetch(frames: Iterator[Frame], depth: int = PREFETCH_FRAMES) -> Iterator[Frame]:
+    """Iterate ``frames`` with decoding in a background thread, up to ``depth`` frames ahead.
+
+    OpenCV's decoders and onnxruntime release the GIL, so decoding the next frames overlaps
+    the detector's work on this one. Errors raised by the reader (an :class:`InputError` on a
+    truncated video) are raised here, in the caller's thread, at the frame where they
+    occurred. Closing the generator stops the reader.
+    """
+    buffer: queue.Queue = queue.Queue(maxsize=max(1, int(depth)))
+    stop = threading.Event()
+    done = object()
+
+    def read() -> None:
+        try:
+            for frame in frames:
+                while not stop.is_set():
+                    try:
+                        buffer.put(frame, timeout=0.1)
+                        break
+                    except queue.Full:
+                        continue
+                if stop.is_set():
+                    return
+            buffer.put(done)
+        except BaseException as exc:  # noqa: BLE001 - handed to the consumer, raised there
+            buffer.put(exc)
+
+    reader = threading.Thread(target=read, name="vid2sim-decode", daemon=True)
+    reader.start()
+    try:
+        while True:
+            item = buffer.get()
+            if item is done:
+                return
+            if isinstance(item, BaseException):
+                raise item
+            yield item
+    finally:
+        stop.set()
+        # unblock a reader waiting on a full buffer, then let it finish
+        while reader.is_alive():
+            try:
+                buffer.get_nowait()
+            except queue.Empty:
+                reader.join(timeout=0.05)
+        close = getattr(frames, "close", None)
+        if close is not None:
+            close()
