@@ -68,6 +68,13 @@ class TrackerConfig:
         frames in a row (a small, far vehicle scores 0.2-0.45 frame after frame; a false
         detection of that score rarely repeats at the same place)
     :param weak_confirm_hits: detections in a row that confirm a weak tentative track
+    :param weak_confirm_min_hits: fewer detections in a row also confirm it when they span
+        ``weak_confirm_s`` or more: in sparse input (image folders of every 5th frame,
+        keyframes) a weak box repeated where the motion puts it 0.5 s later is the same
+        evidence as four frames in a row of dense video
+    :param weak_confirm_s: the span that makes ``weak_confirm_min_hits`` enough [s]: 0.3 s,
+        what ``weak_confirm_hits`` consecutive frames span at 10 fps, so dense 10 fps video
+        is confirmed exactly as before
     :param iou_high: minimum IoU to match a confident detection (stage one)
     :param iou_low: minimum IoU to match a weak detection (stage two; stricter because weak
         boxes are noisier)
@@ -113,6 +120,8 @@ class TrackerConfig:
     new_track_score: float = 0.5
     weak_start_score: float = 0.25
     weak_confirm_hits: int = 4
+    weak_confirm_min_hits: int = 3
+    weak_confirm_s: float = 0.3
     iou_high: float = 0.2
     iou_low: float = 0.4
     iou_tentative: float = 0.3
@@ -571,8 +580,12 @@ class Tracker:
         track.score = det.score
         track.votes[det.category] += det.score
         track.hits += 1
-        need = cfg.weak_confirm_hits if track.weak else cfg.min_hits
-        if track.hits >= need:
+        if track.weak:
+            # "in a row": a weak tentative track missed once is deleted (_handle_misses)
+            track.confirmed |= (track.hits >= cfg.weak_confirm_hits
+                                or (track.hits >= cfg.weak_confirm_min_hits
+                                    and t_s - track.born_t_s >= cfg.weak_confirm_s - 1e-6))
+        elif track.hits >= cfg.min_hits:
             track.confirmed = True
         step.rows.append(track.row(frame, t_s, box, det.score))
         step.matched.add(track.track_id)

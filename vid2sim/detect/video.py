@@ -21,6 +21,31 @@ DEFAULT_FOLDER_FPS = 10.0
 """Frame rate assumed for an image folder [frames/s] (KITTI records at 10 Hz)."""
 
 
+MAX_NUMBERING_GAP = 1000
+"""Image names ending in frame numbers are timed by those numbers (``000010.png``,
+``000015.png`` = 0.5 s apart at 10 fps) when no two neighbours are more than this many
+frames apart; larger gaps mean the digits are something else (a clock in ns, a date)."""
+
+
+def frame_numbers(files: list[Path]) -> list[int] | None:
+    """The frame numbers at the end of the file names (``frame_000123.png`` -> 123), if every
+    name has one and they increase by 1 to ``MAX_NUMBERING_GAP``; else None."""
+    numbers = []
+    for f in files:
+        digits = ""
+        for ch in reversed(f.stem):
+            if not ch.isdigit():
+                break
+            digits = ch + digits
+        if not digits:
+            return None
+        numbers.append(int(digits))
+    gaps = np.diff(numbers)
+    if len(gaps) and not ((gaps >= 1) & (gaps <= MAX_NUMBERING_GAP)).all():
+        return None
+    return numbers
+
+
 def _image_files(folder: Path) -> list[Path]:
     files = sorted(p for p in folder.iterdir()
                    if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
@@ -90,7 +115,9 @@ def iter_frames(path: Path, every: int = 1, fps: float | None = None) -> Iterato
     Timestamps ``t_s`` come from the container (``CAP_PROP_POS_MSEC``) relative to the first
     frame, so variable-rate videos keep their true clock; where the container gives no usable
     time (zero or not increasing) ``index / fps`` is used instead. Image folders are sorted by
-    name and timed at ``fps`` (default 10 frames/s).
+    name and timed at ``fps`` (default 10 frames/s) by the frame numbers their names end in
+    (a folder of every 5th frame is 0.5 s per image at 10 fps; see :func:`frame_numbers`),
+    else one frame per image.
 
     Parameters
     ----------
@@ -117,13 +144,15 @@ def iter_frames(path: Path, every: int = 1, fps: float | None = None) -> Iterato
 
 
 def _iter_folder(folder: Path, every: int, fps: float) -> Iterator[Frame]:
-    for index, file in enumerate(_image_files(folder)):
+    files = _image_files(folder)
+    numbers = frame_numbers(files) or list(range(len(files)))
+    for index, file in enumerate(files):
         image = None
         if index % every == 0:
             image = cv2.imread(str(file), cv2.IMREAD_COLOR)
             if image is None:
                 raise InputError(file, "cannot read this image", "is the file complete?")
-        yield Frame(index=index, t_s=index / fps, image_bgr=image)
+        yield Frame(index=index, t_s=(numbers[index] - numbers[0]) / fps, image_bgr=image)
 
 
 def _iter_video(path: Path, every: int, fps: float) -> Iterator[Frame]:
