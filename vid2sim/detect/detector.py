@@ -25,6 +25,7 @@ Range comes from box edges, so their frame-to-frame jitter becomes range-rate no
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 from typing import Protocol, runtime_checkable
 
@@ -147,6 +148,21 @@ def decode_yolox(output: np.ndarray, input_size_px: tuple[int, int] = NET_INPUT_
         objectness * class probability.
     """
     pred = output.reshape(-1, output.shape[-1]).astype(np.float32)
+    grid, stride = _yolox_grid(tuple(input_size_px), tuple(strides))
+    if len(grid) != len(pred):
+        raise ValueError(f"YOLOX output has {len(pred)} rows, expected {len(grid)} "
+                         f"for input {input_size_px}")
+    centre = (pred[:, 0:2] + grid) * stride
+    size = np.exp(np.clip(pred[:, 2:4], -LOGIT_CLIP, LOGIT_CLIP)) * stride
+    boxes = np.concatenate([centre - size / 2, centre + size / 2], axis=1)
+    return boxes, pred[:, 4:5] * pred[:, 5:]
+
+
+@functools.lru_cache(maxsize=16)
+def _yolox_grid(input_size_px: tuple[int, int], strides: tuple[int, ...]
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """Cell (column, row) and stride of every YOLOX output row for one input size (cached:
+    a run sees a handful of window sizes)."""
     in_w, in_h = input_size_px
     grids, scale = [], []
     for s in strides:
@@ -155,14 +171,10 @@ def decode_yolox(output: np.ndarray, input_size_px: tuple[int, int] = NET_INPUT_
         grids.append(np.column_stack([gx.ravel(), gy.ravel()]))
         scale.append(np.full(gh * gw, s, dtype=np.float32))
     grid = np.concatenate(grids).astype(np.float32)
+    grid.flags.writeable = False
     stride = np.concatenate(scale)[:, None]
-    if len(grid) != len(pred):
-        raise ValueError(f"YOLOX output has {len(pred)} rows, expected {len(grid)} "
-                         f"for input {input_size_px}")
-    centre = (pred[:, 0:2] + grid) * stride
-    size = np.exp(np.clip(pred[:, 2:4], -LOGIT_CLIP, LOGIT_CLIP)) * stride
-    boxes = np.concatenate([centre - size / 2, centre + size / 2], axis=1)
-    return boxes, pred[:, 4:5] * pred[:, 5:]
+    stride.flags.writeable = False
+    return grid, stride
 
 
 def decode_picodet(class_outputs: list[np.ndarray], box_outputs: list[np.ndarray],

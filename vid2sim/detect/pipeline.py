@@ -132,6 +132,12 @@ def _scheduled_step(frame: Frame, detector: Detector, tracker: Tracker,
     return out
 
 
+LANE_INTERVAL_S = 0.2
+"""Lane markings are measured on one frame per this interval [s] (every 2nd frame at 10 fps,
+every 6th at 30 fps): about 6 ms a frame at 640 px wide, and ranging takes the median of the
+rows within a window of a second or more about each frame (lane_horizon_offsets), which
+half as many rows still fill."""
+
 # The lane vanishing point moves on curves; a median over this many sampled frames (every
 # 5th video frame: 2 s at 25 fps) is needed before it is trusted as straight ahead.
 MIN_LANE_FRAMES_FOR_YAW = 10
@@ -144,7 +150,7 @@ def detect_and_range(video: Path, camera: Camera, *, detector, detections=None,
                      config: RangingConfig | None = None,
                      tracker_config: TrackerConfig | None = None,
                      schedule: ScheduleConfig | None = None, stats: dict | None = None,
-                     lane_every: int = 1) -> tuple[RangingResult, Camera, list[Note]]:
+                     lane_every: int | None = None) -> tuple[RangingResult, Camera, list[Note]]:
     """Detect (or import), track and range every vehicle of a video: the shared core of
     ``vid2sim track`` and ``vid2sim build``.
 
@@ -168,8 +174,9 @@ def detect_and_range(video: Path, camera: Camera, *, detector, detections=None,
         Detector keyframes with optical flow between (see :func:`run_detect`).
     stats : dict, optional
         Filled with the counts of :func:`run_detect`.
-    lane_every : int
-        Measure lane markings on every N-th decoded frame.
+    lane_every : int, optional
+        Measure lane markings on every N-th decoded frame (default: one frame per
+        ``LANE_INTERVAL_S``).
 
     Returns
     -------
@@ -180,8 +187,8 @@ def detect_and_range(video: Path, camera: Camera, *, detector, detections=None,
         What was estimated and why, for the summary.
     """
     notes: list[Note] = []
-    # Every decoded frame: about 6 ms at 640 px wide, and the per-frame rows follow the
-    # horizon's drift (see lane_horizon_offsets).
+    if lane_every is None:
+        lane_every = max(1, round(LANE_INTERVAL_S * video_info(video, fps=fps).fps))
     horizon_est = HorizonEstimator(camera, every=lane_every)
     boxes = run_detect(video, detector=detector, detections=detections,
                        detect_every=detect_every, progress=progress, fps=fps,
