@@ -2,18 +2,14 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import cv2
 import numpy as np
 import pytest
-from hypothesis import given
-from hypothesis import strategies as st
 
 from vid2sim.detect.flow import MedianFlow
 from vid2sim.detect.schedule import KeyframeSchedule, ScheduleConfig
 from vid2sim.detect.tracker import Tracker
-from vid2sim.detect.video import frame_numbers, prefetch
+from vid2sim.detect.video import prefetch
 from vid2sim.errors import InputError
 from vid2sim.records import Detection, Frame
 
@@ -128,19 +124,6 @@ def test_weak_track_is_confirmed_by_three_detections_spanning_the_confirm_time()
         for i in range(3):
             rows += tracker.update(i, i * dt, weak)
         assert len({r.track_id for r in tracker.finalize(rows)}) == expected, dt
-
-
-@given(st.lists(st.integers(min_value=1, max_value=1000), min_size=1, max_size=20),
-       st.integers(min_value=0, max_value=10_000))
-def test_frame_numbers_are_read_from_names_when_gaps_are_frame_counts(gaps, first):
-    numbers = list(np.cumsum([first, *gaps]))
-    files = [Path(f"img_{n:06d}.png") for n in numbers]
-    assert frame_numbers(files) == numbers
-    # a clock in nanoseconds is no frame numbering; nor are names without digits
-    clock = [Path(f"{1_317_384_020_000_000_000 + k * 10**8}.png")
-             for k in range(3)]
-    assert frame_numbers(clock) is None
-    assert frame_numbers([Path("a.png"), files[0]]) is None
 
 
 def test_prefetch_keeps_order_raises_errors_where_they_happen_and_stops_early():

@@ -10,6 +10,8 @@ from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
+
 from vid2sim.camera import Camera
 from vid2sim.detect.detector import Detector
 from vid2sim.detect.flow import FlowConfig, MedianFlow
@@ -17,7 +19,7 @@ from vid2sim.detect.lanes import HorizonEstimator, yaw_for_vanishing_column
 from vid2sim.detect.ranging import RangingConfig, range_tracks
 from vid2sim.detect.schedule import KeyframeSchedule, ScheduleConfig
 from vid2sim.detect.tracker import Tracker, TrackerConfig
-from vid2sim.detect.video import iter_frames, prefetch, video_info
+from vid2sim.detect.video import folder_frame_steps, iter_frames, prefetch, video_info
 from vid2sim.errors import InputError
 from vid2sim.records import Detection, Frame, Note, RangingResult, TrackedBox
 
@@ -75,6 +77,13 @@ def run_detect(source: Path, *, detector: Detector | None,
         raise InputError(None, f"--detect-every must be >= 1, got {detect_every}")
     info = video_info(source, fps=fps)
     tracker = Tracker(tracker_config, image_size_px=(info.width, info.height))
+    # An image folder of every N-th frame (names 000010, 000015, ...) is timed one frame per
+    # image, as the annotations and the scenario expect; the tracker's association clock
+    # follows the numbering, so it sees the real spacing (sparse: motion model first, a
+    # single confident box kept) whatever --fps says.
+    steps = folder_frame_steps(source)
+    clock = (None if steps is None or steps == list(range(len(steps)))
+             else np.asarray(steps, dtype=float) / info.fps)
     keys = (KeyframeSchedule(schedule, info.width)
             if schedule is not None and detector is not None and detect_every == 1 else None)
     carrier = MedianFlow(flow) if keys is not None else None
@@ -88,6 +97,10 @@ def run_detect(source: Path, *, detector: Detector | None,
         for frame in frames:
             if frame.image_bgr is not None and on_frame is not None:
                 on_frame(frame)
+            shown_t_s = frame.t_s
+            if clock is not None:
+                frame = replace(frame, t_s=float(clock[frame.index]))
+            before = len(rows)
             if keys is not None:
                 rows.extend(_scheduled_step(frame, detector, tracker, keys, carrier))
             else:
@@ -100,6 +113,8 @@ def run_detect(source: Path, *, detector: Detector | None,
                     found = detector.detect(frame.image_bgr)
                 n_detected += found is not None
                 rows.extend(tracker.update(frame.index, frame.t_s, found))
+            if clock is not None:
+                rows[before:] = [replace(r, t_s=shown_t_s) for r in rows[before:]]
             n_seen = frame.index + 1
             bar.update(1)
     if stats is not None:

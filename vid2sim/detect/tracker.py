@@ -69,9 +69,10 @@ class TrackerConfig:
         detection of that score rarely repeats at the same place)
     :param weak_confirm_hits: detections in a row that confirm a weak tentative track
     :param weak_confirm_min_hits: fewer detections in a row also confirm it when they span
-        ``weak_confirm_s`` or more: in sparse input (image folders of every 5th frame,
-        keyframes) a weak box repeated where the motion puts it 0.5 s later is the same
-        evidence as four frames in a row of dense video
+        ``weak_confirm_s`` or more (sparse input: a weak box repeated where the motion puts
+        it 0.5 s later is the same evidence as four frames in a row of dense video), or when
+        the input ends before a weak track found on every detected frame since its birth
+        could reach ``weak_confirm_hits`` (a folder of three sparse keyframes)
     :param weak_confirm_s: the span that makes ``weak_confirm_min_hits`` enough [s]: 0.3 s,
         what ``weak_confirm_hits`` consecutive frames span at 10 fps, so dense 10 fps video
         is confirmed exactly as before
@@ -312,13 +313,22 @@ class Tracker:
         """Clean the rows collected from :meth:`update` over a whole video.
 
         Drops rows of tracks never confirmed, except tracks born on the last detected frame
-        (seen once with a confident score and never given a second look), sets every row's
+        (seen once with a confident score and never given a second look) and weak tracks
+        found on every detected frame since their birth, ``weak_confirm_min_hits`` times or
+        more, when the input ended (they had no chance to reach ``weak_confirm_hits``), sets
+        every row's
         category to its track's score-weighted majority vote, and renumbers track ids 1, 2,
         ... in order of first appearance.
         """
+        cfg = self.config
         keep = {tid for tid, t in self._all.items() if t.confirmed}
         keep |= {t.track_id for t in self._tracks
                  if t.born_t_s == self._last_detect_t_s and not t.weak}
+        # A weak tentative track still alive was found on every detected frame since its
+        # birth: the input ended before it could reach weak_confirm_hits (a folder of three
+        # sparse keyframes, a clip's last frames); weak_confirm_min_hits in a row suffice.
+        keep |= {t.track_id for t in self._tracks
+                 if t.weak and not t.confirmed and t.hits >= cfg.weak_confirm_min_hits}
         new_id: dict[int, int] = {}
         out = []
         for r in sorted(rows, key=lambda r: (r.frame, r.track_id)):

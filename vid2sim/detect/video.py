@@ -22,9 +22,9 @@ DEFAULT_FOLDER_FPS = 10.0
 
 
 MAX_NUMBERING_GAP = 1000
-"""Image names ending in frame numbers are timed by those numbers (``000010.png``,
-``000015.png`` = 0.5 s apart at 10 fps) when no two neighbours are more than this many
-frames apart; larger gaps mean the digits are something else (a clock in ns, a date)."""
+"""Image names ending in frame numbers count as a numbering (``000010.png``, ``000015.png``:
+every 5th frame) when no two neighbours are more than this many frames apart; larger gaps
+mean the digits are something else (a clock in ns, a date)."""
 
 
 def frame_numbers(files: list[Path]) -> list[int] | None:
@@ -32,11 +32,8 @@ def frame_numbers(files: list[Path]) -> list[int] | None:
     name has one and they increase by 1 to ``MAX_NUMBERING_GAP``; else None."""
     numbers = []
     for f in files:
-        digits = ""
-        for ch in reversed(f.stem):
-            if not ch.isdigit():
-                break
-            digits = ch + digits
+        stem = f.stem
+        digits = stem[len(stem.rstrip("0123456789")):]
         if not digits:
             return None
         numbers.append(int(digits))
@@ -44,6 +41,17 @@ def frame_numbers(files: list[Path]) -> list[int] | None:
     if len(gaps) and not ((gaps >= 1) & (gaps <= MAX_NUMBERING_GAP)).all():
         return None
     return numbers
+
+
+def folder_frame_steps(path: Path) -> list[int] | None:
+    """For an image folder whose names carry frame numbers: the number of each image counted
+    from the first (``000010, 000015, 000020`` -> 0, 5, 10); None for a video or a folder
+    without a numbering."""
+    path = Path(path)
+    if not path.is_dir():
+        return None
+    numbers = frame_numbers(_image_files(path))
+    return None if numbers is None else [n - numbers[0] for n in numbers]
 
 
 def _image_files(folder: Path) -> list[Path]:
@@ -115,9 +123,7 @@ def iter_frames(path: Path, every: int = 1, fps: float | None = None) -> Iterato
     Timestamps ``t_s`` come from the container (``CAP_PROP_POS_MSEC``) relative to the first
     frame, so variable-rate videos keep their true clock; where the container gives no usable
     time (zero or not increasing) ``index / fps`` is used instead. Image folders are sorted by
-    name and timed at ``fps`` (default 10 frames/s) by the frame numbers their names end in
-    (a folder of every 5th frame is 0.5 s per image at 10 fps; see :func:`frame_numbers`),
-    else one frame per image.
+    name and timed at ``fps`` (default 10 frames/s).
 
     Parameters
     ----------
@@ -144,15 +150,13 @@ def iter_frames(path: Path, every: int = 1, fps: float | None = None) -> Iterato
 
 
 def _iter_folder(folder: Path, every: int, fps: float) -> Iterator[Frame]:
-    files = _image_files(folder)
-    numbers = frame_numbers(files) or list(range(len(files)))
-    for index, file in enumerate(files):
+    for index, file in enumerate(_image_files(folder)):
         image = None
         if index % every == 0:
             image = cv2.imread(str(file), cv2.IMREAD_COLOR)
             if image is None:
                 raise InputError(file, "cannot read this image", "is the file complete?")
-        yield Frame(index=index, t_s=(numbers[index] - numbers[0]) / fps, image_bgr=image)
+        yield Frame(index=index, t_s=index / fps, image_bgr=image)
 
 
 def _iter_video(path: Path, every: int, fps: float) -> Iterator[Frame]:
