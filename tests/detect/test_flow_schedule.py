@@ -118,12 +118,19 @@ def test_measured_boxes_are_rows_and_correct_the_filter_without_confirming():
 
 def test_weak_track_is_confirmed_by_three_detections_spanning_the_confirm_time():
     weak = [Detection((200.0, 150.0, 240.0, 180.0), 0.3, "car")]
+    frames = [weak, weak, weak, [], []]  # found three times in a row, then gone
     for dt, expected in ((0.5, 1), (0.1, 0)):  # 2 frames/s: kept; 10 frames/s: 3 are too few
         tracker = Tracker(image_size_px=(W, H))
         rows = []
-        for i in range(3):
-            rows += tracker.update(i, i * dt, weak)
+        for i, dets in enumerate(frames):
+            rows += tracker.update(i, i * dt, dets)
         assert len({r.track_id for r in tracker.finalize(rows)}) == expected, dt
+    # found on every frame up to the end of a short input (a folder of three keyframes)
+    tracker = Tracker(image_size_px=(W, H))
+    rows = []
+    for i in range(3):
+        rows += tracker.update(i, i * 0.1, weak)
+    assert len(tracker.finalize(rows)) == 3
 
 
 def test_prefetch_keeps_order_raises_errors_where_they_happen_and_stops_early():
