@@ -19,6 +19,7 @@ from vid2sim.app.inputs import Inputs
 from vid2sim.app.settings import DetectorSettings, Settings
 from vid2sim.defaults import EGO_RATE_HZ, IMAGE_FOLDER_FPS
 from vid2sim.detect.models import DEFAULT_DETECTOR
+from vid2sim.detect.windows import REFINE_MAX_BOXES
 from vid2sim.errors import InputError
 
 log = logging.getLogger("vid2sim")
@@ -103,7 +104,7 @@ def detector_options(fn):
         click.option("--refine", type=click.IntRange(min=0), default=None, metavar="N",
                      help="Re-detect up to N cars ahead on a crop about each, per frame, for "
                           "tighter, steadier boxes (one more detector run each; 0 = off; "
-                          "default 2 with tiles, 0 with --no-tiles)."),
+                          f"default {REFINE_MAX_BOXES} with tiles, 0 with --no-tiles)."),
     ]
     for option in reversed(options):
         fn = option(fn)

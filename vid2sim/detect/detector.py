@@ -37,6 +37,7 @@ from vid2sim.detect.boxes import cut_by_window, iou_matrix, nms, suppress_fragme
 from vid2sim.detect.dynamic import dynamic_copy
 from vid2sim.detect.windows import (
     REFINE_CROP_SCALE,
+    REFINE_MAX_BOXES,
     REFINE_MIN_IOU,
     REFINE_MIN_SIDE_PX,
     centre_window,
@@ -56,10 +57,6 @@ COCO_VEHICLES: dict[int, str] = {2: "car", 3: "motorcycle", 5: "bus", 7: "truck"
 """COCO class id (0-based) -> vehicle category; train (6) is left out on purpose (trams)."""
 
 DEFAULT_DETECTOR = models.DEFAULT_DETECTOR
-
-REFINE_MAX_BOXES = 2
-"""Vehicles refined on a crop per frame by default with the small-object mode (nearest lead
-candidates first); each costs one more run of the net."""
 
 CROSS_CLASS_IOU = 0.7
 """IoU above which boxes of different vehicle classes are taken for one vehicle."""
