@@ -22,6 +22,7 @@ import math
 from collections import Counter
 from dataclasses import dataclass
 
+from vid2sim.detect.boxes import border_cut
 from vid2sim.detect.tracker import Tracker
 from vid2sim.detect.windows import refine_candidates
 
@@ -99,7 +100,10 @@ class KeyframeSchedule:
         succeeded) and ask for a keyframe next if they need one."""
         cfg = self.config
         limit = math.log1p(cfg.max_scale_change)
-        cut = tracker.border_cut_ids()
+        ids, boxes = tracker.shown_boxes()
+        on_border = border_cut(boxes, tracker.image_size_px,
+                               tracker.config.border_margin_px).any(axis=1)
+        cut = {tid for tid, c in zip(ids, on_border, strict=True) if c}
         for t in tracker.tracks():
             if t.track_id not in carried:
                 continue

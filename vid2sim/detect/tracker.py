@@ -348,12 +348,6 @@ class Tracker:
         boxes = np.array([t.shown_box_px for t in shown], dtype=float).reshape(-1, 4)
         return [t.track_id for t in shown], boxes
 
-    def border_cut_ids(self) -> set[int]:
-        """Ids of the shown tracks whose box touches the image border."""
-        ids, boxes = self.shown_boxes()
-        cut = border_cut(boxes, self.image_size_px, self.config.border_margin_px).any(axis=1)
-        return {tid for tid, c in zip(ids, cut, strict=True) if c}
-
     def tracks(self) -> list[Track]:
         """The alive tracks (tracked or lost), for schedules that look at their state."""
         return list(self._tracks)
