@@ -110,7 +110,7 @@ def run_detect_command(inputs: Inputs, out_path: Path,
     boxes = run_detect(source, detector=detector, detections=imported,
                        detect_every=settings.detector.detect_every, progress=settings.progress,
                        tracker_config=settings.tracker_config(), fps=inputs.fps,
-                       schedule=settings.detector.schedule())
+                       schedule=settings.detector.schedule(), capture_clock=True)
     elapsed = time.perf_counter() - start
     write_detections_csv(boxes, out_path)
     per_track = {b.track_id: b.category for b in boxes}

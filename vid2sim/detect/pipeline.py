@@ -29,7 +29,7 @@ def run_detect(source: Path, *, detector: Detector | None,
                progress: bool = True, on_frame: Callable[[Frame], None] | None = None,
                tracker_config: TrackerConfig | None = None, fps: float | None = None,
                schedule: ScheduleConfig | None = None, flow: FlowConfig | None = None,
-               stats: dict | None = None) -> list[TrackedBox]:
+               stats: dict | None = None, capture_clock: bool = False) -> list[TrackedBox]:
     """Detect and track vehicles through a video, one frame in memory at a time.
 
     Parameters
@@ -63,6 +63,11 @@ def run_detect(source: Path, *, detector: Detector | None,
         ``detect_every``-th frame and the tracker predicts between.
     stats : dict, optional
         Filled with counts for summaries and benchmarks: ``frames``, ``keyframes``.
+    capture_clock : bool
+        For an image folder whose names number every N-th frame (``000010, 000015, ...``):
+        associate on the numbering's clock (0.5 s apart at 10 fps), so a folder of sparse
+        keyframes is tracked as sparse input; the rows keep one frame per image. For
+        ``detect`` only: ranging filters over the rows' time, which stays the output's.
 
     Returns
     -------
@@ -78,10 +83,10 @@ def run_detect(source: Path, *, detector: Detector | None,
     info = video_info(source, fps=fps)
     tracker = Tracker(tracker_config, image_size_px=(info.width, info.height))
     # An image folder of every N-th frame (names 000010, 000015, ...) is timed one frame per
-    # image, as the annotations and the scenario expect; the tracker's association clock
-    # follows the numbering, so it sees the real spacing (sparse: motion model first, a
-    # single confident box kept) whatever --fps says.
-    steps = folder_frame_steps(source)
+    # image, as the annotations and the scenario expect; with capture_clock the tracker's
+    # association clock follows the numbering, so it sees the real spacing (sparse: motion
+    # model first, a single confident box kept).
+    steps = folder_frame_steps(source) if capture_clock else None
     clock = (None if steps is None or steps == list(range(len(steps)))
              else np.asarray(steps, dtype=float) / info.fps)
     keys = (KeyframeSchedule(schedule, info.width)
