@@ -19,6 +19,7 @@ from vid2sim.app.inputs import Inputs
 from vid2sim.app.settings import DetectorSettings, Settings
 from vid2sim.defaults import EGO_RATE_HZ, IMAGE_FOLDER_FPS
 from vid2sim.detect.models import DEFAULT_DETECTOR
+from vid2sim.detect.windows import REFINE_MAX_BOXES
 from vid2sim.errors import InputError
 
 log = logging.getLogger("vid2sim")
@@ -88,7 +89,13 @@ def detector_options(fn):
                           "cache]."),
         click.option("--detect-every", type=click.IntRange(min=1), default=1, show_default=True,
                      help="Run the detector on every N-th frame; the tracker carries boxes "
-                          "between."),
+                          "between (above 1 replaces the keyframe schedule)."),
+        click.option("--keyframe-s", type=click.FloatRange(min=0.0, max=10.0),
+                     default=DetectorSettings().keyframe_s, show_default=True,
+                     metavar="SECONDS",
+                     help="Longest time between detector keyframes; optical flow carries the "
+                          "boxes between, and new tracks, flow failures and a new lead get "
+                          "a keyframe sooner (0 = detector on every frame)."),
         click.option("--score", type=click.FloatRange(min=0.0, max=1.0, min_open=True,
                                                       max_open=True), default=None,
                      help="Minimum score to start a track [0-1] (default 0.45)."),
@@ -97,7 +104,7 @@ def detector_options(fn):
         click.option("--refine", type=click.IntRange(min=0), default=None, metavar="N",
                      help="Re-detect up to N cars ahead on a crop about each, per frame, for "
                           "tighter, steadier boxes (one more detector run each; 0 = off; "
-                          "default 2 with tiles, 0 with --no-tiles)."),
+                          f"default {REFINE_MAX_BOXES} with tiles, 0 with --no-tiles)."),
     ]
     for option in reversed(options):
         fn = option(fn)
@@ -121,11 +128,13 @@ def frame_source_options(fn):
 
 def settings_from(detector_name: str = DEFAULT_DETECTOR, model_dir: Path | None = None,
                   detect_every: int = 1, score: float | None = None, no_tiles: bool = False,
-                  refine: int | None = None, **kwargs) -> Settings:
+                  refine: int | None = None, keyframe_s: float = DetectorSettings().keyframe_s,
+                  **kwargs) -> Settings:
     """The run's :class:`Settings` from the shared options (``kwargs``: other Settings
     fields, e.g. ``allow_download``)."""
     detector = DetectorSettings(name=detector_name, model_dir=model_dir, tiles=not no_tiles,
-                                refine=refine, score=score, detect_every=detect_every)
+                                refine=refine, score=score, detect_every=detect_every,
+                                keyframe_s=keyframe_s)
     return Settings(detector=detector, progress=show_progress(), **kwargs)
 
 

@@ -9,26 +9,26 @@ import cv2
 import numpy as np
 import pytest
 
+from vid2sim.detect.boxes import cut_by_window, iou_matrix, nms, suppress_fragments
 from vid2sim.detect.detector import (
     COCO_VEHICLES,
     DEFAULT_DETECTOR,
-    REFINE_CROP_SCALE,
     REFINE_MAX_BOXES,
-    REFINE_MIN_SIDE_PX,
     PicodetDetector,
     YoloxDetector,
-    cut_by_window,
     decode_picodet,
     decode_yolox,
     letterbox,
     load_detector,
-    nms,
-    refine_candidates,
-    refine_crop,
-    suppress_fragments,
-    tile_windows,
 )
 from vid2sim.detect.external import MatchCounts, read_kitti_tracking_labels, score_against_kitti
+from vid2sim.detect.windows import (
+    REFINE_CROP_SCALE,
+    REFINE_MIN_SIDE_PX,
+    refine_candidates,
+    refine_crop,
+    tile_windows,
+)
 from vid2sim.errors import InputError
 
 CAR, TRUCK, PERSON = 2, 7, 0
@@ -226,8 +226,6 @@ def test_both_decoders_find_the_near_car(kitti_tracking_dir, model_dir, name):
     image, labels = next(_kitti_frames(kitti_tracking_dir))  # 0001/000010
     near = next(lab for lab in labels if lab.track_id == 2)  # the unoccluded car ahead-right
     found = load_detector(name, model_dir, small_object_mode=False).detect(image)
-    from vid2sim.detect.tracker import iou_matrix
-
     ious = iou_matrix(np.array([near.box_px]), np.array([d.box_px for d in found]))[0]
     best = int(ious.argmax())
     assert ious[best] >= 0.8

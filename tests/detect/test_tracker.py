@@ -8,16 +8,10 @@ import itertools
 import numpy as np
 import pytest
 
-from vid2sim.detect.tracker import (
-    BoxKalman,
-    Tracker,
-    TrackerConfig,
-    expansion_cost,
-    iou_matrix,
-    match,
-    xyah_to_xyxy,
-    xyxy_to_xyah,
-)
+from vid2sim.detect.boxes import iou_matrix, match, xyah_to_xyxy, xyxy_to_xyah
+from vid2sim.detect.egomotion import expansion_cost
+from vid2sim.detect.kalman import BoxKalman
+from vid2sim.detect.tracker import Tracker, TrackerConfig
 from vid2sim.records import Detection
 
 FPS = 10.0

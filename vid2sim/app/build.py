@@ -207,7 +207,7 @@ def build(inputs: Inputs, out_dir: Path, settings: Settings | None = None,
         "detect, track and range", detect_and_range, video, camera, detector=detector,
         detections=imported, detect_every=settings.detector.detect_every, fps=inputs.fps,
         progress=settings.progress, config=settings.ranging,
-        tracker_config=settings.tracker_config())
+        tracker_config=settings.tracker_config(), schedule=settings.detector.schedule())
     notes.extend(ranging_notes)
     notes.extend(ranging.warnings)
     notes.append(Note.estimate(

@@ -110,7 +110,8 @@ def run_detect_command(inputs: Inputs, out_path: Path,
     start = time.perf_counter()
     boxes = run_detect(source, detector=detector, detections=imported,
                        detect_every=settings.detector.detect_every, progress=settings.progress,
-                       tracker_config=settings.tracker_config(), fps=inputs.fps)
+                       tracker_config=settings.tracker_config(), fps=inputs.fps,
+                       schedule=settings.detector.schedule(), capture_clock=True)
     elapsed = time.perf_counter() - start
     write_detections_csv(boxes, out_path)
     per_track = {b.track_id: b.category for b in boxes}
@@ -155,7 +156,7 @@ def run_track(inputs: Inputs, out_path: Path, settings: Settings | None = None,
         video, camera, detector=detector, detections=imported,
         detect_every=settings.detector.detect_every, fps=inputs.fps,
         progress=settings.progress, config=settings.ranging,
-        tracker_config=settings.tracker_config())
+        tracker_config=settings.tracker_config(), schedule=settings.detector.schedule())
     notes += stage_notes
     write_tracks_csv(result.boxes, out_path)
     lines = [f"{video}: {info.n_frames} frames, boxes from {source}"]

@@ -14,6 +14,7 @@ from vid2sim.defaults import EGO_RATE_HZ
 from vid2sim.detect.lane_track import LaneTrackConfig
 from vid2sim.detect.models import DEFAULT_DETECTOR
 from vid2sim.detect.ranging import RangingConfig
+from vid2sim.detect.schedule import ScheduleConfig
 from vid2sim.detect.tracker import TrackerConfig
 from vid2sim.errors import InputError
 from vid2sim.export.assemble import AssembleConfig
@@ -31,7 +32,10 @@ class DetectorSettings:
     :param refine: lead candidates re-detected on a crop per frame; None = the detector's
         default (2 with tiles, 0 without)
     :param score: minimum score to start a track [0-1]; None = the tracker's default
-    :param detect_every: run the detector on every N-th frame
+    :param detect_every: run the detector on every N-th frame (the tracker predicts between);
+        above 1 it replaces the keyframe schedule
+    :param keyframe_s: longest time between detector keyframes [s]; between them optical
+        flow carries the boxes (:mod:`vid2sim.detect.schedule`); 0 = every frame
     :param threads: onnxruntime intra-op threads (a batch gives each job cores / jobs)
     """
 
@@ -41,6 +45,7 @@ class DetectorSettings:
     refine: int | None = None
     score: float | None = None
     detect_every: int = 1
+    keyframe_s: float = ScheduleConfig().keyframe_s
     threads: int = 2
 
     def check(self) -> None:
@@ -53,6 +58,15 @@ class DetectorSettings:
             raise InputError(None, f"--refine must be >= 0, got {self.refine}")
         if self.threads < 1:
             raise InputError(None, f"threads must be >= 1, got {self.threads}")
+        if not 0.0 <= self.keyframe_s <= 10.0:
+            raise InputError(None, f"--keyframe-s must be 0-10 s, got {self.keyframe_s:g}")
+
+    def schedule(self) -> ScheduleConfig | None:
+        """The keyframe schedule, or None when the detector runs on every
+        ``detect_every``-th frame."""
+        if self.detect_every > 1 or self.keyframe_s <= 0:
+            return None
+        return ScheduleConfig(keyframe_s=self.keyframe_s)
 
     def label(self) -> str:
         """How the boxes were made, for summaries (``yolox-nano + tiles``)."""
@@ -121,5 +135,6 @@ class Settings:
         out = {"detect_every": d.detect_every, "score": d.score, "rate_hz": self.rate_hz,
                "allow_download": self.allow_download}
         if detector_used:
-            out.update({"detector": d.name, "tiles": d.tiles, "refine": d.refine})
+            out.update({"detector": d.name, "tiles": d.tiles, "refine": d.refine,
+                        "keyframe_s": d.keyframe_s})
         return out

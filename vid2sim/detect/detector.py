@@ -25,6 +25,7 @@ Range comes from box edges, so their frame-to-frame jitter becomes range-rate no
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 from typing import Protocol, runtime_checkable
 
@@ -32,7 +33,18 @@ import cv2
 import numpy as np
 
 from vid2sim.detect import models
-from vid2sim.detect.tracker import iou_matrix
+from vid2sim.detect.boxes import cut_by_window, iou_matrix, nms, suppress_fragments
+from vid2sim.detect.dynamic import dynamic_copy
+from vid2sim.detect.windows import (
+    REFINE_CROP_SCALE,
+    REFINE_MAX_BOXES,
+    REFINE_MIN_IOU,
+    REFINE_MIN_SIDE_PX,
+    centre_window,
+    refine_candidates,
+    refine_crop,
+    tile_windows,
+)
 from vid2sim.errors import InputError
 from vid2sim.records import Detection
 
@@ -46,40 +58,43 @@ COCO_VEHICLES: dict[int, str] = {2: "car", 3: "motorcycle", 5: "bus", 7: "truck"
 
 DEFAULT_DETECTOR = models.DEFAULT_DETECTOR
 
-REFINE_MAX_BOXES = 2
-"""Vehicles refined on a crop per frame by default with the small-object mode (nearest lead
-candidates first); each costs one more run of the net."""
-
-REFINE_CROP_SCALE = 5.0
-"""Side of a refinement crop over the larger side of the box. On the composite clips: at 2.5
-a quarter of the car's boxes were lost (too little context); at 3 the lead range-rate RMSE
-was 0.96 m/s, at 4 0.83 m/s but the range bias grew from +5.0 % to +6.5 %, at 5 0.85 m/s with
-the range bias +5.3 % (1.00 m/s and +5.0 % unrefined)."""
-
-REFINE_MIN_SIDE_PX = 96.0
-"""Smallest refinement crop side [frame px], so a small far car (416 / 96 = 4.3x) is not
-blown up beyond the scale the net was trained at. Not tuned: the composite clips' car is 24
-px wide or more, so 64 and 96 gave the same figures there."""
-
-REFINE_MIN_IOU = 0.5
-"""IoU with the box being refined from which a crop box replaces it: at 0.3 boxes of other
-shapes took its place, and the composite clips' lead range error grew from 6.5 % to 8.0 %
-(crop 4x)."""
-
-REFINE_MAX_OFFSET_WIDTHS = 1.5
-"""Refinement candidates have their box centre at most this many box widths from the image
-centre line: about 2.5 m for a car, so the lead in the ego lane and cars cutting in, not
-the parked cars at the kerb, which stand lower (nearer) in the image."""
-
-REFINE_MIN_HEIGHT_PX = 10.0
-"""Boxes lower than this [px] are not refined (too few pixels to gain from)."""
-
-REFINE_MAX_WIDTH_FRACTION = 0.25
-"""Boxes wider than this fraction of the image width are not refined: their crop would be
-about the frame itself, and their edge noise is already small against their width."""
-
 CROSS_CLASS_IOU = 0.7
 """IoU above which boxes of different vehicle classes are taken for one vehicle."""
+
+NET_INPUT_PX = (416, 416)
+"""(width, height) of the shared exports' fixed input (MODELS.md); a loaded model's own input
+size overrides it."""
+
+YOLOX_NMS_IOU = 0.45
+"""Class-aware NMS IoU of YOLOX, as in the upstream demo (MODELS.md)."""
+
+PICODET_NMS_IOU = 0.6
+"""Class-aware NMS IoU of PicoDet, as in the upstream PaddleDetection deploy config
+(MODELS.md)."""
+
+SCORE_THRESHOLD = 0.3
+"""Default lowest vehicle score kept by a detector built directly (MODELS.md: "score
+threshold about 0.3"); the application layer passes the tracker's low score instead."""
+
+LETTERBOX_FILL = 114
+"""Grey level of YOLOX's letterbox canvas (upstream preprocessing, MODELS.md)."""
+
+LOGIT_CLIP = 10.0
+"""Raw YOLOX size logits are clipped to +-this before exp(): a box e^10 strides wide is
+already larger than any input, and the clip keeps exp() finite on garbage outputs."""
+
+FREE_SHAPE_STEP_PX = 32
+"""Input sides of a free-shape run are multiples of this: the net's largest stride (YOLOX
+downsamples by 32)."""
+
+FREE_SHAPE_MARGIN_PX = 32
+"""Grey margin kept below and beside the image in a free-shape run: the letterbox's fill is
+context the net was trained with. On KITTI's six labelled frames (default settings): without
+a margin recall 0.92 -> 0.88 and precision 0.85 -> 0.83 against the full 416x416 canvas;
+with 32 px (or 64) the same counts as the full canvas (23/25 found, 7/48 false)."""
+
+PICODET_TOP_K = 1000
+"""Cells kept per PicoDet level before NMS, as upstream (MODELS.md)."""
 
 
 @runtime_checkable
@@ -94,8 +109,8 @@ class Detector(Protocol):
 # --------------------------------------------------------------------------- geometry
 
 
-def letterbox(image_bgr: np.ndarray, size_px: tuple[int, int] = (416, 416),
-              fill: int = 114) -> tuple[np.ndarray, float]:
+def letterbox(image_bgr: np.ndarray, size_px: tuple[int, int] = NET_INPUT_PX,
+              fill: int = LETTERBOX_FILL) -> tuple[np.ndarray, float]:
     """Resize keeping the aspect ratio and paste at the top-left of a filled canvas.
 
     Returns the canvas (``size_px`` = (width, height)) and the scale r (canvas px per image
@@ -112,142 +127,10 @@ def letterbox(image_bgr: np.ndarray, size_px: tuple[int, int] = (416, 416),
     return canvas, r
 
 
-def tile_windows(width_px: int, height_px: int, overlap: float = 0.1, centre: bool = True
-                 ) -> list[tuple[int, int, int, int]]:
-    """Windows (x1, y1, x2, y2) [px] the detector runs on: the full frame, plus for a frame
-    wider than 4:3 a left and a right tile: the two halves, each widened by ``overlap``
-    (fraction of the half width) into the other, and at least as wide as the frame is high,
-    so a car up to ``overlap`` half-widths wide in the middle is whole in one tile."""
-    windows = [(0, 0, width_px, height_px)]
-    if width_px <= 1.34 * height_px:
-        return windows
-    tile_w = int(min(width_px, max(height_px, round(width_px / 2 * (1.0 + overlap)))))
-    windows.append((0, 0, tile_w, height_px))
-    windows.append((width_px - tile_w, 0, width_px, height_px))
-    if centre:
-        windows.append(centre_window(width_px, height_px))
-    return windows
-
-
-def centre_window(width_px: int, height_px: int) -> tuple[int, int, int, int]:
-    """A square of a third of the width (at most the height) about the image centre, where a
-    forward camera sees the road ahead: a lead 30-45 m away is seen at about the net's own
-    scale."""
-    side = int(min(height_px, round(width_px / 3)))
-    cx1, cy1 = (width_px - side) // 2, (height_px - side) // 2
-    return cx1, cy1, cx1 + side, cy1 + side
-
-
-def cut_by_window(boxes_px: np.ndarray, window: tuple[int, int, int, int], width_px: int,
-                  height_px: int, margin_px: float = 2.0) -> np.ndarray:
-    """Mask of boxes (frame px, Nx4) touching an edge of ``window`` that lies inside the
-    image: the window cut that car, so its box there is truncated. An edge on the image
-    border cuts nothing (the image itself ends there)."""
-    x1, y1, x2, y2 = window
-    cut = np.zeros(len(boxes_px), dtype=bool)
-    if x1 > 0:
-        cut |= boxes_px[:, 0] <= x1 + margin_px
-    if x2 < width_px:
-        cut |= boxes_px[:, 2] >= x2 - margin_px
-    if y1 > 0:
-        cut |= boxes_px[:, 1] <= y1 + margin_px
-    if y2 < height_px:
-        cut |= boxes_px[:, 3] >= y2 - margin_px
-    return cut
-
-
-def refine_crop(box_px, width_px: int, height_px: int, scale: float = REFINE_CROP_SCALE,
-                min_side_px: float = REFINE_MIN_SIDE_PX) -> tuple[int, int, int, int]:
-    """Crop (x1, y1, x2, y2) [px] to refine ``box_px`` on: a square of side ``scale`` times
-    the box's larger side (at least ``min_side_px``) centred on the box, clipped to the
-    image (so a crop at the image border is no longer square)."""
-    bx1, by1, bx2, by2 = (float(v) for v in box_px)
-    side = max(scale * max(bx2 - bx1, by2 - by1), min_side_px)
-    cx, cy = (bx1 + bx2) / 2, (by1 + by2) / 2
-    x1 = int(max(0, round(cx - side / 2)))
-    y1 = int(max(0, round(cy - side / 2)))
-    x2 = int(min(width_px, round(cx + side / 2)))
-    y2 = int(min(height_px, round(cy + side / 2)))
-    return x1, y1, x2, y2
-
-
-def refine_candidates(boxes_px: np.ndarray, width_px: int, max_boxes: int,
-                      max_offset_widths: float = REFINE_MAX_OFFSET_WIDTHS,
-                      min_height_px: float = REFINE_MIN_HEIGHT_PX,
-                      max_width_fraction: float = REFINE_MAX_WIDTH_FRACTION) -> np.ndarray:
-    """Indices of the boxes (Nx4, frame px) worth refining, nearest first.
-
-    Lead candidates: box centre at most ``max_offset_widths`` box widths from the image's
-    vertical centre line (a lateral offset in car widths, whatever the range), height at
-    least ``min_height_px``, width at most ``max_width_fraction`` of the image width.
-    Nearest first is lowest bottom edge first (on a flat road a nearer car stands lower in
-    the image); at most ``max_boxes``.
-    """
-    boxes_px = np.asarray(boxes_px, dtype=float).reshape(-1, 4)
-    if max_boxes <= 0 or len(boxes_px) == 0:
-        return np.zeros(0, dtype=np.int64)
-    centre_x = (boxes_px[:, 0] + boxes_px[:, 2]) / 2
-    w = boxes_px[:, 2] - boxes_px[:, 0]
-    h = boxes_px[:, 3] - boxes_px[:, 1]
-    ok = ((np.abs(centre_x - width_px / 2) <= max_offset_widths * w)
-          & (h >= min_height_px) & (w <= max_width_fraction * width_px))
-    idx = np.flatnonzero(ok)
-    idx = idx[np.argsort(-boxes_px[idx, 3], kind="stable")]
-    return idx[:max_boxes].astype(np.int64)
-
-
-def nms(boxes_px: np.ndarray, scores: np.ndarray, iou_threshold: float,
-        class_ids: np.ndarray | None = None) -> np.ndarray:
-    """Indices kept by non-maximum suppression (class-aware when ``class_ids`` is given),
-    best score first. ``boxes_px`` is Nx4 (x1, y1, x2, y2)."""
-    if len(boxes_px) == 0:
-        return np.zeros(0, dtype=np.int64)
-    xywh = np.column_stack([boxes_px[:, 0], boxes_px[:, 1], boxes_px[:, 2] - boxes_px[:, 0],
-                            boxes_px[:, 3] - boxes_px[:, 1]]).astype(np.float64)
-    if class_ids is None:
-        keep = cv2.dnn.NMSBoxes(xywh.tolist(), scores.astype(float).tolist(), 0.0,
-                                float(iou_threshold))
-    else:
-        keep = cv2.dnn.NMSBoxesBatched(xywh.tolist(), scores.astype(float).tolist(),
-                                       class_ids.astype(int).tolist(), -np.inf,
-                                       float(iou_threshold))
-    keep = np.asarray(keep, dtype=np.int64).reshape(-1)
-    return keep[np.argsort(-scores[keep], kind="stable")]
-
-
-def suppress_fragments(boxes_px: np.ndarray, scores: np.ndarray, inside: float = 0.7,
-                       min_height_ratio: float = 0.6) -> np.ndarray:
-    """Indices of boxes that are not fragments of a stronger box, best score first.
-
-    A box with at least ``inside`` of its area within a higher-scoring box and at least
-    ``min_height_ratio`` of that box's height is taken for a part of the same vehicle (a
-    wheel arch, a bonnet cut by a tile or by an occluder): NMS keeps it because the IoU of a
-    part with the whole is low. A smaller box inside a big one (a far car seen through the
-    gap) keeps its place since its height differs. Cost: a car almost hidden behind another
-    at the same range is dropped, which the tracker bridges.
-    """
-    order = np.argsort(-scores, kind="stable")
-    kept: list[int] = []
-    for i in order:
-        x1, y1, x2, y2 = boxes_px[i]
-        area = max((x2 - x1) * (y2 - y1), 1e-9)
-        fragment = False
-        for j in kept:
-            a1, b1, a2, b2 = boxes_px[j]
-            iw = max(0.0, min(x2, a2) - max(x1, a1))
-            ih = max(0.0, min(y2, b2) - max(y1, b1))
-            if iw * ih / area >= inside and (y2 - y1) >= min_height_ratio * (b2 - b1):
-                fragment = True
-                break
-        if not fragment:
-            kept.append(int(i))
-    return np.asarray(kept, dtype=np.int64)
-
-
 # --------------------------------------------------------------------------- decoders
 
 
-def decode_yolox(output: np.ndarray, input_size_px: tuple[int, int] = (416, 416),
+def decode_yolox(output: np.ndarray, input_size_px: tuple[int, int] = NET_INPUT_PX,
                  strides: tuple[int, ...] = (8, 16, 32)) -> tuple[np.ndarray, np.ndarray]:
     """Decode a raw YOLOX output [1, N, 5 + C] into boxes and class scores on the input canvas.
 
@@ -262,6 +145,21 @@ def decode_yolox(output: np.ndarray, input_size_px: tuple[int, int] = (416, 416)
         objectness * class probability.
     """
     pred = output.reshape(-1, output.shape[-1]).astype(np.float32)
+    grid, stride = _yolox_grid(tuple(input_size_px), tuple(strides))
+    if len(grid) != len(pred):
+        raise ValueError(f"YOLOX output has {len(pred)} rows, expected {len(grid)} "
+                         f"for input {input_size_px}")
+    centre = (pred[:, 0:2] + grid) * stride
+    size = np.exp(np.clip(pred[:, 2:4], -LOGIT_CLIP, LOGIT_CLIP)) * stride
+    boxes = np.concatenate([centre - size / 2, centre + size / 2], axis=1)
+    return boxes, pred[:, 4:5] * pred[:, 5:]
+
+
+@functools.lru_cache(maxsize=16)
+def _yolox_grid(input_size_px: tuple[int, int], strides: tuple[int, ...]
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """Cell (column, row) and stride of every YOLOX output row for one input size (cached:
+    a run sees a handful of window sizes)."""
     in_w, in_h = input_size_px
     grids, scale = [], []
     for s in strides:
@@ -270,20 +168,16 @@ def decode_yolox(output: np.ndarray, input_size_px: tuple[int, int] = (416, 416)
         grids.append(np.column_stack([gx.ravel(), gy.ravel()]))
         scale.append(np.full(gh * gw, s, dtype=np.float32))
     grid = np.concatenate(grids).astype(np.float32)
+    grid.flags.writeable = False
     stride = np.concatenate(scale)[:, None]
-    if len(grid) != len(pred):
-        raise ValueError(f"YOLOX output has {len(pred)} rows, expected {len(grid)} "
-                         f"for input {input_size_px}")
-    centre = (pred[:, 0:2] + grid) * stride
-    size = np.exp(np.clip(pred[:, 2:4], -10.0, 10.0)) * stride
-    boxes = np.concatenate([centre - size / 2, centre + size / 2], axis=1)
-    return boxes, pred[:, 4:5] * pred[:, 5:]
+    stride.flags.writeable = False
+    return grid, stride
 
 
 def decode_picodet(class_outputs: list[np.ndarray], box_outputs: list[np.ndarray],
-                   input_size_px: tuple[int, int] = (416, 416),
+                   input_size_px: tuple[int, int] = NET_INPUT_PX,
                    strides: tuple[int, ...] = (8, 16, 32, 64), reg_max: int = 7,
-                   top_k: int = 1000) -> tuple[np.ndarray, np.ndarray]:
+                   top_k: int = PICODET_TOP_K) -> tuple[np.ndarray, np.ndarray]:
     """Decode PicoDet outputs (per stride: class scores [1, N, C], distances [1, N, 4*(reg_max+1)]).
 
     Each side (left, top, right, bottom) is a distribution over reg_max + 1 bins; its
@@ -364,13 +258,17 @@ class OnnxDetector:
     """
 
     decoder = ""
-    input_size_px = (416, 416)
+    input_size_px = NET_INPUT_PX
+    # Set by __init__ when the dynamic copy of the weights loads (see vid2sim.detect.dynamic);
+    # off for detectors built another way (tests build them with a fake session).
+    batch_windows = False  # several windows per onnxruntime call
+    free_shape = False  # the input may have another height and width than input_size_px
 
-    def __init__(self, model_path: Path, *, score_threshold: float = 0.3,
-                 nms_iou: float = 0.45, small_object_mode: bool = False, threads: int = 2,
+    def __init__(self, model_path: Path, *, score_threshold: float = SCORE_THRESHOLD,
+                 nms_iou: float = YOLOX_NMS_IOU, small_object_mode: bool = False, threads: int = 2,
                  refine_max_boxes: int = 0, refine_scale: float = REFINE_CROP_SCALE,
-                 refine_min_side_px: float = REFINE_MIN_SIDE_PX):
-        import onnxruntime as ort
+                 refine_min_side_px: float = REFINE_MIN_SIDE_PX, dynamic: bool = True):
+        import onnxruntime as ort  # heavy native library: loaded only when a detector is built
 
         self.model_path = Path(model_path)
         self.score_threshold = float(score_threshold)
@@ -394,15 +292,84 @@ class OnnxDetector:
         shape = self.session.get_inputs()[0].shape
         if isinstance(shape[2], int) and isinstance(shape[3], int):
             self.input_size_px = (int(shape[3]), int(shape[2]))
+        copy = dynamic_copy(self.model_path) if dynamic else None
+        if copy is not None:
+            self.session = ort.InferenceSession(str(copy), sess_options=options,
+                                                providers=["CPUExecutionProvider"])
+            self.batch_windows = True
+            self.free_shape = self._accepts_free_shape()
+        self.n_calls = 0  # onnxruntime calls made (for benchmarks)
+
+    def _accepts_free_shape(self) -> bool:
+        """Whether the net runs on an input of another height (a fully convolutional graph
+        whose reshapes do not fix the spatial size)."""
+        w = self.input_size_px[0]
+        probe = np.zeros((1, 3, FREE_SHAPE_STEP_PX, w), np.float32)
+        try:
+            outputs = self.session.run(None, {self.input_name: probe})
+        except Exception:  # noqa: BLE001 - onnxruntime's own error types: the size is fixed
+            return False
+        return self._cells(outputs) == self._expected_cells(w, FREE_SHAPE_STEP_PX)
+
+    @staticmethod
+    def _cells(outputs: list[np.ndarray]) -> int:
+        return int(sum(o.shape[1] for o in outputs if o.ndim == 3 and o.shape[-1] > 4))
+
+    def _expected_cells(self, width_px: int, height_px: int) -> int:
+        return -1
+
+    def _prepare(self, image_bgr: np.ndarray) -> tuple[np.ndarray, tuple[float, float]]:
+        """Network input (3, H, W) float32 for one window, and the (x, y) scale from input
+        to window pixels."""
+        raise NotImplementedError
+
+    def _decode(self, outputs: list[np.ndarray], input_size_px: tuple[int, int]
+                ) -> tuple[np.ndarray, np.ndarray]:
+        """Boxes on the network input [px] and class scores of one batch item."""
+        raise NotImplementedError
+
+    def _raw_many(self, images: list[np.ndarray]) -> list[tuple[np.ndarray, np.ndarray]]:
+        """:meth:`_raw` of several windows, inputs of one shape in one onnxruntime call."""
+        prepared = [self._prepare(im) for im in images]
+        out: list[tuple[np.ndarray, np.ndarray] | None] = [None] * len(images)
+        groups: dict[tuple[int, ...], list[int]] = {}
+        for i, (blob, _) in enumerate(prepared):
+            groups.setdefault(blob.shape, []).append(i)
+        for shape, members in groups.items():
+            batch = np.stack([prepared[i][0] for i in members])
+            outputs = self.session.run(None, {self.input_name: batch})
+            self.n_calls += 1
+            size = (shape[2], shape[1])
+            for k, i in enumerate(members):
+                boxes, scores = self._decode([o[k:k + 1] for o in outputs], size)
+                sx, sy = prepared[i][1]
+                out[i] = boxes * [sx, sy, sx, sy], scores
+        return out
 
     def _raw(self, image_bgr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Boxes (in ``image_bgr`` pixels) and class scores before thresholds and NMS."""
-        raise NotImplementedError
+        blob, (sx, sy) = self._prepare(image_bgr)
+        outputs = self.session.run(None, {self.input_name: blob[None]})
+        self.n_calls = getattr(self, "n_calls", 0) + 1
+        boxes, scores = self._decode(outputs, (blob.shape[2], blob.shape[1]))
+        return boxes * [sx, sy, sx, sy], scores
 
     def _window(self, image_bgr: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        boxes, class_scores = self._raw(image_bgr)
+        """Vehicle boxes (window px), scores and COCO ids of one window after NMS."""
+        return self._postprocess(image_bgr.shape, *self._raw(image_bgr))
+
+    def _windows(self, images: list[np.ndarray]
+                 ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """:meth:`_window` of several windows (batched when the weights allow)."""
+        if not self.batch_windows or len(images) < 2:
+            return [self._window(im) for im in images]
+        return [self._postprocess(im.shape, *raw)
+                for im, raw in zip(images, self._raw_many(images), strict=True)]
+
+    def _postprocess(self, shape: tuple[int, ...], boxes: np.ndarray, class_scores: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         boxes, scores, ids = vehicle_candidates(boxes, class_scores, self.score_threshold)
-        h, w = image_bgr.shape[:2]
+        h, w = shape[:2]
         boxes = np.clip(boxes, 0, [w, h, w, h])
         keep = nms(boxes, scores, self.nms_iou, ids)
         boxes, scores, ids = boxes[keep], scores[keep], ids[keep]
@@ -434,10 +401,11 @@ class OnnxDetector:
         """
         boxes_px = np.array(boxes_px, dtype=float).reshape(-1, 4)
         h, w = image_bgr.shape[:2]
-        for i in refine_candidates(boxes_px, w, self.refine_max_boxes):
-            x1, y1, x2, y2 = refine_crop(boxes_px[i], w, h, self.refine_scale,
-                                         self.refine_min_side_px)
-            found, _, _ = self._window(image_bgr[y1:y2, x1:x2])
+        chosen = refine_candidates(boxes_px, w, self.refine_max_boxes)
+        crops = [refine_crop(boxes_px[i], w, h, self.refine_scale, self.refine_min_side_px)
+                 for i in chosen]
+        results = self._windows([image_bgr[y1:y2, x1:x2] for x1, y1, x2, y2 in crops])
+        for i, (x1, y1, x2, y2), (found, _, _) in zip(chosen, crops, results, strict=True):
             found = found + [x1, y1, x1, y1]
             found = found[~cut_by_window(found, (x1, y1, x2, y2), w, h)]
             if len(found) == 0:
@@ -454,8 +422,8 @@ class OnnxDetector:
         windows = tile_windows(w, h) if self.small_object_mode else [(0, 0, w, h)]
         centre = centre_window(w, h)
         parts_b, parts_s, parts_c = [], [], []
-        for x1, y1, x2, y2 in windows:
-            boxes, scores, ids = self._window(image_bgr[y1:y2, x1:x2])
+        results = self._windows([image_bgr[y1:y2, x1:x2] for x1, y1, x2, y2 in windows])
+        for (x1, y1, x2, y2), (boxes, scores, ids) in zip(windows, results, strict=True):
             boxes = boxes + [x1, y1, x1, y1]
             if len(windows) > 1 and (x1, y1, x2, y2) == centre:
                 # The centre window sees far cars at the net's scale, and with them more of
@@ -491,37 +459,58 @@ class YoloxDetector(OnnxDetector):
 
     decoder = "yolox"
 
-    def _raw(self, image_bgr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        canvas, r = letterbox(image_bgr, self.input_size_px)
-        blob = canvas.transpose(2, 0, 1)[None].astype(np.float32)  # BGR, 0-255, no norm
-        (output,) = self.session.run(None, {self.input_name: blob})
-        boxes, class_scores = decode_yolox(output, self.input_size_px)
-        return boxes / r, class_scores
+    def _expected_cells(self, width_px: int, height_px: int) -> int:
+        return sum((width_px // s) * (height_px // s) for s in (8, 16, 32))
+
+    def _prepare(self, image_bgr: np.ndarray) -> tuple[np.ndarray, tuple[float, float]]:
+        size = self.input_size_px
+        if self.free_shape:
+            # the letterbox canvas cut after the image, rounded up to the net's largest
+            # stride: the same pixels at the same scale, without computing the padding (the
+            # axis that sets the scale keeps its full side, so the scale is unchanged)
+            w, h = self.input_size_px
+            r = min(h / image_bgr.shape[0], w / image_bgr.shape[1])
+            step = FREE_SHAPE_STEP_PX
+            size = (min(w, step * -(-max(1, int(image_bgr.shape[1] * r)) // step)
+                        + FREE_SHAPE_MARGIN_PX),
+                    min(h, step * -(-max(1, int(image_bgr.shape[0] * r)) // step)
+                        + FREE_SHAPE_MARGIN_PX))
+        canvas, r = letterbox(image_bgr, size)
+        blob = canvas.transpose(2, 0, 1).astype(np.float32)  # BGR, 0-255, no norm
+        return blob, (1.0 / r, 1.0 / r)
+
+    def _decode(self, outputs: list[np.ndarray], input_size_px: tuple[int, int]
+                ) -> tuple[np.ndarray, np.ndarray]:
+        return decode_yolox(outputs[0], input_size_px)
 
 
 class PicodetDetector(OnnxDetector):
     """PP-PicoDet exported without NMS (4 score and 4 distance tensors)."""
 
     decoder = "picodet"
+    # ImageNet mean and standard deviation, as the PaddleDetection export expects (MODELS.md)
     MEAN_RGB = np.array([0.485, 0.456, 0.406], dtype=np.float32)
     STD_RGB = np.array([0.229, 0.224, 0.225], dtype=np.float32)
 
-    def __init__(self, model_path: Path, *, score_threshold: float = 0.3,
-                 nms_iou: float = 0.6, small_object_mode: bool = False, threads: int = 2,
+    def __init__(self, model_path: Path, *, score_threshold: float = SCORE_THRESHOLD,
+                 nms_iou: float = PICODET_NMS_IOU, small_object_mode: bool = False,
+                 threads: int = 2,
                  **refine_options):
         super().__init__(model_path, score_threshold=score_threshold, nms_iou=nms_iou,
                          small_object_mode=small_object_mode, threads=threads, **refine_options)
 
-    def _raw(self, image_bgr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _prepare(self, image_bgr: np.ndarray) -> tuple[np.ndarray, tuple[float, float]]:
         h, w = image_bgr.shape[:2]
         in_w, in_h = self.input_size_px
         resized = cv2.resize(image_bgr, (in_w, in_h), interpolation=cv2.INTER_LINEAR)
         rgb = resized[:, :, ::-1].astype(np.float32) / 255.0
-        blob = ((rgb - self.MEAN_RGB) / self.STD_RGB).transpose(2, 0, 1)[None]
-        outputs = self.session.run(None, {self.input_name: np.ascontiguousarray(blob)})
+        blob = ((rgb - self.MEAN_RGB) / self.STD_RGB).transpose(2, 0, 1)
+        return np.ascontiguousarray(blob), (w / in_w, h / in_h)
+
+    def _decode(self, outputs: list[np.ndarray], input_size_px: tuple[int, int]
+                ) -> tuple[np.ndarray, np.ndarray]:
         n = len(outputs) // 2
-        boxes, class_scores = decode_picodet(outputs[:n], outputs[n:], self.input_size_px)
-        return boxes * [w / in_w, h / in_h, w / in_w, h / in_h], class_scores
+        return decode_picodet(outputs[:n], outputs[n:], input_size_px)
 
 
 DETECTOR_CLASSES: dict[str, type[OnnxDetector]] = {"yolox": YoloxDetector,
@@ -529,7 +518,7 @@ DETECTOR_CLASSES: dict[str, type[OnnxDetector]] = {"yolox": YoloxDetector,
 
 
 def load_detector(name_or_path: str | Path = DEFAULT_DETECTOR, model_dir: Path | None = None,
-                  *, score_threshold: float = 0.3, nms_iou: float | None = None,
+                  *, score_threshold: float = SCORE_THRESHOLD, nms_iou: float | None = None,
                   small_object_mode: bool = True, threads: int = 2,
                   decoder: str | None = None, refine_max_boxes: int | None = None
                   ) -> OnnxDetector:
@@ -562,7 +551,7 @@ def load_detector(name_or_path: str | Path = DEFAULT_DETECTOR, model_dir: Path |
     spec = models.MODELS.get(str(name_or_path)) or models.spec_for_path(path)
     kind = decoder or (spec.decoder if spec else None)
     if kind is None:
-        import onnxruntime as ort
+        import onnxruntime as ort  # heavy native library: only for weights of unknown kind
 
         options = ort.SessionOptions()
         options.log_severity_level = 3

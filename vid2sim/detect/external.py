@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from vid2sim.detect.boxes import iou_matrix, match
 from vid2sim.errors import InputError
 from vid2sim.records import Detection
 
@@ -289,8 +290,6 @@ def score_against_kitti(detections: list[Detection], labels: list[KittiLabel],
     of its area) inside a DontCare region (areas the annotators did not label). Each
     vehicle label excuses at most one detection, so duplicate boxes on one car are false.
     """
-    from vid2sim.detect.tracker import iou_matrix, match
-
     det_boxes = np.array([d.box_px for d in detections], dtype=float).reshape(-1, 4)
     targets = [lab for lab in labels if is_kitti_target(lab, min_height_px)]
     t_boxes = np.array([lab.box_px for lab in targets], dtype=float).reshape(-1, 4)

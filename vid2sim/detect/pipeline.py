@@ -11,14 +11,18 @@ from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
+
 from vid2sim.camera import Camera
 from vid2sim.detect.detector import Detector
+from vid2sim.detect.flow import FlowConfig, MedianFlow
 from vid2sim.detect.lane_markings import LaneMarkingDetector
 from vid2sim.detect.lane_track import track_lanes
 from vid2sim.detect.lanes import HorizonEstimator, yaw_for_vanishing_column
 from vid2sim.detect.ranging import RangingConfig, range_tracks
+from vid2sim.detect.schedule import KeyframeSchedule, ScheduleConfig
 from vid2sim.detect.tracker import Tracker, TrackerConfig
-from vid2sim.detect.video import iter_frames, video_info
+from vid2sim.detect.video import folder_frame_steps, iter_frames, prefetch, video_info
 from vid2sim.errors import InputError
 from vid2sim.records import Detection, Frame, Note, RangingResult, TrackedBox
 
@@ -27,7 +31,8 @@ def run_detect(source: Path, *, detector: Detector | None,
                detections: dict[int, list[Detection]] | None = None, detect_every: int = 1,
                progress: bool = True, on_frame: Callable[[Frame], None] | None = None,
                tracker_config: TrackerConfig | None = None, fps: float | None = None,
-               ) -> list[TrackedBox]:
+               schedule: ScheduleConfig | None = None, flow: FlowConfig | None = None,
+               stats: dict | None = None, capture_clock: bool = False) -> list[TrackedBox]:
     """Detect and track vehicles through a video, one frame in memory at a time.
 
     Parameters
@@ -54,13 +59,25 @@ def run_detect(source: Path, *, detector: Detector | None,
         Tracker thresholds.
     fps : float, optional
         Frame rate for image folders [frames/s] (default 10).
+    schedule : ScheduleConfig, optional
+        With a detector and ``detect_every`` 1: run the detector on keyframes only
+        (:mod:`vid2sim.detect.schedule`) and carry the boxes between them by optical flow
+        (:mod:`vid2sim.detect.flow`, settings ``flow``). None: the detector runs on every
+        ``detect_every``-th frame and the tracker predicts between.
+    stats : dict, optional
+        Filled with counts for summaries and benchmarks: ``frames``, ``keyframes``.
+    capture_clock : bool
+        For an image folder whose names number every N-th frame (``000010, 000015, ...``):
+        associate on the numbering's clock (0.5 s apart at 10 fps), so a folder of sparse
+        keyframes is tracked as sparse input; the rows keep one frame per image. For
+        ``detect`` only: ranging filters over the rows' time, which stays the output's.
 
     Returns
     -------
     list of TrackedBox
         One row per confirmed track per frame it is alive in, sorted by frame then track id.
     """
-    from tqdm import tqdm
+    from tqdm import tqdm  # progress bars only where frames are streamed
 
     if detector is None and detections is None:
         raise ValueError("run_detect needs a detector or imported detections")
@@ -68,25 +85,50 @@ def run_detect(source: Path, *, detector: Detector | None,
         raise InputError(None, f"--detect-every must be >= 1, got {detect_every}")
     info = video_info(source, fps=fps)
     tracker = Tracker(tracker_config, image_size_px=(info.width, info.height))
+    # An image folder of every N-th frame (names 000010, 000015, ...) is timed one frame per
+    # image, as the annotations and the scenario expect; with capture_clock the tracker's
+    # association clock follows the numbering, so it sees the real spacing (sparse: motion
+    # model first, a single confident box kept).
+    steps = folder_frame_steps(source) if capture_clock else None
+    clock = (None if steps is None or steps == list(range(len(steps)))
+             else np.asarray(steps, dtype=float) / info.fps)
+    keys = (KeyframeSchedule(schedule, info.width)
+            if schedule is not None and detector is not None and detect_every == 1 else None)
+    carrier = MedianFlow(flow) if keys is not None else None
     rows: list[TrackedBox] = []
-    n_seen = 0
+    n_seen = n_detected = 0
     # Imported boxes need no pixels: decode only if someone looks at the image.
     decode_every = detect_every if (detector is not None or on_frame is not None) else 0
+    frames = prefetch(iter_frames(source, every=decode_every or 1_000_000_000, fps=fps))
     with tqdm(total=info.n_frames or None, unit="frame", desc="detect",
               disable=not progress) as bar:
-        for frame in iter_frames(source, every=decode_every or 1_000_000_000, fps=fps):
+        for frame in frames:
             if frame.image_bgr is not None and on_frame is not None:
                 on_frame(frame)
-            is_detect_frame = frame.index % detect_every == 0
-            if not is_detect_frame:
-                found = None
-            elif detections is not None:
-                found = detections.get(frame.index, [])
+            shown_t_s = frame.t_s
+            if clock is not None:
+                frame = replace(frame, t_s=float(clock[frame.index]))
+            before = len(rows)
+            if keys is not None:
+                rows.extend(_scheduled_step(frame, detector, tracker, keys, carrier))
             else:
-                found = detector.detect(frame.image_bgr)
-            rows.extend(tracker.update(frame.index, frame.t_s, found))
+                is_detect_frame = frame.index % detect_every == 0
+                if not is_detect_frame:
+                    found = None
+                elif detections is not None:
+                    found = detections.get(frame.index, [])
+                else:
+                    found = detector.detect(frame.image_bgr)
+                n_detected += found is not None
+                rows.extend(tracker.update(frame.index, frame.t_s, found))
+            if clock is not None:
+                rows[before:] = [replace(r, t_s=shown_t_s) for r in rows[before:]]
             n_seen = frame.index + 1
             bar.update(1)
+    if stats is not None:
+        stats["frames"] = n_seen
+        stats["keyframes"] = keys.n_keyframes if keys is not None else n_detected
+        stats["keyframe_reasons"] = dict(keys.reasons) if keys is not None else {}
     box_frames = [f for f, dets in (detections or {}).items() if dets]
     if box_frames and min(box_frames) >= n_seen:
         # Boxes made for another (longer) video: an empty result would look like an empty road.
@@ -95,6 +137,29 @@ def run_detect(source: Path, *, detector: Detector | None,
                          f"{max(box_frames)})", "is the detections file for this video?")
     return tracker.finalize(rows)
 
+
+def _scheduled_step(frame: Frame, detector: Detector, tracker: Tracker,
+                    keys: KeyframeSchedule, carrier: MedianFlow) -> list[TrackedBox]:
+    """One frame of the keyframe schedule: detect, or carry the shown boxes by flow."""
+    if keys.is_keyframe(frame.t_s):
+        found = detector.detect(frame.image_bgr)
+        out = tracker.update(frame.index, frame.t_s, found)
+        carrier.carry(frame.image_bgr, [])  # keeps this frame for the next carry
+        keys.after_keyframe(tracker, frame.t_s)
+        return out
+    ids, boxes = tracker.shown_boxes()
+    moved, ok = carrier.carry(frame.image_bgr, boxes)
+    out = tracker.update(frame.index, frame.t_s, None,
+                         measured={tid: moved[i] for i, tid in enumerate(ids) if ok[i]})
+    keys.after_carry(tracker, {tid: bool(ok[i]) for i, tid in enumerate(ids)})
+    return out
+
+
+LANE_INTERVAL_S = 0.2
+"""Lane markings are measured on one frame per this interval [s] (every 2nd frame at 10 fps,
+every 6th at 30 fps): about 6 ms a frame at 640 px wide, and ranging takes the median of the
+rows within a window of a second or more about each frame (lane_horizon_offsets), which
+half as many rows still fill."""
 
 # The lane vanishing point moves on curves; a median over this many sampled frames (every
 # 5th video frame: 2 s at 25 fps) is needed before it is trusted as straight ahead.
@@ -106,8 +171,9 @@ MAX_YAW_CORRECTION_DEG = 5.0
 def detect_and_range(video: Path, camera: Camera, *, detector, detections=None,
                      detect_every: int = 1, fps: float | None = None, progress: bool = True,
                      config: RangingConfig | None = None,
-                     tracker_config: TrackerConfig | None = None
-                     ) -> tuple[RangingResult, Camera, list[Note]]:
+                     tracker_config: TrackerConfig | None = None,
+                     schedule: ScheduleConfig | None = None, stats: dict | None = None,
+                     lane_every: int | None = None) -> tuple[RangingResult, Camera, list[Note]]:
     """Detect (or import), track and range every vehicle of a video: the shared core of
     ``vid2sim track`` and ``vid2sim build``.
 
@@ -128,6 +194,13 @@ def detect_and_range(video: Path, camera: Camera, *, detector, detections=None,
         Imported boxes, 0-based frame -> detections.
     fps : float, optional
         Frame rate of an image folder [frames/s].
+    schedule : ScheduleConfig, optional
+        Detector keyframes with optical flow between (see :func:`run_detect`).
+    stats : dict, optional
+        Filled with the counts of :func:`run_detect`.
+    lane_every : int, optional
+        Measure lane markings on every N-th decoded frame (default: one frame per
+        ``LANE_INTERVAL_S``).
 
     Returns
     -------
@@ -138,10 +211,11 @@ def detect_and_range(video: Path, camera: Camera, *, detector, detections=None,
         What was estimated and why, for the summary.
     """
     notes: list[Note] = []
-    # Every decoded frame: about 6 ms at 640 px wide, and the per-frame rows follow the
-    # horizon's drift (see lane_horizon_offsets).
-    horizon_est = HorizonEstimator(camera, every=1)
-    # The lane markings as a measurement (the ego lane per frame, ~3 ms at 1242x375).
+    if lane_every is None:
+        lane_every = max(1, round(LANE_INTERVAL_S * video_info(video, fps=fps).fps))
+    horizon_est = HorizonEstimator(camera, every=lane_every)
+    # The lane markings as a measurement (the ego lane per frame, ~3 ms at 1242x375): every
+    # decoded frame, since the ego's lateral position is filtered from them.
     markings = LaneMarkingDetector(camera)
     lane_obs = []
 
@@ -151,7 +225,8 @@ def detect_and_range(video: Path, camera: Camera, *, detector, detections=None,
 
     boxes = run_detect(video, detector=detector, detections=detections,
                        detect_every=detect_every, progress=progress, fps=fps,
-                       tracker_config=tracker_config, on_frame=on_frame)
+                       tracker_config=tracker_config, schedule=schedule, stats=stats,
+                       on_frame=on_frame)
     yaw_before = camera.yaw_deg
     # Lane markings also say where straight ahead is: correct the camera's yaw so the ego
     # corridor runs along the lane rather than along a slightly turned camera axis.

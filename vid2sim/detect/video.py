@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import queue
+import threading
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -12,7 +14,43 @@ from vid2sim.errors import InputError
 from vid2sim.records import Frame
 from vid2sim.videofile import image_files, open_capture, video_info
 
-__all__ = ["iter_frames", "video_info"]
+PREFETCH_FRAMES = 4
+"""Frames decoded ahead by :func:`prefetch`: enough to cover a keyframe's detector time at
+30 fps, little memory (4 x 6 MB at 1080p)."""
+MAX_NUMBERING_GAP = 1000
+"""Image names ending in frame numbers count as a numbering (``000010.png``, ``000015.png``:
+every 5th frame) when no two neighbours are more than this many frames apart; larger gaps
+mean the digits are something else (a clock in ns, a date)."""
+
+
+def frame_numbers(files: list[Path]) -> list[int] | None:
+    """The frame numbers at the end of the file names (``frame_000123.png`` -> 123), if every
+    name has one and they increase by 1 to ``MAX_NUMBERING_GAP``; else None."""
+    numbers = []
+    for f in files:
+        stem = f.stem
+        digits = stem[len(stem.rstrip("0123456789")):]
+        if not digits:
+            return None
+        numbers.append(int(digits))
+    gaps = np.diff(numbers)
+    if len(gaps) and not ((gaps >= 1) & (gaps <= MAX_NUMBERING_GAP)).all():
+        return None
+    return numbers
+
+
+def folder_frame_steps(path: Path) -> list[int] | None:
+    """For an image folder whose names carry frame numbers: the number of each image counted
+    from the first (``000010, 000015, 000020`` -> 0, 5, 10); None for a video or a folder
+    without a numbering."""
+    path = Path(path)
+    if not path.is_dir():
+        return None
+    numbers = frame_numbers(image_files(path))
+    return None if numbers is None else [n - numbers[0] for n in numbers]
+
+__all__ = ["folder_frame_steps", "frame_numbers", "iter_frames", "prefetch", "video_info"]
+
 
 def iter_frames(path: Path, every: int = 1, fps: float | None = None) -> Iterator[Frame]:
     """Stream the frames of a video file or image folder, decoding only every N-th one.
@@ -90,3 +128,53 @@ def _iter_video(path: Path, every: int, fps: float) -> Iterator[Frame]:
             raise InputError(path, "video has no decodable frames")
     finally:
         cap.release()
+
+
+def prefetch(frames: Iterator[Frame], depth: int = PREFETCH_FRAMES) -> Iterator[Frame]:
+    """Iterate ``frames`` with decoding in a background thread, up to ``depth`` frames ahead.
+
+    OpenCV's decoders and onnxruntime release the GIL, so decoding the next frames overlaps
+    the detector's work on this one. Errors raised by the reader (an :class:`InputError` on a
+    truncated video) are raised here, in the caller's thread, at the frame where they
+    occurred. Closing the generator stops the reader.
+    """
+    buffer: queue.Queue = queue.Queue(maxsize=max(1, int(depth)))
+    stop = threading.Event()
+    done = object()
+
+    def read() -> None:
+        try:
+            for frame in frames:
+                while not stop.is_set():
+                    try:
+                        buffer.put(frame, timeout=0.1)
+                        break
+                    except queue.Full:
+                        continue
+                if stop.is_set():
+                    return
+            buffer.put(done)
+        except BaseException as exc:  # noqa: BLE001 - handed to the consumer, raised there
+            buffer.put(exc)
+
+    reader = threading.Thread(target=read, name="vid2sim-decode", daemon=True)
+    reader.start()
+    try:
+        while True:
+            item = buffer.get()
+            if item is done:
+                return
+            if isinstance(item, BaseException):
+                raise item
+            yield item
+    finally:
+        stop.set()
+        # unblock a reader waiting on a full buffer, then let it finish
+        while reader.is_alive():
+            try:
+                buffer.get_nowait()
+            except queue.Empty:
+                reader.join(timeout=0.05)
+        close = getattr(frames, "close", None)
+        if close is not None:
+            close()

@@ -32,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from vid2sim.detect.boxes import box_area, intersection_matrix, iou_matrix
 from vid2sim.records import AnnotatedBox, Keyframe, ProjectedBox
 
 TP_IOU = 0.5
@@ -40,42 +41,6 @@ REFERENCE_MIN_IOU = 0.1
 """Reference study: pairs at or below this IoU are misses."""
 IGNORE_OVERLAP = 0.5
 """Fraction of a simulated box's area inside an ignore region above which it is not counted."""
-
-
-def iou_matrix(a_px: np.ndarray, b_px: np.ndarray) -> np.ndarray:
-    """Intersection over union of every box in ``a_px`` with every box in ``b_px``.
-
-    Parameters
-    ----------
-    a_px, b_px : array_like, shape (N, 4) and (M, 4)
-        Boxes (x1, y1, x2, y2) in pixels.
-
-    Returns
-    -------
-    ndarray, shape (N, M)
-        IoU in [0, 1]; 0 where the union is empty.
-    """
-    a = np.asarray(a_px, dtype=float).reshape(-1, 4)
-    b = np.asarray(b_px, dtype=float).reshape(-1, 4)
-    inter = _intersection(a, b)
-    area_a = _area(a)[:, None]
-    area_b = _area(b)[None, :]
-    union = area_a + area_b - inter
-    with np.errstate(invalid="ignore", divide="ignore"):
-        out = np.where(union > 0, inter / union, 0.0)
-    return out
-
-
-def _area(boxes: np.ndarray) -> np.ndarray:
-    return np.clip(boxes[:, 2] - boxes[:, 0], 0, None) * np.clip(boxes[:, 3] - boxes[:, 1], 0, None)
-
-
-def _intersection(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    x1 = np.maximum(a[:, None, 0], b[None, :, 0])
-    y1 = np.maximum(a[:, None, 1], b[None, :, 1])
-    x2 = np.minimum(a[:, None, 2], b[None, :, 2])
-    y2 = np.minimum(a[:, None, 3], b[None, :, 3])
-    return np.clip(x2 - x1, 0, None) * np.clip(y2 - y1, 0, None)
 
 
 def match_boxes(pred_px: Sequence[Sequence[float]] | np.ndarray,
@@ -122,8 +87,8 @@ def _ignored_predictions(pred: np.ndarray, ignore: np.ndarray, unmatched: list[i
     if not unmatched or ignore.size == 0:
         return set()
     sub = pred[unmatched]
-    inter = _intersection(sub, ignore)
-    area = _area(sub)[:, None]
+    inter = intersection_matrix(sub, ignore)
+    area = box_area(sub)[:, None]
     with np.errstate(invalid="ignore", divide="ignore"):
         frac = np.where(area > 0, inter / area, 0.0)
     return {unmatched[i] for i in np.flatnonzero((frac >= IGNORE_OVERLAP).any(axis=1))}

@@ -60,8 +60,8 @@ import cv2
 import numpy as np
 
 from vid2sim.camera import Camera, fit_camera_to_frames, load_camera, parse_kitti_calib
+from vid2sim.detect.boxes import iou_matrix
 from vid2sim.detect.external import KittiLabel, read_kitti_tracking_labels
-from vid2sim.detect.tracker import iou_matrix
 from vid2sim.errors import InputError
 from vid2sim.fileio import read_input_text, write_text_atomic
 from vid2sim.geo.readers import OXTS_PITCH, read_kitti_oxts_table

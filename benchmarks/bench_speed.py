@@ -1,0 +1,390 @@
+"""Throughput of ``vid2sim track`` (issue 15) and the accuracy of the same settings, printed.
+
+    python benchmarks/bench_speed.py [--shared ../shared] [--repeat 3] [--no-accuracy]
+                                     [--no-speed] [--no-720p] [--quick-720p] [--seeds 0 1 ...]
+
+Speed (best of ``--repeat`` runs; the machine is shared, so every figure is also given as a
+ratio to decoding the same video in the same process and run):
+
+1. KITTI raw 0001 (``../shared/data/kitti_raw_0001``, 108 frames, 10 fps, 10.8 s): decode
+   only, then ``track`` in-process (the application layer's ``run_track``, detector load
+   included) for the default keyframe schedule and for the detector on every frame
+   (``--keyframe-s 0``, the behaviour before the schedule): wall, x real time, x decode, time
+   per stage (detector, optical flow, lane markings, tracker, ranging; "other" is decode,
+   I/O and the rest), ONNX calls per frame, keyframe share and why keyframes were run. Then
+   ``vid2sim track`` and ``vid2sim build`` as subprocesses (interpreter start and imports
+   included), with their peak RSS.
+2. A generated 720p 30 fps clip of 60 s (KITTI raw frames played forward and backward,
+   scaled to 1280 px wide and reflect-padded to 720 rows): the same figures for ``track``.
+
+Accuracy of the same two settings (``--no-accuracy`` skips it):
+
+3. ``vid2sim detect`` on the six labelled KITTI tracking frames (a folder per sequence, as a
+   user runs it), scored by ``score_against_kitti``: recall/precision (bar 0.85 / 0.85).
+4. Real-box range error: ``vid2sim track`` on the same folders with ``camera_0001.yaml``;
+   every output box matched (IoU >= 0.5) to a labelled car/van/truck is compared with the
+   label's rear distance (Z - l/2): median |relative error| and signed median, near/far.
+5. Composite clips (a real car pasted into KITTI raw 0001 at a known trajectory,
+   ``vid2sim.samples.composite``), the real detector through the schedule: lead range median
+   |rel err|, bias, range-rate RMSE, presence (as benchmarks/bench_composite.py). A detector
+   run depends on its frame only, so the default detector runs once on every frame and
+   each setting gets the boxes of its keyframes from that pass.
+6. The demo sample built with the real detector: keyframe F1 and mean IoU.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import functools
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from collections import defaultdict
+from dataclasses import replace
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from vid2sim.app.commands import run_track
+from vid2sim.app.demo import run_demo
+from vid2sim.app.inputs import Inputs
+from vid2sim.app.settings import DetectorSettings, Settings
+from vid2sim.camera import fit_camera_to_frames, load_camera
+from vid2sim.detect import pipeline
+from vid2sim.detect.boxes import iou_matrix
+from vid2sim.detect.detector import OnnxDetector, load_detector
+from vid2sim.detect.external import (
+    MatchCounts,
+    read_kitti_tracking_labels,
+    score_against_kitti,
+)
+from vid2sim.detect.flow import MedianFlow
+from vid2sim.detect.lanes import HorizonEstimator
+from vid2sim.detect.tracker import Tracker
+from vid2sim.detect.video import iter_frames, video_info
+from vid2sim.records import Detection
+from vid2sim.samples import composite as cp
+
+SHARED = Path(__file__).resolve().parents[1].parent / "shared"
+STAGE_TIMES: dict[str, float] = defaultdict(float)
+CALLS: dict[str, int] = defaultdict(int)
+
+
+def _timed(name: str, fn):
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        t0 = time.perf_counter()
+        try:
+            return fn(*args, **kwargs)
+        finally:
+            STAGE_TIMES[name] += time.perf_counter() - t0
+    return wrapper
+
+
+def _instrument() -> None:
+    """Time the stages by wrapping their entry points (a benchmark only)."""
+    OnnxDetector.detect = _timed("detector", OnnxDetector.detect)
+    MedianFlow.carry = _timed("flow", MedianFlow.carry)
+    HorizonEstimator.add_frame = _timed("lanes", HorizonEstimator.add_frame)
+    Tracker.update = _timed("tracker", Tracker.update)
+    pipeline.range_tracks = _timed("ranging", pipeline.range_tracks)
+    original_run = OnnxDetector._raw_many, OnnxDetector._raw
+
+    def count_many(self, images):
+        CALLS["onnx"] += len({self._prepare(im)[0].shape for im in images})
+        return original_run[0](self, images)
+
+    def count_one(self, image):
+        CALLS["onnx"] += 1
+        return original_run[1](self, image)
+
+    OnnxDetector._raw_many = count_many
+    OnnxDetector._raw = count_one
+
+
+def decode_seconds(video: Path) -> float:
+    t0 = time.perf_counter()
+    for _ in iter_frames(video):
+        pass
+    return time.perf_counter() - t0
+
+
+def settings_for(model_dir: Path, keyframe_s: float | None) -> Settings:
+    d = DetectorSettings(model_dir=model_dir)
+    if keyframe_s is not None:
+        d = replace(d, keyframe_s=keyframe_s)
+    return Settings(detector=d, progress=False, allow_download=False)
+
+
+CONFIGS = (("default (keyframes)", None), ("every frame", 0.0))
+
+
+def speed(label: str, video: Path, camera: Path | None, model_dir: Path, repeat: int,
+          configs=CONFIGS) -> None:
+    info = video_info(video)
+    duration = info.n_frames / info.fps
+    print(f"\n{label}: {video.name}, {info.n_frames} frames, {info.width}x{info.height}, "
+          f"{info.fps:g} fps, {duration:.1f} s")
+    dec = min(decode_seconds(video) for _ in range(repeat))
+    print(f"  decode only: {dec:.2f} s = {duration / dec:.1f}x real time")
+    for name, keyframe_s in configs:
+        best = None
+        for _ in range(repeat):
+            STAGE_TIMES.clear()
+            CALLS.clear()
+            stats: dict = {}
+            original = pipeline.run_detect
+
+            def run_detect(*args, _stats=stats, _original=original, **kwargs):
+                kwargs["stats"] = _stats
+                return _original(*args, **kwargs)
+
+            pipeline.run_detect = run_detect
+            with tempfile.TemporaryDirectory() as tmp:
+                t0 = time.perf_counter()
+                run_track(Inputs(video=video, camera=camera), Path(tmp) / "tracks.csv",
+                          settings_for(model_dir, keyframe_s))
+                wall = time.perf_counter() - t0
+            pipeline.run_detect = original
+            dec_again = decode_seconds(video)
+            if best is None or wall / dec_again < best[0]:
+                best = (wall / dec_again, wall, dict(STAGE_TIMES), dict(CALLS), stats)
+        ratio, wall, stages, calls, stats = best
+        known = sum(stages.values())
+        parts = ", ".join(f"{k} {1e3 * v / info.n_frames:.1f}" for k, v in stages.items())
+        print(f"  track {name:20s}: {wall:6.2f} s = {duration / wall:5.2f}x real time, "
+              f"{ratio:5.1f}x decode; ms/frame: {parts}, other "
+              f"{1e3 * (wall - known) / info.n_frames:.1f}; ONNX calls/frame "
+              f"{calls.get('onnx', 0) / info.n_frames:.2f}; keyframes "
+              f"{stats.get('keyframes', 0)}/{stats.get('frames', 0)} "
+              f"{stats.get('keyframe_reasons', {})}")
+
+
+def cli_runs(raw: Path, model_dir: Path, repeat: int) -> None:
+    """`vid2sim track` and `vid2sim build` as a user runs them: wall and peak RSS."""
+    env = {**os.environ, "VID2SIM_MODEL_DIR": str(model_dir)}
+    video = raw / "video.mp4"
+    print("\nCLI on KITTI raw 0001 (subprocess: interpreter start and imports included)")
+    results = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        cmds = {
+            "track": ["track", str(video), "--camera", str(raw / "camera.yaml"),
+                      "--out", f"{tmp}/tracks.csv"],
+            "build": ["build", str(video), "--gps", str(raw), "--camera",
+                      str(raw / "camera.yaml"), "--offline", "--out", f"{tmp}/build"],
+        }
+        for name, args in cmds.items():
+            best = (np.inf, 0.0)
+            for _ in range(repeat):
+                t0 = time.perf_counter()
+                proc = subprocess.Popen([sys.executable, "-m", "vid2sim", "-q", *args], env=env,
+                                        stdout=subprocess.DEVNULL)
+                _, status, usage = os.wait4(proc.pid, 0)
+                proc.returncode = os.waitstatus_to_exitcode(status)
+                wall = time.perf_counter() - t0
+                if proc.returncode != 0:
+                    print(f"  {name}: exit {proc.returncode}")
+                    break
+                best = min(best, (wall, usage.ru_maxrss / 1024.0))
+            results[name] = best
+            print(f"  vid2sim {name}: {best[0]:.2f} s, peak RSS {best[1]:.0f} MiB")
+    if "track" in results and "build" in results:
+        print(f"  build / track: {results['build'][0] / results['track'][0]:.2f} (bar <= 1.5)")
+
+
+def make_720p_clip(raw: Path, out: Path, seconds: float = 60.0) -> Path:
+    """KITTI raw frames forward and backward at 30 fps, 1280 px wide, reflect-padded to 720."""
+    frames = [f.image_bgr for f in iter_frames(raw / "video.mp4")]
+    w, h = 1280, 720
+    scaled = []
+    for im in frames:
+        s = cv2.resize(im, (w, round(im.shape[0] * w / im.shape[1])),
+                       interpolation=cv2.INTER_LINEAR)
+        pad = h - s.shape[0]
+        scaled.append(cv2.copyMakeBorder(s, pad // 2, pad - pad // 2, 0, 0, cv2.BORDER_REFLECT))
+    order = list(range(len(scaled))) + list(range(len(scaled) - 2, 0, -1))
+    writer = cv2.VideoWriter(str(out), cv2.VideoWriter_fourcc(*"mp4v"), 30.0, (w, h))
+    for k in range(round(seconds * 30)):
+        writer.write(scaled[order[k % len(order)]])
+    writer.release()
+    return out
+
+
+# --------------------------------------------------------------------------- accuracy
+
+
+def run_cli(args: list[str], model_dir: Path) -> None:
+    env = {**os.environ, "VID2SIM_MODEL_DIR": str(model_dir)}
+    subprocess.run([sys.executable, "-m", "vid2sim", "-q", *args], env=env, check=True)
+
+
+def read_rows(path: Path) -> list[dict]:
+    with open(path, newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+def sparse_folders(tracking: Path, model_dir: Path, keyframe_s: float) -> None:
+    """vid2sim detect and track on each labelled folder: recall/precision, range error."""
+    counts = MatchCounts(0, 0, 0, 0)
+    errors: list[tuple[float, float]] = []  # (true rear distance, relative error)
+    with tempfile.TemporaryDirectory() as tmp:
+        for seq in ("0001", "0016"):
+            folder = tracking / "image_02" / seq
+            labels = read_kitti_tracking_labels(tracking / "label_02" / f"{seq}.txt")
+            pngs = sorted(folder.glob("*.png"))
+            det_csv, trk_csv = Path(tmp) / f"d{seq}.csv", Path(tmp) / f"t{seq}.csv"
+            run_cli(["detect", str(folder), "--keyframe-s", str(keyframe_s),
+                     "--out", str(det_csv)], model_dir)
+            run_cli(["track", str(folder), "--camera", str(tracking / "camera_0001.yaml"),
+                     "--keyframe-s", str(keyframe_s), "--out", str(trk_csv)], model_dir)
+            dets, trks = read_rows(det_csv), read_rows(trk_csv)
+            for i, png in enumerate(pngs):
+                frame_labels = labels.get(int(png.stem), [])
+                found = [Detection(tuple(float(r[k]) for k in ("x1", "y1", "x2", "y2")),
+                                   float(r["score"]), r["category"])
+                         for r in dets if int(r["frame"]) == i]
+                counts = counts + score_against_kitti(found, frame_labels)
+                vehicles = [lab for lab in frame_labels if lab.type in ("Car", "Van", "Truck")]
+                rows = [r for r in trks if int(r["frame"]) == i and r["range_m"] not in ("", "nan")]
+                if not vehicles or not rows:
+                    continue
+                iou = iou_matrix(np.array([[float(r[k]) for k in ("x1", "y1", "x2", "y2")]
+                                           for r in rows]),
+                                 np.array([lab.box_px for lab in vehicles]))
+                for j, r in enumerate(rows):
+                    k = int(iou[j].argmax())
+                    if iou[j, k] >= 0.5:
+                        truth = vehicles[k].location_m[2] - vehicles[k].size_hwl_m[2] / 2
+                        errors.append((truth, (float(r["range_m"]) - truth) / truth))
+    e = np.array(errors).reshape(-1, 2)
+    near, far = e[e[:, 0] < 20], e[e[:, 0] >= 20]
+
+    def fmt(a: np.ndarray) -> str:
+        if len(a) == 0:
+            return "-"
+        return (f"|rel| {100 * np.median(np.abs(a[:, 1])):.1f} %, bias "
+                f"{100 * np.median(a[:, 1]):+.1f} % ({len(a)})")
+
+    print(f"  keyframe {keyframe_s:g} s: detect on the 6 labelled frames recall "
+          f"{counts.recall:.2f} precision {counts.precision:.2f} ({counts.n_found}/"
+          f"{counts.n_targets}, {counts.n_false}/{counts.n_detections} false); track range: "
+          f"all {fmt(e)}; < 20 m {fmt(near)}; >= 20 m {fmt(far)}")
+
+
+class FrameCache:
+    """The default detector's boxes of every frame of a clip, found once: a detector run
+    depends on its frame only, so the keyframe schedule gets the boxes it would compute."""
+
+    def __init__(self, detector, video: Path):
+        self.boxes = {f.index: detector.detect(f.image_bgr) for f in iter_frames(video)}
+        self.images: dict[bytes, int] = {}
+
+    def detect(self, image_bgr: np.ndarray) -> list[Detection]:
+        key = image_bgr.tobytes()[:: 9973]  # frames differ; a sparse fingerprint finds them
+        return self.boxes[self.images[key]]
+
+    def learn(self, video: Path) -> None:
+        for f in iter_frames(video):
+            self.images[f.image_bgr.tobytes()[:: 9973]] = f.index
+
+
+def composite(shared: Path, model_dir: Path, seeds: list[int]) -> None:
+    data = shared / "data"
+    raw, tracking = data / "kitti_raw_0001", data / "kitti_tracking"
+    cutout = cp.load_cutout(tracking, "polo")
+    detector = load_detector("yolox-nano", model_dir,
+                             score_threshold=Settings().tracker_config().low_score)
+    with tempfile.TemporaryDirectory() as tmp:
+        clips = []
+        for seed in seeds:
+            truth = cp.lead_profile(seed, 108)
+            clip = cp.write_composite_clip(raw, cutout, truth, Path(tmp) / f"c{seed}.mp4")
+            cache = FrameCache(detector, clip.video)
+            cache.learn(clip.video)
+            clips.append((truth, clip, cache))
+        for keyframe_s in (DetectorSettings().keyframe_s, 0.0):
+            composite_score(raw, clips, seeds, keyframe_s, model_dir)
+
+
+def composite_score(raw: Path, clips: list, seeds: list[int], keyframe_s: float,
+                    model_dir: Path) -> None:
+    schedule = settings_for(model_dir, keyframe_s).detector.schedule()
+    rel, sign, rate, present = [], [], [], []
+    for truth, clip, cache in clips:
+        info = video_info(clip.video)
+        camera, _ = fit_camera_to_frames(load_camera(raw / "camera.yaml"), info.width,
+                                         info.height)
+        result, _, _ = pipeline.detect_and_range(clip.video, camera, detector=cache,
+                                                 progress=False, schedule=schedule)
+        lead = {b.frame: b for b in result.boxes if b.is_lead}
+        for i, tb in enumerate(clip.boxes_px):
+            b = lead.get(i)
+            ok = b is not None and tb is not None and cp.box_iou(
+                (b.x1, b.y1, b.x2, b.y2), tb) >= 0.5
+            present.append(ok)
+            if ok:
+                err = (b.range_m - truth.range_m[i]) / truth.range_m[i]
+                rel.append(abs(err))
+                sign.append(err)
+                if np.isfinite(b.range_rate_mps):
+                    rate.append(b.range_rate_mps - truth.range_rate_mps[i])
+    print(f"  keyframe {keyframe_s:g} s: composite seeds {seeds}: lead range |rel| median "
+          f"{100 * np.median(rel):.1f} %, bias {100 * np.median(sign):+.1f} %, rate RMSE "
+          f"{np.sqrt(np.mean(np.square(rate))):.2f} m/s, presence {100 * np.mean(present):.0f} %")
+
+
+def demo(model_dir: Path, keyframe_s: float) -> None:
+    with tempfile.TemporaryDirectory() as tmp:
+        t0 = time.perf_counter()
+        result = run_demo(Path(tmp), settings=settings_for(model_dir, keyframe_s))
+        wall = time.perf_counter() - t0
+    m = result.metrics or {}
+    print(f"  keyframe {keyframe_s:g} s: demo with the real detector: keyframe F1 "
+          f"{m.get('f1', float('nan')):.3f}, mean IoU {m.get('mean_iou', float('nan')):.3f} "
+          f"(build {wall:.0f} s)")
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--shared", type=Path, default=SHARED)
+    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--no-accuracy", action="store_true")
+    parser.add_argument("--no-speed", action="store_true")
+    parser.add_argument("--no-720p", action="store_true")
+    parser.add_argument("--quick-720p", action="store_true",
+                        help="the 720p clip with the default settings only")
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3, 4, 5])
+    args = parser.parse_args(argv)
+    data, model_dir = args.shared / "data", args.shared / "models"
+    raw = data / "kitti_raw_0001"
+    for p in (raw, data / "kitti_tracking", model_dir):
+        if not p.exists():
+            print(f"missing {p}", file=sys.stderr)
+            return 2
+    if not args.no_speed:
+        _instrument()
+        speed("KITTI raw 0001", raw / "video.mp4", raw / "camera.yaml", model_dir, args.repeat)
+        cli_runs(raw, model_dir, args.repeat)
+        if not args.no_720p:
+            with tempfile.TemporaryDirectory() as tmp:
+                clip = make_720p_clip(raw, Path(tmp) / "clip720.mp4")
+                speed("generated 720p clip", clip, None, model_dir, max(1, args.repeat - 1),
+                      CONFIGS[:1] if args.quick_720p else CONFIGS)
+    if not args.no_accuracy:
+        print("\naccuracy, default keyframes against the detector on every frame")
+        for keyframe_s in (DetectorSettings().keyframe_s, 0.0):
+            sparse_folders(data / "kitti_tracking", model_dir, keyframe_s)
+        composite(args.shared, model_dir, args.seeds)
+        for keyframe_s in (DetectorSettings().keyframe_s, 0.0):
+            demo(model_dir, keyframe_s)
+    print(f"\npeak RSS of this process {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MiB")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
