@@ -7,19 +7,16 @@ OpenSCENARIO/OpenDRIVE writing, on a synthetic scenario (curved 1.2 km road, 3 l
 from __future__ import annotations
 
 import argparse
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from tests.export.scenarios import ORIGIN, _traj_along
 from vid2sim.adas.policies import AccPolicy, AebPolicy, run_episode
 from vid2sim.export.highway import ReplayEnv
 from vid2sim.export.openscenario import write_openscenario
+from vid2sim.samples.scenarios import ORIGIN, trajectory_along
 from vid2sim.scenario import Actor, Ego, Road, Scenario, Source
 
 
@@ -30,13 +27,13 @@ def synthetic(n_actors: int, duration_s: float) -> Scenario:
     pts = np.column_stack((np.r_[0, np.cumsum(np.cos(h[:-1]))], np.r_[0, np.cumsum(np.sin(h[:-1]))]))
     t = np.round(np.arange(0.0, duration_s + 1e-9, 0.1), 6)
     road = Road("r", "bench", "primary", "osm", [1], 3, 3.5, pts)
-    ego = _traj_along(pts, 10.0 + 12.0 * t, t, 0.0)
+    ego = trajectory_along(pts, 10.0 + 12.0 * t, t, 0.0)
     rng = np.random.default_rng(0)
     actors = []
     for i in range(n_actors):
         lane = rng.integers(-1, 2)
         v = rng.uniform(9.0, 15.0)
-        actors.append(Actor(str(i), "car", 4.5, 1.8, 1.5, _traj_along(
+        actors.append(Actor(str(i), "car", 4.5, 1.8, 1.5, trajectory_along(
             pts, 30.0 + 15.0 * i + v * t, t, 3.5 * lane)))
     return Scenario(ORIGIN, [road], Ego(4.5, 1.8, 1.5, ego), actors, {}, Source())
 

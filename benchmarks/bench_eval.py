@@ -9,21 +9,20 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
+import os
 import tempfile
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from tests.conftest import DATA
-from tests.evaluate.conftest import make_scenario
-from tests.evaluate.test_replay import scenario_from_kitti_labels
 from vid2sim.camera import load_camera
 from vid2sim.evaluate.metrics import score_keyframes
 from vid2sim.evaluate.replay import _env_available, replay_boxes, run_eval
 from vid2sim.records import AnnotatedBox, Keyframe
+from vid2sim.samples.scenarios import parallel_traffic_scenario as make_scenario
+from vid2sim.samples.scenarios import scenario_from_kitti_labels
 from vid2sim.scenario import save
+
+DATA = Path(os.environ.get("VID2SIM_SHARED", Path(__file__).resolve().parents[2] / "shared")) / "data"
 
 
 def _timed(label: str, fn, *args, **kwargs):

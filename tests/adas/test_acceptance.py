@@ -14,11 +14,11 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 from tests.adas.conftest import recorded_gaps
-from tests.export.scenarios import braking_lead_scenario
 from vid2sim.adas.episode import run_episode
 from vid2sim.adas.registry import parse_policy
 from vid2sim.cli import main
 from vid2sim.export.highway import ReplayEnv
+from vid2sim.samples.scenarios import braking_lead_scenario
 from vid2sim.scenario import save
 
 CONTRACT = ["scenario", "policy", "variation", "collision", "min_ttc_s", "min_headway_s",
@@ -78,7 +78,7 @@ def test_check_env_passes_on_real_and_made_scenarios(which, request, tmp_path):
 
         sc = _camera_relative()
     else:
-        from tests.export.scenarios import follower_scenario
+        from vid2sim.samples.scenarios import follower_scenario
 
         sc = follower_scenario()  # a follower, nobody ahead: info without a lead throughout
     for config in ({}, {"reactive": True}, {"lateral_control": True}):

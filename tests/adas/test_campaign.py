@@ -13,8 +13,8 @@ import cv2
 import numpy as np
 import pytest
 
-from tests.export.scenarios import braking_lead_scenario
 from vid2sim.cli import main
+from vid2sim.samples.scenarios import braking_lead_scenario
 from vid2sim.scenario import load, save
 
 GRID = "lead_decel=1:2:3,gap=0.6:1:3"

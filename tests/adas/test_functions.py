@@ -10,13 +10,6 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from tests.export.scenarios import (
-    ORIGIN,
-    _s_profile,
-    _traj_along,
-    left_turn_centerline,
-    make_scenario,
-)
 from vid2sim.adas.episode import run_episode
 from vid2sim.adas.functions import (
     AdaptiveCruise,
@@ -27,6 +20,13 @@ from vid2sim.adas.functions import (
 )
 from vid2sim.adas.registry import parse_policy
 from vid2sim.adas.sensor import CameraFrame, SensorConfig, Track
+from vid2sim.samples.scenarios import (
+    ORIGIN,
+    _s_profile,
+    left_turn_centerline,
+    make_scenario,
+    trajectory_along,
+)
 from vid2sim.scenario import Actor, Ego, Road, Scenario, Source, Trajectory
 
 KMH = 1 / 3.6
@@ -41,13 +41,13 @@ def ncap_scenario(ego_kmh: float, target_kmh: float, gap_m: float, target_decel_
     line = np.array([[0.0, 0.0], [600.0, 0.0]])
     t = np.round(np.arange(0.0, duration_s + 1e-9, 0.1), 6)
     v_e, v_t = ego_kmh * KMH, target_kmh * KMH
-    ego = _traj_along(line, 20.0 + v_e * t, t, -1.75)
+    ego = trajectory_along(line, 20.0 + v_e * t, t, -1.75)
     if target_decel_mps2 > 0:
         _, s_t = _s_profile(t, v_t, brake_at_s, target_decel_mps2, 0.0)
     else:
         s_t = v_t * t
     target = Actor("target", "car", 4.5, 1.8, 1.5,
-                   _traj_along(line, 20.0 + gap_m + 4.5 + s_t, t, -1.75))
+                   trajectory_along(line, 20.0 + gap_m + 4.5 + s_t, t, -1.75))
     road = Road("r", "test track", "primary", "osm", [1], 2, 3.5, line)
     return Scenario(ORIGIN, [road], Ego(4.5, 1.8, 1.5, ego), [target], {"fx": 720.0},
                     Source(tool_version="test"))
@@ -123,10 +123,10 @@ def test_acc_settles_at_the_idm_equilibrium_gap():
     # s = (s0 + v T) / sqrt(1 - (v / v0)^4) = 33 / sqrt(1 - (2/3)^4) = 36.8 m (1.84 s)
     line = np.array([[0.0, 0.0], [2000.0, 0.0]])
     t = np.round(np.arange(0.0, 60.0 + 1e-9, 0.1), 6)
-    ego = _traj_along(line, 20.0 + 20.0 * t, t, 0.0)
+    ego = trajectory_along(line, 20.0 + 20.0 * t, t, 0.0)
     ego = Trajectory(ego.t, ego.x, ego.y, ego.heading, np.full(len(t), 30.0))  # set speed
     ego.speed[0] = 20.0
-    lead = Actor("lead", "car", 4.5, 1.8, 1.5, _traj_along(line, 84.5 + 20.0 * t, t, 0.0))
+    lead = Actor("lead", "car", 4.5, 1.8, 1.5, trajectory_along(line, 84.5 + 20.0 * t, t, 0.0))
     sc = Scenario(ORIGIN, [Road("r", "", "primary", "osm", [1], 1, 3.5, line)],
                   Ego(4.5, 1.8, 1.5, ego), [lead], {}, Source())
     r = run_episode(sc, parse_policy("acc"))
@@ -162,7 +162,7 @@ def test_lane_keeping_brings_an_offset_ego_back_to_the_lane_centre():
 
     line = np.array([[0.0, 0.0], [400.0, 0.0]])
     t = np.round(np.arange(0.0, 10.0 + 1e-9, 0.1), 6)
-    ego = _traj_along(line, 10.0 + 12.0 * t, t, -1.75 + 0.6)  # 0.6 m left of the lane centre
+    ego = trajectory_along(line, 10.0 + 12.0 * t, t, -1.75 + 0.6)  # 0.6 m left of the lane centre
     sc = Scenario(ORIGIN, [Road("r", "", "primary", "osm", [1], 2, 3.5, line)],
                   Ego(4.5, 1.8, 1.5, ego), [], {}, Source())
     spec = parse_policy("lka")

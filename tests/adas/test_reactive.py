@@ -12,12 +12,12 @@ import csv
 import numpy as np
 import pytest
 
-from tests.export.scenarios import follower_scenario
 from vid2sim.adas.episode import run_episode
 from vid2sim.adas.registry import parse_policy
 from vid2sim.cli import main
 from vid2sim.export.highway import HandoverRule, ReactiveVehicle, ReplayEnv
 from vid2sim.export.highway.vehicles import conflict
+from vid2sim.samples.scenarios import follower_scenario
 from vid2sim.scenario import save
 
 BRAKE = np.array([-1.0], np.float32)  # -8 m/s^2

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tests.export.scenarios import straight_scenario
 from vid2sim.adas.episode import run_episode
 from vid2sim.adas.functions import AdaptiveCruise, DrivingFunction, RecordedDriver
 from vid2sim.adas.registry import parse_policy
 from vid2sim.errors import InputError
+from vid2sim.samples.scenarios import straight_scenario
 
 USER = '''
 import numpy as np

@@ -11,7 +11,6 @@ from gymnasium.utils.env_checker import check_env
 from hypothesis import given
 from hypothesis import strategies as st
 
-from tests.export.scenarios import ORIGIN, _traj_along, straight_scenario
 from vid2sim.adas.sensor import (
     CameraGeometry,
     CameraSensor,
@@ -23,6 +22,7 @@ from vid2sim.adas.sensor import (
     read_frame,
 )
 from vid2sim.export.highway import ReplayEnv
+from vid2sim.samples.scenarios import ORIGIN, straight_scenario, trajectory_along
 from vid2sim.scenario import Actor, Ego, Road, Scenario, Source
 
 KITTI = CameraGeometry(focal_px=721.5377, height_m=1.65, hfov_rad=2 * math.atan(621 / 721.5377))
@@ -35,9 +35,9 @@ def parked_lead_scenario(range_m: float, lateral_m: float = 0.0, duration_s: flo
     the camera is), offset ``lateral_m`` to the left; the bumper gap is ``range_m`` - 2.25."""
     line = np.array([[-50.0, 0.0], [400.0, 0.0]])
     t = np.round(np.arange(0.0, duration_s + 1e-9, 0.1), 6)
-    ego = _traj_along(line, 50.0 + 0 * t, t, 0.0)
+    ego = trajectory_along(line, 50.0 + 0 * t, t, 0.0)
     car = Actor("car", "car", 4.4, 1.8, 1.5,
-                _traj_along(line, 50.0 + range_m + 2.2 + 0 * t, t, lateral_m))
+                trajectory_along(line, 50.0 + range_m + 2.2 + 0 * t, t, lateral_m))
     road = Road("r", "", "primary", "osm", [1], 3, 3.5, line)
     cam = camera or {"fx": 721.5377, "height_m": 1.65, "image_width": 1242}
     return Scenario(ORIGIN, [road], Ego(4.5, 1.8, 1.5, ego), [car], cam, Source())

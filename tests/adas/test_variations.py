@@ -9,7 +9,6 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from tests.export.scenarios import BRAKING_LEAD, braking_lead_scenario, straight_scenario
 from vid2sim.adas.variations import (
     MAX_GRID,
     PARAMETERS,
@@ -25,6 +24,7 @@ from vid2sim.adas.variations import (
 )
 from vid2sim.errors import InputError
 from vid2sim.export.highway import ReplayEnv
+from vid2sim.samples.scenarios import BRAKING_LEAD, braking_lead_scenario, straight_scenario
 from vid2sim.scenario import Trajectory
 
 
@@ -173,10 +173,10 @@ def test_impossible_variants_are_skipped_with_a_reason():
 
 @given(st.floats(-50.0, 50.0), st.floats(1.0, 20.0))
 def test_shifting_along_the_path_is_reversible(shift, speed):
-    from tests.export.scenarios import _traj_along, left_turn_centerline
+    from vid2sim.samples.scenarios import left_turn_centerline, trajectory_along
 
     t = np.round(np.arange(0.0, 8.0 + 1e-9, 0.1), 6)
-    tr = _traj_along(left_turn_centerline(), 20.0 + speed * t, t)
+    tr = trajectory_along(left_turn_centerline(), 20.0 + speed * t, t)
     back = shift_along(shift_along(tr, shift), -shift)
     # exact where both shifts stay on the recorded path (beyond it, straight extrapolation
     # from a curve's end is not the curve)

@@ -18,7 +18,8 @@ from vid2sim.evaluate.replay import (
     replay_boxes,
     run_eval,
 )
-from vid2sim.scenario import Actor, Ego, Scenario, Source, Trajectory, save
+from vid2sim.samples.scenarios import scenario_from_kitti_labels
+from vid2sim.scenario import save
 from vid2sim.videofile import read_frames
 
 # Actors that never hide each other: (id, forward [m], lateral [m], speed [m/s], t0, t1)
@@ -255,37 +256,6 @@ def test_cli_eval_and_bad_input(tmp_path, visible_scenario, capsys):
 
 
 # --------------------------------------------------------------------------- KITTI tracking
-
-
-def scenario_from_kitti_labels(label_file: Path, numbers: tuple[int, ...], fps: float,
-                               camera) -> Scenario:
-    """A camera-relative scenario (static ego) whose actors sit where KITTI's 3D labels put
-    the vehicles: vehicle x = camera Z, y = -camera X; yaw from rotation_y."""
-    tracks: dict[str, list[tuple[float, float, float, float, tuple[float, float, float]]]] = {}
-    for line in label_file.read_text().splitlines():
-        f = line.split()
-        if int(f[0]) not in numbers or f[2] not in ("Car", "Van", "Truck"):
-            continue
-        h, w, length, x, _y, z, ry = map(float, f[10:17])
-        t = numbers.index(int(f[0])) / fps
-        yaw = math.atan2(-math.cos(ry), -math.sin(ry))
-        tracks.setdefault(f[1], []).append((t, z, -x, yaw, (length, w, h)))
-    actors = []
-    for tid, pts in tracks.items():
-        pts.sort()
-        if len(pts) == 1:  # a single sighting: hold it for a moment so it has a trajectory
-            pts.append((pts[0][0] + 1e-3, *pts[0][1:]))
-        t, xs, ys, yaws, sizes = zip(*pts, strict=True)
-        length, w, h = sizes[0]
-        actors.append(Actor(tid, "car", length, w, h,
-                            Trajectory(t=t, x=xs, y=ys, heading=yaws, speed=np.zeros(len(t)))))
-    t_ego = np.array([0.0, (len(numbers) - 1) / fps])
-    ego = Ego(4.5, 1.8, 1.5, Trajectory(t=t_ego, x=[0, 0], y=[0, 0], heading=[0, 0],
-                                        speed=[0, 0]))
-    from vid2sim.records import Origin
-
-    return Scenario(origin=Origin(49.0, 8.4, 0.0), roads=[], ego=ego, actors=actors,
-                    camera=camera.to_dict(), source=Source(assumptions=["from KITTI 3D labels"]))
 
 
 @pytest.mark.parametrize("seq, numbers", [("0001", (10, 15, 20)), ("0016", (2, 7, 12))])

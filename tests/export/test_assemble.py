@@ -168,8 +168,7 @@ def test_heading_regularised_by_the_road_axis():
 
 def test_road_axis_follows_a_curved_centerline():
     from vid2sim.export.assemble import road_axis_heading
-
-    from .scenarios import left_turn_centerline
+    from vid2sim.samples.scenarios import left_turn_centerline
 
     road = straight_road_for(ego_track())
     road.centerline = left_turn_centerline()

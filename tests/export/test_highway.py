@@ -15,9 +15,8 @@ import vid2sim  # noqa: F401  registers the environment
 from vid2sim.adas.policies import AccPolicy, AebPolicy, FollowLogPolicy, run_episode
 from vid2sim.errors import InputError
 from vid2sim.export.highway import ReplayEnv, enu_to_hw, hw_to_enu
+from vid2sim.samples.scenarios import left_turn_scenario, straight_scenario
 from vid2sim.scenario import save
-
-from .scenarios import left_turn_scenario, straight_scenario
 
 ZERO = np.zeros(1, dtype=np.float32)
 
@@ -332,8 +331,7 @@ def test_exported_replay_script_runs(tmp_path):
     from pathlib import Path
 
     from vid2sim.cli import main
-
-    from .scenarios import braking_lead_scenario
+    from vid2sim.samples.scenarios import braking_lead_scenario
 
     path = tmp_path / "scenario.json"
     save(braking_lead_scenario(), path)

@@ -16,9 +16,13 @@ from hypothesis import strategies as st
 from vid2sim.cli import main
 from vid2sim.export.openscenario import fit_reference_line, write_openscenario
 from vid2sim.geo.frames import EnuFrame
+from vid2sim.samples.scenarios import (
+    ORIGIN,
+    left_turn_centerline,
+    left_turn_scenario,
+    straight_scenario,
+)
 from vid2sim.scenario import save
-
-from .scenarios import ORIGIN, left_turn_centerline, left_turn_scenario, straight_scenario
 
 # scenariogeneration installs its XSDs in site-packages/schemas/
 SCHEMAS = Path(scenariogeneration.__file__).resolve().parents[1] / "schemas"

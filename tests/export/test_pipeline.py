@@ -49,7 +49,7 @@ def test_camera_relative_scenario_replays_and_exports(tmp_path):
 
 
 def test_scenario_without_roads_gets_a_straight_road_everywhere(tmp_path):
-    from .scenarios import straight_scenario
+    from vid2sim.samples.scenarios import straight_scenario
 
     sc = straight_scenario(duration_s=3.0)
     sc.roads = []

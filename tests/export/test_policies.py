@@ -9,8 +9,7 @@ import pytest
 
 from vid2sim.adas.policies import AccPolicy, AebPolicy, accel_to_action, run_episode
 from vid2sim.export.highway import ReplayEnv
-
-from .scenarios import straight_scenario
+from vid2sim.samples.scenarios import straight_scenario
 
 
 def test_accel_to_action_is_the_inverse_linear_map():

@@ -1,16 +1,21 @@
-"""Synthetic scenarios built in code for the export tests (straight road, curve, left turn)."""
+"""Scenarios built in code (straight road, curve, left turn, braking lead, follower, parallel
+traffic, KITTI labels as actors) for tests, benchmarks and examples."""
 
 from __future__ import annotations
 
+import math
+from pathlib import Path
+
 import numpy as np
 
+from vid2sim.camera import Camera
 from vid2sim.records import Origin
 from vid2sim.scenario import Actor, Ego, Road, Scenario, Source, Trajectory
 
 ORIGIN = Origin(60.17, 24.94, 12.0)
 
 
-def _traj_along(points_m: np.ndarray, s_of_t: np.ndarray, t_s: np.ndarray,
+def trajectory_along(points_m: np.ndarray, s_of_t: np.ndarray, t_s: np.ndarray,
                 left_offset_m: float = 0.0) -> Trajectory:
     """A trajectory moving along a polyline by arc length s(t), shifted to the left."""
     d = np.diff(points_m, axis=0)
@@ -43,15 +48,15 @@ def make_scenario(centerline: np.ndarray, lanes: int = 2, lane_width_m: float = 
     t = np.round(np.arange(0.0, duration_s + 1e-9, dt_s), 6)
     road = Road("r1", "Test road", "primary", "osm", [1], lanes, lane_width_m, centerline)
     ego_left_m = ((lanes - 1) / 2.0 - ego_lane_from_left) * lane_width_m
-    ego = _traj_along(centerline, 5.0 + ego_speed_mps * t, t, ego_left_m)
+    ego = trajectory_along(centerline, 5.0 + ego_speed_mps * t, t, ego_left_m)
     actors = []
     if with_actors:
         lead_v = np.where(t < 4.0, ego_speed_mps, np.maximum(ego_speed_mps - 2.0 * (t - 4.0), 3.0))
         lead_s = 30.0 + np.r_[0.0, np.cumsum(0.5 * (lead_v[1:] + lead_v[:-1]) * np.diff(t))]
-        actors.append(Actor("7", "car", 4.4, 1.8, 1.5, _traj_along(centerline, lead_s, t,
+        actors.append(Actor("7", "car", 4.4, 1.8, 1.5, trajectory_along(centerline, lead_s, t,
                                                                      ego_left_m)))
         tb = t[(t >= 2.0) & (t <= 9.0)]
-        actors.append(Actor("9", "truck", 8.0, 2.5, 3.2, _traj_along(
+        actors.append(Actor("9", "truck", 8.0, 2.5, 3.2, trajectory_along(
             centerline, 12.0 + (ego_speed_mps + 1.0) * tb, tb, ego_left_m + lane_width_m)))
     return Scenario(ORIGIN, [road], Ego(4.5, 1.8, 1.5, ego), actors, {"fx": 700.0},
                     Source(tool_version="test"))
@@ -100,11 +105,11 @@ def braking_lead_scenario(duration_s: float = 12.0, dt_s: float = 0.1) -> Scenar
                           p["decel_mps2"], p["end_speed_mps"])
     _, s_lead = _s_profile(t, p["speed_mps"], p["lead_brake_s"], p["decel_mps2"],
                            p["end_speed_mps"])
-    ego = _traj_along(line, 5.0 + s_ego, t, right)
+    ego = trajectory_along(line, 5.0 + s_ego, t, right)
     lead = Actor("lead", "car", 4.4, 1.8, 1.5,
-                 _traj_along(line, 5.0 + p["lead_ahead_m"] + s_lead, t, right))
+                 trajectory_along(line, 5.0 + p["lead_ahead_m"] + s_lead, t, right))
     passing = Actor("left", "car", 4.6, 1.85, 1.5,
-                    _traj_along(line, -10.0 + 16.0 * t, t, right + 3.5))
+                    trajectory_along(line, -10.0 + 16.0 * t, t, right + 3.5))
     return Scenario(ORIGIN, [road], Ego(4.5, 1.8, 1.5, ego), [lead, passing],
                     {"fx": 720.0, "height_m": 1.4, "image_width": 1280},
                     Source(tool_version="test"))
@@ -118,8 +123,82 @@ def follower_scenario(duration_s: float = 8.0, dt_s: float = 0.1,
     t = np.round(np.arange(0.0, duration_s + 1e-9, dt_s), 6)
     road = Road("r1", "Straight", "primary", "osm", [1], lanes, 3.5, line)
     right = -(lanes - 1) * 3.5 / 2
-    ego = _traj_along(line, 50.0 + 10.0 * t, t, right)
+    ego = trajectory_along(line, 50.0 + 10.0 * t, t, right)
     follower = Actor("follower", "car", 4.5, 1.8, 1.5,
-                     _traj_along(line, 50.0 - follower_behind_m + 10.0 * t, t, right))
+                     trajectory_along(line, 50.0 - follower_behind_m + 10.0 * t, t, right))
     return Scenario(ORIGIN, [road], Ego(4.5, 1.8, 1.5, ego), [follower], {},
                     Source(tool_version="test"))
+
+
+# --------------------------------------------------------------------------- camera-relative
+
+KITTI_LIKE_CAMERA = Camera(image_width=1242, image_height=375, fx=721.5, fy=721.5, cx=609.6, cy=172.9,
+                height_m=1.65)
+
+
+def straight_trajectory(t_s: np.ndarray, x0_m: float, y0_m: float, heading_rad: float,
+                        speed_mps: float) -> Trajectory:
+    """Constant speed along a fixed heading from (x0, y0) in ENU."""
+    t = np.asarray(t_s, dtype=float)
+    d = speed_mps * (t - t[0])
+    return Trajectory(t=t, x=x0_m + d * math.cos(heading_rad), y=y0_m + d * math.sin(heading_rad),
+                      heading=np.full(t.size, heading_rad), speed=np.full(t.size, speed_mps))
+
+
+def parallel_traffic_scenario(heading_rad: float = 0.6, duration_s: float = 4.0, ego_speed_mps: float = 10.0,
+                  actors: list[tuple[str, float, float, float, float, float]] | None = None,
+                  camera: Camera = KITTI_LIKE_CAMERA) -> Scenario:
+    """A straight two-lane road along ``heading_rad`` with the ego at 10 m/s and actors given as
+    (id, start forward offset [m], lateral offset [m, left +], speed [m/s], t_start, t_end)
+    relative to the ego's start pose; actors drive parallel to the ego."""
+    if actors is None:
+        actors = [("lead", 20.0, 0.0, 8.0, 0.0, duration_s),
+                  ("left", 12.0, 3.5, 12.0, 0.0, duration_s),
+                  ("right_far", 45.0, -3.5, 9.0, 1.0, duration_s),
+                  ("hidden", 40.0, 0.0, 8.0, 0.0, duration_s)]
+    t = np.linspace(0.0, duration_s, int(duration_s * 10) + 1)
+    c, s = math.cos(heading_rad), math.sin(heading_rad)
+    ego = Ego(4.5, 1.8, 1.5, straight_trajectory(t, 0.0, 0.0, heading_rad, ego_speed_mps))
+    acts = []
+    for aid, fwd, lat, v, t0, t1 in actors:
+        ta = t[(t >= t0 - 1e-9) & (t <= t1 + 1e-9)]
+        # The actor's position at ta[0] follows its constant speed from time 0.
+        x0 = fwd * c - lat * s + v * ta[0] * c
+        y0 = fwd * s + lat * c + v * ta[0] * s
+        acts.append(Actor(aid, "car", 4.3, 1.8, 1.5,
+                          straight_trajectory(ta, x0, y0, heading_rad, v)))
+    line = np.array([[-10 * c, -10 * s], [200 * c, 200 * s]])
+    road = Road("r0", "test road", "primary", "trajectory", [], 2, 3.5, line)
+    return Scenario(origin=Origin(60.17, 24.94, 0.0), roads=[road], ego=ego, actors=acts,
+                    camera=camera.to_dict(),
+                    source=Source(inputs=[{"name": "synthetic"}], tool_version="test",
+                                  options={"fps": 10.0}, assumptions=["built in code"]))
+
+
+def scenario_from_kitti_labels(label_file: Path, numbers: tuple[int, ...], fps: float,
+                               camera) -> Scenario:
+    """A camera-relative scenario (static ego) whose actors sit where KITTI's 3D labels put
+    the vehicles: vehicle x = camera Z, y = -camera X; yaw from rotation_y."""
+    tracks: dict[str, list[tuple[float, float, float, float, tuple[float, float, float]]]] = {}
+    for line in label_file.read_text().splitlines():
+        f = line.split()
+        if int(f[0]) not in numbers or f[2] not in ("Car", "Van", "Truck"):
+            continue
+        h, w, length, x, _y, z, ry = map(float, f[10:17])
+        t = numbers.index(int(f[0])) / fps
+        yaw = math.atan2(-math.cos(ry), -math.sin(ry))
+        tracks.setdefault(f[1], []).append((t, z, -x, yaw, (length, w, h)))
+    actors = []
+    for tid, pts in tracks.items():
+        pts.sort()
+        if len(pts) == 1:  # a single sighting: hold it for a moment so it has a trajectory
+            pts.append((pts[0][0] + 1e-3, *pts[0][1:]))
+        t, xs, ys, yaws, sizes = zip(*pts, strict=True)
+        length, w, h = sizes[0]
+        actors.append(Actor(tid, "car", length, w, h,
+                            Trajectory(t=t, x=xs, y=ys, heading=yaws, speed=np.zeros(len(t)))))
+    t_ego = np.array([0.0, (len(numbers) - 1) / fps])
+    ego = Ego(4.5, 1.8, 1.5, Trajectory(t=t_ego, x=[0, 0], y=[0, 0], heading=[0, 0],
+                                        speed=[0, 0]))
+    return Scenario(origin=Origin(49.0, 8.4, 0.0), roads=[], ego=ego, actors=actors,
+                    camera=camera.to_dict(), source=Source(assumptions=["from KITTI 3D labels"]))
