@@ -24,18 +24,12 @@ from pathlib import Path
 
 import numpy as np
 
+from vid2sim.geo.alongroute import join_xy, rts_along, signed_offsets, trim_route
 from vid2sim.geo.frames import EnuFrame
-from vid2sim.geo.mapmatch import (
-    MatchConfig,
-    _rts_along,
-    _trim,
-    join_xy,
-    match,
-    signed_offsets,
-    simulate_drive,
-)
+from vid2sim.geo.mapmatch import MatchConfig, match
 from vid2sim.geo.osm import RoadNetwork, load_network
 from vid2sim.records import Origin
+from vid2sim.samples.drives import simulate_drive
 
 ORIGIN = Origin(60.17, 24.944)
 
@@ -158,11 +152,11 @@ def oracle_smoother(net: RoadNetwork, drives, n_fix: int) -> None:
                                 d.true_s_m + shift, 60.0)
         s_m = np.where(d.is_outlier, np.nan, s_m)
         sigma = np.full(s_m.size, cfg.sigma_m)
-        smooth = np.maximum.accumulate(_rts_along(d.t_s, s_m, sigma, cfg.accel_sigma_mps2))
+        smooth = np.maximum.accumulate(rts_along(d.t_s, s_m, sigma, cfg.accel_sigma_mps2))
         edge_end = np.cumsum(net.edge_length_m[route])
         pos = np.clip(np.searchsorted(edge_end, smooth, side="right"), 0, len(route) - 1)
         hits += int((net.edge_way_id[np.asarray(route)[pos]] == d.true_way_id).sum())
-        piece, _ = _trim(net, route, smooth, cfg.min_cover_m)
+        piece, _ = trim_route(net, route, smooth, cfg.min_cover_m)
         exact += _merge([net.edge_way_id[e] for e in piece]) == d.true_ways
     print(f"oracle (true route given up to its end ways, same along-route smoother): fixes on "
           f"true way {hits / n_fix:.2%}, exact way sequences {exact}/{len(drives)}")

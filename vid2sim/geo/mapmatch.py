@@ -25,17 +25,15 @@ Dijkstra with a cutoff), cached per node for the whole trace.
 
 from __future__ import annotations
 
-import itertools
-import math
 from dataclasses import dataclass, field
 
-import networkx as nx
 import numpy as np
 import shapely
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import dijkstra
 
+from vid2sim.geo.alongroute import rts_along, trim_route
+from vid2sim.geo.candidates import EdgeIndex, lines_array, wrap_angle
 from vid2sim.geo.osm import RoadNetwork
+from vid2sim.geo.routing import EdgeDistances
 
 
 @dataclass(frozen=True, slots=True)
@@ -115,159 +113,20 @@ class MatchResult:
     def way_sequence(self) -> list[int]:
         """OSM way ids of the route in travel order, consecutive repeats merged."""
         ways: list[int] = []
-        return _merge_ways(ways, self.route_edges, self._edge_way)
+        return merge_ways(ways, self.route_edges, self._edge_way)
 
     _edge_way: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
 
 
-def _merge_ways(out: list[int], pieces: list[list[int]], edge_way: np.ndarray) -> list[int]:
+def merge_ways(out: list[int], pieces: list[list[int]], edge_way: np.ndarray) -> list[int]:
+    """Append the way ids of ``pieces`` (lists of directed edges) to ``out``, consecutive
+    repeats merged."""
     for piece in pieces:
         for e in piece:
             w = int(edge_way[e])
             if not out or out[-1] != w:
                 out.append(w)
     return out
-
-
-# --------------------------------------------------------------------------- candidates
-
-
-class _EdgeIndex:
-    """STRtree over way-piece geometries (one per twin pair), mapped to directed edges."""
-
-    def __init__(self, net: RoadNetwork):
-        base = [i for i in range(net.n_edges) if net.edge_twin[i] < 0 or net.edge_twin[i] > i]
-        self.base = np.array(base, dtype=np.int64)
-        self.twin = net.edge_twin[self.base]
-        self.lines = _lines([net.edge_xy[i] for i in base])
-        self.length = net.edge_length_m[self.base]
-        self.tree = shapely.STRtree(self.lines)
-
-    def candidates(self, xy: np.ndarray, radius_m: float, max_geometries: int
-                   ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
-        """Per fix: directed edges, along-edge s [m], distance [m], edge heading [rad]."""
-        pts = shapely.points(xy[:, 0], xy[:, 1])
-        pi, gi = self.tree.query(pts, predicate="dwithin", distance=radius_m)
-        lines = self.lines[gi]
-        dist = shapely.distance(lines, pts[pi])
-        s = shapely.line_locate_point(lines, pts[pi])
-        length = self.length[gi]
-        # edge tangent at the projection from points 0.5 m either side
-        a = shapely.get_coordinates(shapely.line_interpolate_point(lines, np.maximum(s - 0.5, 0)))
-        b = shapely.get_coordinates(
-            shapely.line_interpolate_point(lines, np.minimum(s + 0.5, length)))
-        heading = np.arctan2(b[:, 1] - a[:, 1], b[:, 0] - a[:, 0])
-        out = []
-        order = np.lexsort((dist, pi))
-        bounds = np.searchsorted(pi[order], np.arange(len(xy) + 1))
-        for k in range(len(xy)):
-            sel = order[bounds[k]:bounds[k + 1]][:max_geometries]
-            edges, ss, dd, hh = [self.base[gi[sel]]], [s[sel]], [dist[sel]], [heading[sel]]
-            has_twin = self.twin[gi[sel]] >= 0
-            if has_twin.any():
-                t = sel[has_twin]
-                edges.append(self.twin[gi[t]])
-                ss.append(length[t] - s[t])
-                dd.append(dist[t])
-                hh.append(heading[t] + math.pi)
-            out.append((np.concatenate(edges), np.concatenate(ss), np.concatenate(dd),
-                        np.concatenate(hh)))
-        return out
-
-
-# --------------------------------------------------------------------------- matcher
-
-
-def _lines(coords: list[np.ndarray]) -> np.ndarray:
-    """Array of shapely LineStrings (vectorised creation needs equal lengths, so go through
-    the flat-coordinates-with-indices form)."""
-    if not coords:
-        return np.empty(0, dtype=object)
-    idx = np.repeat(np.arange(len(coords)), [len(c) for c in coords])
-    return shapely.linestrings(np.vstack(coords), indices=idx)
-
-
-def _end_heading(xy: np.ndarray, first: bool) -> float:
-    """Heading [rad] of a polyline's first or last segment."""
-    a, b = (xy[0], xy[1]) if first else (xy[-2], xy[-1])
-    return math.atan2(b[1] - a[1], b[0] - a[0])
-
-
-def _wrap(a: np.ndarray) -> np.ndarray:
-    return (a + np.pi) % (2 * np.pi) - np.pi
-
-
-class _EdgeDistances:
-    """Shortest route lengths between directed edges on the *line graph* (edge -> edge arcs),
-    so a route can never turn back onto the twin of the edge it arrives on (a U-turn) except
-    at a dead end. Computed with scipy's C Dijkstra in batches of sources, with a cutoff;
-    only the reached entries are kept (as dicts), so memory stays small on long traces.
-
-    ``gap(a, b)`` is the length [m] driven strictly between the end of edge ``a`` and the start
-    of edge ``b`` (0 when ``b`` leaves the node where ``a`` ends), None when farther than the
-    cutoff or unreachable.
-    """
-
-    def __init__(self, net: RoadNetwork, cutoff_m: float, uturn_m: float,
-                 turn_m_per_rad: float = 0.0):
-        n = net.n_edges
-        extra: list[float] = []
-        out_by_node: dict[int, list[int]] = {}
-        for e in range(n):
-            out_by_node.setdefault(int(net.edge_u[e]), []).append(e)
-        rows, cols = [], []
-        for e in range(n):
-            nxt = out_by_node.get(int(net.edge_v[e]), [])
-            allowed = [f for f in nxt if f != net.edge_twin[e]]
-            rows.extend([e] * len(allowed))
-            cols.extend(allowed)
-            extra.extend([0.0] * len(allowed))
-            if not allowed and nxt:
-                # dead end: turning round is the only way on, but it is not free, or every
-                # short spur beside the route would attract noisy fixes
-                rows.extend([e] * len(nxt))
-                cols.extend(nxt)
-                extra.extend([uturn_m] * len(nxt))
-        # arc weight = length of the edge entered + a cost per radian of turning at the
-        # junction (a noisy fix beside a junction should not pull the route through a
-        # zig-zag of short ways when a straight way is as close); zero-length edges would
-        # vanish from a sparse matrix, so they get a millimetre
-        rows_a, cols_a = np.asarray(rows, dtype=np.int64), np.asarray(cols, dtype=np.int64)
-        head_out = np.array([_end_heading(xy, first=False) for xy in net.edge_xy])
-        head_in = np.array([_end_heading(xy, first=True) for xy in net.edge_xy])
-        turn = np.abs(_wrap(head_in[cols_a] - head_out[rows_a])) if rows else np.zeros(0)
-        weight = np.maximum(net.edge_length_m[cols_a], 1e-3) + np.asarray(extra)
-        weight = weight + turn_m_per_rad * turn
-        self.graph = csr_matrix((weight, (rows_a, cols_a)), shape=(n, n))
-        self.length = net.edge_length_m
-        self.limit = cutoff_m + float(net.edge_length_m.max(initial=0.0))
-        self.rows: dict[int, dict[int, float]] = {}
-
-    def prefetch(self, sources: np.ndarray, batch: int = 256) -> None:
-        todo = np.array(sorted({int(s) for s in sources} - set(self.rows)), dtype=np.int64)
-        for k in range(0, todo.size, batch):
-            src = todo[k:k + batch]
-            dist = dijkstra(self.graph, directed=True, indices=src, limit=self.limit)
-            for e, row in zip(src.tolist(), dist, strict=True):
-                idx = np.flatnonzero(np.isfinite(row))
-                gaps = row[idx] - self.length[idx]  # the target edge itself is not between
-                self.rows[e] = dict(zip(idx.tolist(), gaps.tolist(), strict=True))
-
-    def gap(self, a: int, b: int) -> float | None:
-        if a not in self.rows:
-            self.prefetch(np.array([a]))
-        return self.rows[a].get(b)
-
-    def path(self, a: int, b: int) -> list[int]:
-        """Edges strictly between ``a`` and ``b`` on the shortest route."""
-        _, pred = dijkstra(self.graph, directed=True, indices=a, return_predecessors=True,
-                           limit=self.limit)
-        edges = []
-        cur = int(pred[b])
-        while cur != a and cur >= 0:
-            edges.append(cur)
-            cur = int(pred[cur])
-        return edges[::-1]
 
 
 def match(net: RoadNetwork, x_m: np.ndarray, y_m: np.ndarray, t_s: np.ndarray, *,
@@ -304,7 +163,7 @@ def match(net: RoadNetwork, x_m: np.ndarray, y_m: np.ndarray, t_s: np.ndarray, *
         sigma = np.where(np.isfinite(acc) & (acc > 0), np.maximum(acc, 1.0), cfg.sigma_m)
     radius = max(cfg.search_radius_m, 4.0 * float(np.median(sigma)) if n else 0.0)
 
-    index = _EdgeIndex(net)
+    index = EdgeIndex(net)
     cands = index.candidates(xy, radius, cfg.max_geometries)
     emis = []
     for k, (edges_k, s_k, d, h) in enumerate(cands):
@@ -315,7 +174,7 @@ def match(net: RoadNetwork, x_m: np.ndarray, y_m: np.ndarray, t_s: np.ndarray, *
         clamped = (s_k <= 1e-6) | (s_k >= net.edge_length_m[edges_k] - 1e-6)
         e = e - CLAMP_LOGP * clamped
         if np.isfinite(heading[k]):
-            e = e + np.maximum(-0.5 * (_wrap(h - heading[k]) / cfg.heading_sigma_rad) ** 2,
+            e = e + np.maximum(-0.5 * (wrap_angle(h - heading[k]) / cfg.heading_sigma_rad) ** 2,
                                cfg.heading_cap_logp)
         emis.append(e)
 
@@ -325,7 +184,7 @@ def match(net: RoadNetwork, x_m: np.ndarray, y_m: np.ndarray, t_s: np.ndarray, *
 
     step = np.hypot(*np.diff(xy, axis=0).T) if n > 1 else np.zeros(0)
     window_gc = max(float(step.max()) if step.size else 0.0, 1.0) * (cfg.max_skip + 1)
-    dist = _EdgeDistances(net, cutoff_m=min(2 * window_gc + 2 * radius + 50.0, 5000.0),
+    dist = EdgeDistances(net, cutoff_m=min(2 * window_gc + 2 * radius + 50.0, 5000.0),
                           uturn_m=-cfg.uturn_logp * cfg.beta_m,
                           turn_m_per_rad=cfg.turn_m_per_rad)
     dist.prefetch(np.concatenate([c[0] for c in cands]) if n else np.zeros(0, np.int64))
@@ -427,7 +286,7 @@ def _best_recent(score: list[np.ndarray], t: int, cfg: MatchConfig
 
 
 def _finish(net: RoadNetwork, xy: np.ndarray, t_s: np.ndarray, sigma: np.ndarray, cands,
-            score, back, dist: _EdgeDistances, cfg: MatchConfig) -> MatchResult:
+            score, back, dist: EdgeDistances, cfg: MatchConfig) -> MatchResult:
     n = len(xy)
     empty = MatchResult([], np.full(n, -1), np.full(n, np.nan), np.full(n, -1),
                         np.full(n, -1, dtype=np.int64), np.full(n, np.nan), np.ones(n, bool),
@@ -485,8 +344,8 @@ def _finish(net: RoadNetwork, xy: np.ndarray, t_s: np.ndarray, sigma: np.ndarray
         t0, t1 = chain[0][0], chain[-1][0]
         sel = np.arange(t0, t1 + 1)
         meas = np.array([s_raw.get(int(t), np.nan) for t in sel])
-        smooth = _rts_along(t_s[sel], meas, sigma[sel], cfg.accel_sigma_mps2)
-        piece, smooth = _trim(net, piece, np.maximum.accumulate(smooth), cfg.min_cover_m)
+        smooth = rts_along(t_s[sel], meas, sigma[sel], cfg.accel_sigma_mps2)
+        piece, smooth = trim_route(net, piece, np.maximum.accumulate(smooth), cfg.min_cover_m)
         route_edges[k] = piece
         fix_s[sel] = np.clip(smooth, 0.0, float(net.edge_length_m[piece].sum()))
         fix_piece[sel] = k
@@ -499,83 +358,6 @@ def _finish(net: RoadNetwork, xy: np.ndarray, t_s: np.ndarray, sigma: np.ndarray
         result.warnings.append(f"the matched route has {result.n_breaks} break(s): no drivable "
                                "connection between parts of the trace")
     return result
-
-
-def signed_offsets(line_xy_m: np.ndarray, xy_m: np.ndarray,
-                   expected_s_m: np.ndarray | None = None, window_m: float = 40.0
-                   ) -> tuple[np.ndarray, np.ndarray]:
-    """Arc length along ``line_xy_m`` and signed lateral offset (positive left) of points.
-
-    With ``expected_s_m`` each point is projected only onto the part of the line within
-    ``window_m`` of where it should be, so a route that passes a place twice (a loop round a
-    block) does not project onto the wrong pass.
-
-    Returns
-    -------
-    (s_m, offset_m) per point [m]
-    """
-    line = np.asarray(line_xy_m, float)
-    pts = np.asarray(xy_m, float).reshape(-1, 2)
-    a, d = line[:-1], np.diff(line, axis=0)
-    seg_len = np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-9)
-    seg_s = np.concatenate([[0.0], np.cumsum(seg_len)])
-    n_seg = len(a)
-    if expected_s_m is None or not len(pts):
-        first = np.zeros(len(pts), dtype=np.int64)
-        width = n_seg
-    else:
-        exp = np.asarray(expected_s_m, float).reshape(-1)
-        known = np.isfinite(exp)
-        lo = np.where(known, np.searchsorted(seg_s, exp - window_m, side="right") - 1, 0)
-        hi = np.where(known, np.searchsorted(seg_s, exp + window_m, side="left"), n_seg)
-        first = np.clip(lo, 0, n_seg - 1)
-        width = int(max(1, (np.clip(hi, 1, n_seg) - first).max()))
-    s_out = np.full(len(pts), np.nan)
-    off_out = np.full(len(pts), np.nan)
-    chunk = max(1, 200_000 // max(width, 1))  # bounds the (points x segments) work arrays
-    for k0 in range(0, len(pts), chunk):
-        p = pts[k0:k0 + chunk]
-        # candidate segments of each point: a window of ``width`` from ``first``
-        j = np.minimum(first[k0:k0 + chunk, None] + np.arange(width)[None], n_seg - 1)
-        rel0 = p[:, None, :] - a[j]
-        u = np.clip((rel0 * d[j]).sum(-1) / seg_len[j] ** 2, 0.0, 1.0)
-        foot = a[j] + u[..., None] * d[j]
-        dist2 = ((p[:, None, :] - foot) ** 2).sum(-1)
-        if expected_s_m is not None:
-            exp_k = np.asarray(expected_s_m, float)[k0:k0 + chunk]
-            far = np.abs(seg_s[j] + u * seg_len[j] - exp_k[:, None]) > window_m
-            dist2 = np.where(far & np.isfinite(exp_k)[:, None] & (dist2 < np.inf), np.inf,
-                             dist2)
-            # no segment inside the window (an expectation off the line): take the nearest
-            none = ~np.isfinite(dist2).any(axis=1)
-            dist2[none] = ((p[none, None, :] - foot[none]) ** 2).sum(-1)
-        best = np.argmin(dist2, axis=1)
-        rows = np.arange(len(p))
-        jj = j[rows, best]
-        rel = p - foot[rows, best]
-        cross = d[jj, 0] * rel[:, 1] - d[jj, 1] * rel[:, 0]
-        s_out[k0:k0 + chunk] = seg_s[jj] + u[rows, best] * seg_len[jj]
-        off_out[k0:k0 + chunk] = np.sign(cross) * np.sqrt(dist2[rows, best])
-    return s_out, off_out
-
-
-def _trim(net: RoadNetwork, piece: list[int], s_m: np.ndarray, min_cover_m: float
-          ) -> tuple[list[int], np.ndarray]:
-    """Drop route edges before the first / after the last fix position, and a first or last
-    edge covered by less than ``min_cover_m``; shift positions to the trimmed start."""
-    lengths = net.edge_length_m[piece]
-    ends = np.cumsum(lengths)
-    starts = ends - lengths
-    lo, hi = float(np.nanmin(s_m)), float(np.nanmax(s_m))
-    first = int(np.searchsorted(ends, lo, side="right"))
-    last = int(np.searchsorted(starts, hi, side="left")) - 1
-    first, last = min(first, len(piece) - 1), max(last, 0)
-    if last > first and ends[first] - lo < min_cover_m:
-        first += 1
-    if last > first and hi - starts[last] < min_cover_m:
-        last -= 1
-    last = max(last, first)
-    return piece[first:last + 1], s_m - starts[first]
 
 
 def _assign_edges(net: RoadNetwork, xy: np.ndarray, res: MatchResult) -> None:
@@ -591,7 +373,7 @@ def _assign_edges(net: RoadNetwork, xy: np.ndarray, res: MatchResult) -> None:
         edges = np.asarray(piece)[pos]
         res.fix_edge[sel] = edges
         res.fix_way_id[sel] = net.edge_way_id[edges]
-        lines = _lines([net.edge_xy[e] for e in edges])
+        lines = lines_array([net.edge_xy[e] for e in edges])
         pts = shapely.points(xy[sel, 0], xy[sel, 1])
         s = shapely.line_locate_point(lines, pts)
         foot = shapely.get_coordinates(shapely.line_interpolate_point(lines, s))
@@ -605,166 +387,5 @@ def _assign_edges(net: RoadNetwork, xy: np.ndarray, res: MatchResult) -> None:
         res.fix_offset_m[sel] = np.sign(cross) * np.hypot(rel[:, 0], rel[:, 1])
 
 
-def join_xy(net: RoadNetwork, edges: list[int]) -> np.ndarray:
-    """Edge geometries joined in travel order (the shared node written once) [m]."""
-    return np.vstack([net.edge_xy[edges[0]]] + [net.edge_xy[e][1:] for e in edges[1:]])
-
-
 #: emission cost of a projection clamped to an edge end (a tie-breaker, see match())
 CLAMP_LOGP = 0.2
-
-#: innovations beyond 4 sigma (16 = 4^2 in variance) are rejected by the along-route filter
-GATE = 16.0
-
-
-def _rts_along(t_s: np.ndarray, s_meas_m: np.ndarray, sigma_m: np.ndarray,
-               accel_sigma_mps2: float) -> np.ndarray:
-    """Constant-velocity Kalman filter + Rauch-Tung-Striebel smoother of along-route position.
-
-    NaN measurements (skipped outliers) are predicted through; innovations beyond 4 sigma are
-    rejected. Returns the smoothed positions [m].
-    """
-    n = len(t_s)
-    first = int(np.flatnonzero(np.isfinite(s_meas_m))[0])
-    x = np.array([s_meas_m[first], 0.0])
-    p = np.diag([sigma_m[first] ** 2, 15.0 ** 2])
-    xs_f = np.zeros((n, 2))
-    ps_f = np.zeros((n, 2, 2))
-    xs_p = np.zeros((n, 2))
-    ps_p = np.zeros((n, 2, 2))
-    fs = np.zeros((n, 2, 2))
-    q = accel_sigma_mps2 ** 2
-    for k in range(n):
-        dt = float(t_s[k] - t_s[k - 1]) if k else 0.0
-        f = np.array([[1.0, dt], [0.0, 1.0]])
-        # white-acceleration process noise (Bar-Shalom, discretised continuous model)
-        qm = q * np.array([[dt ** 3 / 3, dt ** 2 / 2], [dt ** 2 / 2, dt]])
-        x = f @ x
-        p = f @ p @ f.T + qm
-        xs_p[k], ps_p[k], fs[k] = x, p, f
-        z = s_meas_m[k]
-        if np.isfinite(z):
-            r = sigma_m[k] ** 2
-            innov_var = p[0, 0] + r
-            innov = z - x[0]
-            if innov ** 2 <= GATE * innov_var:
-                gain = p[:, 0] / innov_var
-                x = x + gain * innov
-                p = p - np.outer(gain, p[0, :])
-        xs_f[k], ps_f[k] = x, p
-    xs = xs_f.copy()
-    for k in range(n - 2, -1, -1):
-        c = ps_f[k] @ fs[k + 1].T @ np.linalg.inv(ps_p[k + 1])
-        xs[k] = xs_f[k] + c @ (xs[k + 1] - xs_p[k + 1])
-    return xs[:, 0]
-
-
-# --------------------------------------------------------------------------- evaluation
-
-
-@dataclass(slots=True)
-class SimulatedDrive:
-    """A drive simulated along a shortest path, with its ground truth.
-
-    :param route_edges: true directed edges in travel order, from the first to the last fix
-    :param true_ways: their way ids, consecutive repeats merged
-    :param t_s, x_m, y_m: noisy 1 Hz fixes [s, m]
-    :param true_way_id: way under the true position of each fix
-    :param is_outlier: fixes displaced by 30-80 m
-    :param true_s_m: true position of each fix along ``route_edges`` [m]
-    """
-
-    route_edges: list[int]
-    true_ways: list[int]
-    t_s: np.ndarray
-    x_m: np.ndarray
-    y_m: np.ndarray
-    true_way_id: np.ndarray
-    is_outlier: np.ndarray
-    length_m: float
-    true_s_m: np.ndarray
-
-
-def simulate_drive(net: RoadNetwork, rng: np.random.Generator, *, min_length_m: float = 1000.0,
-                   max_length_m: float = 3000.0, noise_m: float = 5.0,
-                   outlier_share: float = 0.02, stop_s: float = 0.0,
-                   rate_hz: float = 1.0, random_phase: bool = True) -> SimulatedDrive:
-    """Drive the shortest path between two random junctions of ``net`` and record noisy fixes.
-
-    Speed: a cruise speed drawn from 7-13 m/s (25-47 km/h, urban), 4 m/s through turns
-    sharper than 45 degrees, accelerating and braking at most 1.5 m/s^2; with ``stop_s`` > 0
-    the car stops halfway and stands still that long. The first fix falls at a random point
-    of the first second of driving (``random_phase``), not exactly on the start junction.
-    Noise: Gaussian, ``noise_m`` per axis; ``outlier_share`` of the fixes are
-    instead displaced 30-80 m in a random direction.
-    """
-    graph = net.graph()
-    nodes = np.unique(np.concatenate([net.edge_u, net.edge_v]))
-    for _ in range(10000):
-        a, b = (int(v) for v in rng.choice(nodes, 2, replace=False))
-        try:
-            path = nx.dijkstra_path(graph, a, b, weight="length")
-        except nx.NetworkXNoPath:
-            continue
-        edges = [int(graph[p][q]["edge"]) for p, q in itertools.pairwise(path)]
-        total = float(net.edge_length_m[edges].sum())
-        if min_length_m <= total <= max_length_m:
-            break
-    else:  # pragma: no cover - the map is too small for the requested lengths
-        raise ValueError("no route of the requested length in this network")
-    pts = np.vstack([net.edge_xy[edges[0]]] + [net.edge_xy[e][1:] for e in edges[1:]])
-    seg = np.hypot(*np.diff(pts, axis=0).T)
-    keep = np.concatenate([[True], seg > 1e-6])
-    pts = pts[keep]
-    s_pts = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
-    # speed limit profile along a 1 m grid: slow down around sharp turns
-    grid = np.arange(0.0, total, 1.0)
-    gx, gy = np.interp(grid, s_pts, pts[:, 0]), np.interp(grid, s_pts, pts[:, 1])
-    head = np.unwrap(np.arctan2(np.gradient(gy), np.gradient(gx)))
-    turn = np.abs(np.interp(grid + 10, grid, head) - np.interp(grid - 10, grid, head))
-    cruise = float(rng.uniform(7.0, 13.0))
-    v_grid = np.where(turn > math.radians(45), 4.0, cruise)
-    if stop_s > 0:
-        v_grid[int(total / 2)] = 0.3  # creep to the stop line, then stand
-    # comfortable acceleration / braking limit (1.5 m/s^2): v^2 <= v0^2 + 2 a ds
-    for order in (slice(None), slice(None, None, -1)):
-        v = v_grid[order]
-        for k in range(1, v.size):
-            v[k] = min(v[k], math.sqrt(v[k - 1] ** 2 + 2 * 1.5 * 1.0))
-    dt = 1.0 / rate_hz
-    # the receiver's 1 Hz clock does not know where the route begins: the first fix falls
-    # anywhere within the first second of driving
-    s = float(rng.uniform(0.0, v_grid[0] * dt)) if random_phase else 0.0
-    t, s_list, t_list = 0.0, [], []
-    stopped = stop_s <= 0
-    while s < total:
-        s_list.append(s)
-        t_list.append(t)
-        if not stopped and s >= total / 2:
-            stopped = True
-            for _ in range(int(stop_s * rate_hz)):
-                t += dt
-                s_list.append(s)
-                t_list.append(t)
-        s += float(np.interp(s, grid, v_grid)) * dt
-        t += dt
-    s_true = np.array(s_list)
-    x = np.interp(s_true, s_pts, pts[:, 0])
-    y = np.interp(s_true, s_pts, pts[:, 1])
-    ends = np.cumsum(net.edge_length_m[edges])
-    pos = np.minimum(np.searchsorted(ends, s_true, side="right"), len(edges) - 1)
-    true_way = net.edge_way_id[np.asarray(edges)[pos]]
-    n = len(s_true)
-    x = x + rng.normal(0.0, noise_m, n)
-    y = y + rng.normal(0.0, noise_m, n)
-    out = rng.random(n) < outlier_share
-    r, ang = rng.uniform(30.0, 80.0, n), rng.uniform(-math.pi, math.pi, n)
-    x = np.where(out, np.interp(s_true, s_pts, pts[:, 0]) + r * np.cos(ang), x)
-    y = np.where(out, np.interp(s_true, s_pts, pts[:, 1]) + r * np.sin(ang), y)
-    # the driven sequence is what lies between the first and the last fix: a way the car
-    # entered after its last fix was recorded cannot be known
-    driven = edges[int(pos[0]):int(pos[-1]) + 1]
-    ways = _merge_ways([], [driven], net.edge_way_id)
-    driven_start = float(ends[int(pos[0])] - net.edge_length_m[edges[int(pos[0])]])
-    return SimulatedDrive(driven, ways, np.array(t_list), x, y, true_way, out, total,
-                          s_true - driven_start)

@@ -22,8 +22,9 @@ from pathlib import Path
 import numpy as np
 
 from vid2sim.errors import InputError
+from vid2sim.geo.alongroute import signed_offsets
 from vid2sim.geo.frames import EnuFrame
-from vid2sim.geo.mapmatch import MatchConfig, MatchResult, match, signed_offsets
+from vid2sim.geo.mapmatch import MatchConfig, MatchResult, match
 from vid2sim.geo.osm import RoadNetwork, download_network, format_bbox, load_network
 from vid2sim.records import EgoTrack, GpsTrace, RoadResult
 from vid2sim.scenario import Road

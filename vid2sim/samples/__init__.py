@@ -1,0 +1,1 @@
+"""Sample and test-data generators: synthetic drives, the demo sample, composite clips."""
