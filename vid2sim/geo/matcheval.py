@@ -22,19 +22,32 @@ Two ways to say "on the route" are given:
   as often as both routes drive it. It sees direction and repeated passes, but needs both
   routes on the same map.
 
-Routes are compared as whole road pieces, as in the paper: the true route is every road
-piece the car drove on between its first and last fix, the matched route every piece the
-matcher put in its route (the road stage's centerline), so a perfect match scores 0 and an
-extra or missing piece at a route end counts its whole length.
+What is compared (:func:`score_route`):
+
+- corridor: the *driven stretch* of each route, from where the car was at its first fix to
+  where it was at its last (the truth from the simulation; the matched route between the
+  matched along-route positions of the first and last fix). A matcher cannot know where the
+  car was before its first fix, and a drive need not start or end on a junction, so this
+  judges only what the fixes can tell;
+- pieces: every directed road piece of the route, whole, as in the paper (the true pieces
+  from the one under the first fix to the one under the last; the matched route's pieces as
+  the road stage turns them into the road's centerline). An extra or missing piece at a
+  route end counts its whole length, however little of it was driven.
 """
 
 from __future__ import annotations
 
 from collections import Counter
 from collections.abc import Hashable, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 import shapely
+import shapely.ops
+
+from vid2sim.geo.alongroute import join_xy
+from vid2sim.geo.mapmatch import MatchResult
+from vid2sim.geo.osm import RoadNetwork
 
 #: half-width of the corridor within which a matched road counts as on the true route [m]
 #: (the issue's 5 m: a lane and a half either side of a way's middle line, so the matched
@@ -134,3 +147,88 @@ def rmf_pieces(true_pieces: Sequence[Hashable], matched_pieces: Sequence[Hashabl
     missed = sum(length_m[k] * c for k, c in (need - got).items())
     extra = sum(length_m[k] * c for k, c in (got - need).items())
     return float((missed + extra) / true_len)
+
+
+# --------------------------------------------------------------------------- matched routes
+
+
+def piece_key(net: RoadNetwork, edge: int) -> tuple[int, int, int]:
+    """Map-independent identity of a directed edge: (OSM way id, from node, to node).
+
+    Edge indices differ between two loads of a map (a crop keeps fewer edges); OSM ids do not.
+    """
+    return int(net.edge_way_id[edge]), int(net.edge_u[edge]), int(net.edge_v[edge])
+
+
+def stretch_xy(net: RoadNetwork, edges: Sequence[int], start_m: float, end_m: float
+               ) -> np.ndarray:
+    """The part of the route ``edges`` (joined in travel order) from ``start_m`` to ``end_m``
+    along it [m]; (0, 2) when the part has no length."""
+    if not len(edges):
+        return np.zeros((0, 2))
+    line = _line(join_xy(net, list(edges)))
+    if line is None or not end_m > start_m:
+        return np.zeros((0, 2))
+    part = shapely.ops.substring(line, max(start_m, 0.0), min(end_m, line.length))
+    xy = shapely.get_coordinates(part)
+    return xy if len(xy) >= 2 else np.zeros((0, 2))
+
+
+def matched_stretches(net: RoadNetwork, result: MatchResult) -> list[np.ndarray]:
+    """The driven part of each matched route piece: from the matched position of its first fix
+    to that of its last fix [m]."""
+    out = []
+    for k, piece in enumerate(result.route_edges):
+        s = result.fix_route_s_m[(result.fix_piece == k) & np.isfinite(result.fix_route_s_m)]
+        if s.size:
+            xy = stretch_xy(net, piece, float(s.min()), float(s.max()))
+            if len(xy):
+                out.append(xy)
+    return out
+
+
+@dataclass(frozen=True, slots=True)
+class RouteScore:
+    """Route mismatch fractions of one matched drive.
+
+    :param rmf_corridor: driven stretches compared within the corridor (see module docs)
+    :param rmf_pieces: whole directed road pieces compared by identity
+    :param true_length_m: length of the true driven stretch [m]
+    """
+
+    rmf_corridor: float
+    rmf_pieces: float
+    true_length_m: float
+
+
+def score_route(true_net: RoadNetwork, true_edges: Sequence[int], true_span_m: tuple[float, float],
+                match_net: RoadNetwork, result: MatchResult,
+                corridor_m: float = CORRIDOR_M) -> RouteScore:
+    """Score a match against the truth.
+
+    Parameters
+    ----------
+    true_net : network the true route is given on
+    true_edges : directed edges the car drove, in order, from the one under the first fix to
+        the one under the last fix
+    true_span_m : along ``true_edges``, the true positions of the first and last fix [m]
+    match_net : network the matcher ran on (may be a crop of ``true_net``: pieces are
+        compared by OSM way and node ids)
+    result : the matcher's output
+    """
+    true_xy = stretch_xy(true_net, true_edges, *true_span_m)
+    corridor = rmf_corridor([true_xy] if len(true_xy) else [], matched_stretches(match_net, result),
+                            corridor_m)
+    lengths: dict[Hashable, float] = {}
+    true_keys = []
+    for e in true_edges:
+        true_keys.append(piece_key(true_net, e))
+        lengths[true_keys[-1]] = float(true_net.edge_length_m[e])
+    got_keys = []
+    for piece in result.route_edges:
+        for e in piece:
+            got_keys.append(piece_key(match_net, e))
+            lengths[got_keys[-1]] = float(match_net.edge_length_m[e])
+    pieces = rmf_pieces(true_keys, got_keys, lengths)
+    span = float(np.hypot(*np.diff(true_xy, axis=0).T).sum()) if len(true_xy) else 0.0
+    return RouteScore(corridor, pieces, span)

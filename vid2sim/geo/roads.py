@@ -263,7 +263,8 @@ def build_road(trace: GpsTrace, ego: EgoTrack, map_path: Path | None, *,
     ego : smoothed ego track; its ``origin`` is the frame of the output
     map_path : ``.osm`` or ``.osm.pbf``; None -> download the trace's box with osmnx if
         ``allow_download`` and the network is reachable, else the trajectory road
-    cache_dir : osmnx download cache (default ``~/.cache/vid2sim/osm``)
+    cache_dir : map cache: parsed map files and osmnx downloads (default
+        :func:`vid2sim.geo.mapcache.default_cache_dir`)
     fix_t_s : fix times on the scenario clock [s]; default :func:`fix_times_s` (pass it when
         the ego was smoothed with ``gps_offset_s``)
     config : matcher tuning
@@ -285,7 +286,7 @@ def build_road(trace: GpsTrace, ego: EgoTrack, map_path: Path | None, *,
 
     net: RoadNetwork | None = None
     if map_path is not None:
-        net = load_network(map_path, ego.origin, bbox_lonlat=bbox)
+        net = load_network(map_path, ego.origin, bbox_lonlat=bbox, cache_dir=cache_dir)
     elif allow_download:
         net = download_network(bbox, ego.origin, cache_dir=cache_dir)
         if net is None:

@@ -24,6 +24,7 @@ class SimulatedDrive:
     :param t_s, x_m, y_m: noisy 1 Hz fixes [s, m]
     :param true_way_id: way under the true position of each fix
     :param is_outlier: fixes displaced by 30-80 m
+    :param length_m: length driven from the start to the end of the drive [m]
     :param true_s_m: true position of each fix along ``route_edges`` [m]
     """
 
@@ -41,15 +42,22 @@ class SimulatedDrive:
 def simulate_drive(net: RoadNetwork, rng: np.random.Generator, *, min_length_m: float = 1000.0,
                    max_length_m: float = 3000.0, noise_m: float = 5.0,
                    outlier_share: float = 0.02, stop_s: float = 0.0,
-                   rate_hz: float = 1.0, random_phase: bool = True) -> SimulatedDrive:
-    """Drive the shortest path between two random junctions of ``net`` and record noisy fixes.
+                   rate_hz: float = 1.0, random_phase: bool = True,
+                   ends_at_junctions: bool = True, bias_m: float = 0.0,
+                   bias_tau_s: float = 60.0) -> SimulatedDrive:
+    """Drive a shortest path of ``net`` and record noisy fixes.
 
+    Route: the shortest path between two random junctions; with ``ends_at_junctions=False``
+    the car starts at a uniformly random point of the path's first way piece and stops at one
+    of its last (as real drives do: nobody starts the recorder on a junction).
     Speed: a cruise speed drawn from 7-13 m/s (25-47 km/h, urban), 4 m/s through turns
     sharper than 45 degrees, accelerating and braking at most 1.5 m/s^2; with ``stop_s`` > 0
     the car stops halfway and stands still that long. The first fix falls at a random point
-    of the first second of driving (``random_phase``), not exactly on the start junction.
-    Noise: Gaussian, ``noise_m`` per axis; ``outlier_share`` of the fixes are
-    instead displaced 30-80 m in a random direction.
+    of the first sampling interval (``random_phase``), not exactly on the start.
+    Noise: Gaussian, ``noise_m`` per axis, plus with ``bias_m`` > 0 a first-order
+    Gauss-Markov bias of that one-sigma size and correlation time ``bias_tau_s`` (the slow
+    wander of real receivers); ``outlier_share`` of the fixes are instead displaced 30-80 m
+    in a random direction.
     """
     graph = net.graph()
     nodes = np.unique(np.concatenate([net.edge_u, net.edge_v]))
@@ -61,7 +69,11 @@ def simulate_drive(net: RoadNetwork, rng: np.random.Generator, *, min_length_m: 
             continue
         edges = [int(graph[p][q]["edge"]) for p, q in itertools.pairwise(path)]
         total = float(net.edge_length_m[edges].sum())
-        if min_length_m <= total <= max_length_m:
+        s_start, s_end = 0.0, total
+        if not ends_at_junctions:
+            s_start = float(rng.uniform(0.0, net.edge_length_m[edges[0]]))
+            s_end = total - float(rng.uniform(0.0, net.edge_length_m[edges[-1]]))
+        if min_length_m <= s_end - s_start <= max_length_m:
             break
     else:  # pragma: no cover - the map is too small for the requested lengths
         raise ValueError("no route of the requested length in this network")
@@ -77,23 +89,25 @@ def simulate_drive(net: RoadNetwork, rng: np.random.Generator, *, min_length_m: 
     turn = np.abs(np.interp(grid + 10, grid, head) - np.interp(grid - 10, grid, head))
     cruise = float(rng.uniform(7.0, 13.0))
     v_grid = np.where(turn > math.radians(45), 4.0, cruise)
+    s_stop = (s_start + s_end) / 2
     if stop_s > 0:
-        v_grid[int(total / 2)] = 0.3  # creep to the stop line, then stand
+        v_grid[int(s_stop)] = 0.3  # creep to the stop line, then stand
     # comfortable acceleration / braking limit (1.5 m/s^2): v^2 <= v0^2 + 2 a ds
     for order in (slice(None), slice(None, None, -1)):
         v = v_grid[order]
         for k in range(1, v.size):
             v[k] = min(v[k], math.sqrt(v[k - 1] ** 2 + 2 * 1.5 * 1.0))
     dt = 1.0 / rate_hz
-    # the receiver's 1 Hz clock does not know where the route begins: the first fix falls
-    # anywhere within the first second of driving
-    s = float(rng.uniform(0.0, v_grid[0] * dt)) if random_phase else 0.0
+    # the receiver's clock does not know where the route begins: the first fix falls
+    # anywhere within the first sampling interval of driving
+    v_start = float(np.interp(s_start, grid, v_grid))
+    s = s_start + (float(rng.uniform(0.0, v_start * dt)) if random_phase else 0.0)
     t, s_list, t_list = 0.0, [], []
     stopped = stop_s <= 0
-    while s < total:
+    while s < s_end:
         s_list.append(s)
         t_list.append(t)
-        if not stopped and s >= total / 2:
+        if not stopped and s >= s_stop:
             stopped = True
             for _ in range(int(stop_s * rate_hz)):
                 t += dt
@@ -110,6 +124,9 @@ def simulate_drive(net: RoadNetwork, rng: np.random.Generator, *, min_length_m: 
     n = len(s_true)
     x = x + rng.normal(0.0, noise_m, n)
     y = y + rng.normal(0.0, noise_m, n)
+    if bias_m > 0:
+        bias = gauss_markov(rng, np.array(t_list), bias_m, bias_tau_s)
+        x, y = x + bias[:, 0], y + bias[:, 1]
     out = rng.random(n) < outlier_share
     r, ang = rng.uniform(30.0, 80.0, n), rng.uniform(-math.pi, math.pi, n)
     x = np.where(out, np.interp(s_true, s_pts, pts[:, 0]) + r * np.cos(ang), x)
@@ -119,5 +136,21 @@ def simulate_drive(net: RoadNetwork, rng: np.random.Generator, *, min_length_m: 
     driven = edges[int(pos[0]):int(pos[-1]) + 1]
     ways = merge_ways([], [driven], net.edge_way_id)
     driven_start = float(ends[int(pos[0])] - net.edge_length_m[edges[int(pos[0])]])
-    return SimulatedDrive(driven, ways, np.array(t_list), x, y, true_way, out, total,
+    return SimulatedDrive(driven, ways, np.array(t_list), x, y, true_way, out, s_end - s_start,
                           s_true - driven_start)
+
+
+def gauss_markov(rng: np.random.Generator, t_s: np.ndarray, sigma_m: float, tau_s: float
+                 ) -> np.ndarray:
+    """A 2-D first-order Gauss-Markov process (stationary one-sigma ``sigma_m`` per axis,
+    correlation time ``tau_s``) sampled at times ``t_s``: the slowly wandering error of a
+    consumer GPS receiver. Returns (N, 2) [m]."""
+    t = np.asarray(t_s, float)
+    out = np.zeros((t.size, 2))
+    if not t.size:
+        return out
+    out[0] = rng.normal(0.0, sigma_m, 2)
+    for k in range(1, t.size):
+        a = math.exp(-max(t[k] - t[k - 1], 0.0) / tau_s)
+        out[k] = a * out[k - 1] + rng.normal(0.0, sigma_m * math.sqrt(1.0 - a * a), 2)
+    return out
