@@ -14,9 +14,10 @@ LibCity use the same measure.
 Two ways to say "on the route" are given:
 
 - :func:`rmf_corridor`: geometry. A piece of one route lies on the other when it is within
-  ``corridor_m`` of its polyline (shapely buffer + difference), so it needs no shared ids
-  and works for any pair of polylines; it cannot see the direction of travel (the wrong twin
-  of a two-way street lies in the corridor).
+  ``corridor_m`` of its polyline (shapely buffer + difference, segment by segment so that a
+  street driven twice counts twice), so it needs no shared ids and works for any pair of
+  polylines; it cannot see the direction of travel (the wrong twin of a two-way street lies
+  in the corridor).
 - :func:`rmf_pieces`: identity. Routes are sequences of directed road pieces (e.g. way id
   and the two junction nodes it runs between) with their lengths; a piece counts as shared
   as often as both routes drive it. It sees direction and repeated passes, but needs both
@@ -55,22 +56,37 @@ from vid2sim.geo.osm import RoadNetwork
 CORRIDOR_M = 5.0
 
 
-def _line(xy_m: np.ndarray) -> shapely.LineString | None:
-    """A LineString of the distinct consecutive points, None when shorter than 2 points."""
-    xy = np.asarray(xy_m, float).reshape(-1, 2)
-    if not np.isfinite(xy).all():
-        raise ValueError("route coordinates must be finite")
-    if len(xy) >= 2:
-        keep = np.concatenate([[True], np.hypot(*np.diff(xy, axis=0).T) > 0.0])
-        xy = xy[keep]
-    return shapely.LineString(xy) if len(xy) >= 2 else None
+def _segments(parts: Sequence[np.ndarray]) -> np.ndarray:
+    """Every segment of every polyline as its own LineString, zero-length ones dropped.
+
+    Kept apart rather than merged into one geometry: shapely's overlay dissolves a line that
+    runs over itself, and a route that drives a street twice must count it twice.
+    """
+    segs = []
+    for part in parts:
+        xy = np.asarray(part, float).reshape(-1, 2)
+        if not np.isfinite(xy).all():
+            raise ValueError("route coordinates must be finite")
+        if len(xy) >= 2:
+            a, b = xy[:-1], xy[1:]
+            keep = np.hypot(*(b - a).T) > 0.0
+            segs.append(np.stack([a[keep], b[keep]], axis=1))
+    if not segs:
+        return np.empty(0, dtype=object)
+    pairs = np.concatenate(segs)
+    return shapely.linestrings(pairs.reshape(-1, 2), indices=np.repeat(np.arange(len(pairs)), 2))
 
 
-def _multi(parts: Sequence[np.ndarray]) -> shapely.Geometry | None:
-    lines = [g for g in (_line(p) for p in parts) if g is not None]
-    if not lines:
-        return None
-    return lines[0] if len(lines) == 1 else shapely.MultiLineString(lines)
+def _outside_m(segments: np.ndarray, other: np.ndarray, corridor_m: float) -> float:
+    """Length of ``segments`` farther than ``corridor_m`` from every segment of ``other``."""
+    if not segments.size:
+        return 0.0
+    if not other.size:
+        return float(shapely.length(segments).sum())
+    # quad_segs=16: round ends and bends of the corridor within 0.5 % of its half-width
+    corridor = shapely.buffer(shapely.union_all(other), corridor_m, quad_segs=16)
+    shapely.prepare(corridor)
+    return float(shapely.length(shapely.difference(segments, corridor)).sum())
 
 
 def rmf_corridor(true_xy_m: np.ndarray | Sequence[np.ndarray],
@@ -96,17 +112,14 @@ def rmf_corridor(true_xy_m: np.ndarray | Sequence[np.ndarray],
     """
     if not corridor_m > 0:
         raise ValueError(f"corridor_m must be positive, got {corridor_m}")
-    true = _multi(_as_parts(true_xy_m))
-    matched = _multi(_as_parts(matched_xy_m))
-    true_len = 0.0 if true is None else float(true.length)
+    true = _segments(_as_parts(true_xy_m))
+    matched = _segments(_as_parts(matched_xy_m))
+    true_len = float(shapely.length(true).sum()) if true.size else 0.0
     if true_len <= 0.0:
         return float("inf")
-    if matched is None:
-        return 1.0
-    # quad_segs=16: the round ends and bends of the buffer are within 0.5 % of the radius
-    missed = shapely.difference(true, shapely.buffer(matched, corridor_m, quad_segs=16))
-    extra = shapely.difference(matched, shapely.buffer(true, corridor_m, quad_segs=16))
-    return (float(missed.length) + float(extra.length)) / true_len
+    missed = _outside_m(true, matched, corridor_m)
+    extra = _outside_m(matched, true, corridor_m)
+    return (missed + extra) / true_len
 
 
 def _as_parts(route: np.ndarray | Sequence[np.ndarray]) -> list[np.ndarray]:
@@ -164,11 +177,13 @@ def stretch_xy(net: RoadNetwork, edges: Sequence[int], start_m: float, end_m: fl
                ) -> np.ndarray:
     """The part of the route ``edges`` (joined in travel order) from ``start_m`` to ``end_m``
     along it [m]; (0, 2) when the part has no length."""
-    if not len(edges):
+    if not len(edges) or not end_m > start_m:
         return np.zeros((0, 2))
-    line = _line(join_xy(net, list(edges)))
-    if line is None or not end_m > start_m:
+    xy = join_xy(net, list(edges))
+    xy = xy[np.concatenate([[True], np.hypot(*np.diff(xy, axis=0).T) > 0.0])]
+    if len(xy) < 2:
         return np.zeros((0, 2))
+    line = shapely.LineString(xy)
     part = shapely.ops.substring(line, max(start_m, 0.0), min(end_m, line.length))
     xy = shapely.get_coordinates(part)
     return xy if len(xy) >= 2 else np.zeros((0, 2))
