@@ -32,6 +32,7 @@ import shapely
 
 from vid2sim.geo.alongroute import rts_along, trim_route
 from vid2sim.geo.candidates import EdgeIndex, lines_array, wrap_angle
+from vid2sim.geo.hmm import ChainParams, Lattice, viterbi
 from vid2sim.geo.osm import RoadNetwork
 from vid2sim.geo.routing import EdgeDistances
 
@@ -185,75 +186,15 @@ def match(net: RoadNetwork, x_m: np.ndarray, y_m: np.ndarray, t_s: np.ndarray, *
     step = np.hypot(*np.diff(xy, axis=0).T) if n > 1 else np.zeros(0)
     window_gc = max(float(step.max()) if step.size else 0.0, 1.0) * (cfg.max_skip + 1)
     dist = EdgeDistances(net, cutoff_m=min(2 * window_gc + 2 * radius + 50.0, 5000.0),
-                          uturn_m=-cfg.uturn_logp * cfg.beta_m,
-                          turn_m_per_rad=cfg.turn_m_per_rad)
+                         uturn_m=-cfg.uturn_logp * cfg.beta_m,
+                         turn_m_per_rad=cfg.turn_m_per_rad)
     dist.prefetch(np.concatenate([c[0] for c in cands]) if n else np.zeros(0, np.int64))
-    length = net.edge_length_m
-    twin = net.edge_twin
-
-    score: list[np.ndarray] = []
-    back: list[list[tuple[int, int, bool]]] = []  # (t_prev, i_prev, is_break)
-    for t in range(n):
-        edges_t, s_t, _, _ = cands[t]
-        m = len(edges_t)
-        best = np.full(m, -np.inf)
-        ptr: list[tuple[int, int, bool]] = [(-1, -1, False)] * m
-        if t < cfg.max_skip + 1:  # start of the chain, earlier fixes skipped as outliers
-            best = emis[t] + cfg.skip_logp * t
-        for k in range(1, cfg.max_skip + 2):
-            tp = t - k
-            if tp < 0:
-                break
-            edges_p, s_p, _, _ = cands[tp]
-            if not len(edges_p) or not m:
-                continue
-            valid = np.isfinite(score[tp])
-            if not valid.any():
-                continue
-            d_gc = float(np.hypot(*(xy[t] - xy[tp])))
-            dt = max(float(t_s[t] - t_s[tp]), 1e-3)
-            max_route = cfg.max_speed_mps * dt + 2 * radius
-            skip = cfg.skip_logp * (k - 1)
-            still = bool(stationary[t] and stationary[tp])
-            for i in np.flatnonzero(valid):
-                ea, sa, sc = int(edges_p[i]), float(s_p[i]), float(score[tp][i])
-                reach = dist.rows[ea]
-                rest = float(length[ea]) - sa
-                for j in range(m):
-                    eb, sb = int(edges_t[j]), float(s_t[j])
-                    penalty = 0.0
-                    if eb == ea and sb >= sa - 1e-9:
-                        d_route = sb - sa
-                    elif eb == ea and still:
-                        # standing still: a projection behind the last one is GPS jitter
-                        d_route = sa - sb
-                    elif eb == ea:
-                        d_route, penalty = 0.0, (sa - sb) / cfg.beta_m
-                    else:
-                        via = reach.get(eb)
-                        if eb == twin[ea]:
-                            # turning round in the street (not through the line graph)
-                            via, penalty = 0.0, -cfg.uturn_logp
-                        if via is None:
-                            continue
-                        d_route = rest + via + sb
-                    if d_route > max_route:
-                        continue
-                    v = sc + skip - abs(d_route - d_gc) / cfg.beta_m - penalty + emis[t][j]
-                    if v > best[j]:
-                        best[j] = v
-                        ptr[j] = (tp, int(i), False)
-        if m and not np.isfinite(best).any() and t > 0:
-            # nothing reachable: restart the chain after the best recent state
-            src = _best_recent(score, t, cfg)
-            if src is not None:
-                tp, i, base = src
-                best = emis[t] + base + cfg.break_logp
-                ptr = [(tp, i, True)] * m
-        score.append(best)
-        back.append(ptr)
-
-    return _finish(net, xy, t_s, sigma, cands, score, back, dist, cfg)
+    prm = ChainParams(beta_m=cfg.beta_m, uturn_cost=-cfg.uturn_logp, max_skip=cfg.max_skip,
+                      skip_logp=cfg.skip_logp, break_logp=cfg.break_logp,
+                      max_speed_mps=cfg.max_speed_mps, slack_m=2 * radius)
+    lattice = Lattice([c[0] for c in cands], [c[1] for c in cands], emis)
+    chains = viterbi(lattice, xy, t_s, stationary, dist, net.edge_length_m, net.edge_twin, prm)
+    return _finish(net, xy, t_s, sigma, chains, dist, cfg)
 
 
 def _chord_speed(xy: np.ndarray, t_s: np.ndarray, half_window: int = 4) -> np.ndarray:
@@ -276,48 +217,16 @@ def _chord_speed(xy: np.ndarray, t_s: np.ndarray, half_window: int = 4) -> np.nd
     return speed
 
 
-def _best_recent(score: list[np.ndarray], t: int, cfg: MatchConfig
-                 ) -> tuple[int, int, float] | None:
-    for tp in range(t - 1, -1, -1):
-        if score[tp].size and np.isfinite(score[tp]).any():
-            i = int(np.argmax(score[tp]))
-            return tp, i, float(score[tp][i]) + cfg.skip_logp * min(t - tp - 1, cfg.max_skip)
-    return None
-
-
-def _finish(net: RoadNetwork, xy: np.ndarray, t_s: np.ndarray, sigma: np.ndarray, cands,
-            score, back, dist: EdgeDistances, cfg: MatchConfig) -> MatchResult:
+def _finish(net: RoadNetwork, xy: np.ndarray, t_s: np.ndarray, sigma: np.ndarray,
+            chains: list[list[tuple[int, int, float]]], dist: EdgeDistances,
+            cfg: MatchConfig) -> MatchResult:
     n = len(xy)
-    empty = MatchResult([], np.full(n, -1), np.full(n, np.nan), np.full(n, -1),
-                        np.full(n, -1, dtype=np.int64), np.full(n, np.nan), np.ones(n, bool),
-                        _edge_way=net.edge_way_id)
-    # end state: best over the last fixes, trailing ones skipped as outliers
-    end, end_v = None, -np.inf
-    for t in range(n - 1, max(-1, n - 2 - cfg.max_skip), -1):
-        if score[t].size and np.isfinite(score[t]).any():
-            v = float(score[t].max()) + cfg.skip_logp * (n - 1 - t)
-            if v > end_v:
-                end, end_v = (t, int(np.argmax(score[t]))), v
-    if end is None:
-        for t in range(n - 1, -1, -1):
-            if score[t].size and np.isfinite(score[t]).any():
-                end = (t, int(np.argmax(score[t])))
-                break
-    if end is None:
+    if not chains:
+        empty = MatchResult([], np.full(n, -1), np.full(n, np.nan), np.full(n, -1),
+                            np.full(n, -1, dtype=np.int64), np.full(n, np.nan),
+                            np.ones(n, bool), _edge_way=net.edge_way_id)
         empty.warnings.append("no fix lies within reach of a drivable road")
         return empty
-
-    # backtrack: chosen (t, edge, s) in time order, split at chain breaks
-    chains: list[list[tuple[int, int, float]]] = [[]]
-    t, i = end
-    while t >= 0:
-        edges_t, s_t, _, _ = cands[t]
-        chains[-1].append((t, int(edges_t[i]), float(s_t[i])))
-        tp, ip, is_break = back[t][i]
-        if is_break:
-            chains.append([])
-        t, i = tp, ip
-    chains = [c[::-1] for c in chains[::-1] if c]
 
     route_edges: list[list[int]] = []
     fix_piece = np.full(n, -1)
