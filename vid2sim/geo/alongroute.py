@@ -11,13 +11,14 @@ from vid2sim.geo.osm import RoadNetwork
 GATE = 16.0
 
 
-
 def rts_along(t_s: np.ndarray, s_meas_m: np.ndarray, sigma_m: np.ndarray,
-               accel_sigma_mps2: float) -> np.ndarray:
+              accel_sigma_mps2: float, return_accepted: bool = False
+              ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """Constant-velocity Kalman filter + Rauch-Tung-Striebel smoother of along-route position.
 
     NaN measurements (skipped outliers) are predicted through; innovations beyond 4 sigma are
-    rejected. Returns the smoothed positions [m].
+    rejected. Returns the smoothed positions [m], and with ``return_accepted`` also which
+    measurements the filter used.
     """
     n = len(t_s)
     first = int(np.flatnonzero(np.isfinite(s_meas_m))[0])
@@ -29,6 +30,7 @@ def rts_along(t_s: np.ndarray, s_meas_m: np.ndarray, sigma_m: np.ndarray,
     ps_p = np.zeros((n, 2, 2))
     fs = np.zeros((n, 2, 2))
     q = accel_sigma_mps2 ** 2
+    accepted = np.zeros(n, bool)
     for k in range(n):
         dt = float(t_s[k] - t_s[k - 1]) if k else 0.0
         f = np.array([[1.0, dt], [0.0, 1.0]])
@@ -43,6 +45,7 @@ def rts_along(t_s: np.ndarray, s_meas_m: np.ndarray, sigma_m: np.ndarray,
             innov_var = p[0, 0] + r
             innov = z - x[0]
             if innov ** 2 <= GATE * innov_var:
+                accepted[k] = True
                 gain = p[:, 0] / innov_var
                 x = x + gain * innov
                 p = p - np.outer(gain, p[0, :])
@@ -51,11 +54,11 @@ def rts_along(t_s: np.ndarray, s_meas_m: np.ndarray, sigma_m: np.ndarray,
     for k in range(n - 2, -1, -1):
         c = ps_f[k] @ fs[k + 1].T @ np.linalg.inv(ps_p[k + 1])
         xs[k] = xs_f[k] + c @ (xs[k + 1] - xs_p[k + 1])
-    return xs[:, 0]
+    return (xs[:, 0], accepted) if return_accepted else xs[:, 0]
 
 
 def trim_route(net: RoadNetwork, piece: list[int], s_m: np.ndarray, min_cover_m: float
-          ) -> tuple[list[int], np.ndarray]:
+               ) -> tuple[list[int], np.ndarray]:
     """Drop route edges before the first / after the last fix position, and a first or last
     edge covered by less than ``min_cover_m``; shift positions to the trimmed start."""
     lengths = net.edge_length_m[piece]

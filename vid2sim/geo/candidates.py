@@ -5,6 +5,7 @@ piece with the along-edge position, distance and edge heading at the projection.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 import shapely
@@ -33,6 +34,24 @@ def wrap_angle(a: np.ndarray) -> np.ndarray:
 
 
 
+@dataclass(slots=True)
+class Candidates:
+    """Candidate road positions of one point.
+
+    :param edges: directed edges
+    :param s_m: position along each edge [m]
+    :param dist_m: distance from the point [m]
+    :param heading_rad: travel direction of the edge there, counter-clockwise from east [rad]
+    :param foot_xy: the position on the edge [m] (K, 2)
+    """
+
+    edges: np.ndarray
+    s_m: np.ndarray
+    dist_m: np.ndarray
+    heading_rad: np.ndarray
+    foot_xy: np.ndarray
+
+
 class EdgeIndex:
     """STRtree over way-piece geometries (one per twin pair), mapped to directed edges."""
 
@@ -45,32 +64,49 @@ class EdgeIndex:
         self.tree = shapely.STRtree(self.lines)
 
     def candidates(self, xy: np.ndarray, radius_m: float, max_geometries: int
-                   ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
-        """Per fix: directed edges, along-edge s [m], distance [m], edge heading [rad]."""
+                   ) -> list[Candidates]:
+        """Per point: the directed edges of the ``max_geometries`` nearest way pieces within
+        ``radius_m`` (nearest first, then their twins), all points in one vectorised pass."""
+        n = len(xy)
         pts = shapely.points(xy[:, 0], xy[:, 1])
         pi, gi = self.tree.query(pts, predicate="dwithin", distance=radius_m)
         lines = self.lines[gi]
         dist = shapely.distance(lines, pts[pi])
+        order = np.lexsort((dist, pi))
+        pi, gi, lines, dist = pi[order], gi[order], lines[order], dist[order]
+        first = np.searchsorted(pi, np.arange(n + 1))
+        keep = np.arange(pi.size) - first[pi] < max_geometries
+        pi, gi, lines, dist = pi[keep], gi[keep], lines[keep], dist[keep]
         s = shapely.line_locate_point(lines, pts[pi])
         length = self.length[gi]
+        foot = shapely.get_coordinates(shapely.line_interpolate_point(lines, s))
         # edge tangent at the projection from points 0.5 m either side
         a = shapely.get_coordinates(shapely.line_interpolate_point(lines, np.maximum(s - 0.5, 0)))
         b = shapely.get_coordinates(
             shapely.line_interpolate_point(lines, np.minimum(s + 0.5, length)))
         heading = np.arctan2(b[:, 1] - a[:, 1], b[:, 0] - a[:, 0])
-        out = []
-        order = np.lexsort((dist, pi))
-        bounds = np.searchsorted(pi[order], np.arange(len(xy) + 1))
-        for k in range(len(xy)):
-            sel = order[bounds[k]:bounds[k + 1]][:max_geometries]
-            edges, ss, dd, hh = [self.base[gi[sel]]], [s[sel]], [dist[sel]], [heading[sel]]
-            has_twin = self.twin[gi[sel]] >= 0
-            if has_twin.any():
-                t = sel[has_twin]
-                edges.append(self.twin[gi[t]])
-                ss.append(length[t] - s[t])
-                dd.append(dist[t])
-                hh.append(heading[t] + math.pi)
-            out.append((np.concatenate(edges), np.concatenate(ss), np.concatenate(dd),
-                        np.concatenate(hh)))
+        tw = np.flatnonzero(self.twin[gi] >= 0)
+        owner = np.concatenate([pi, pi[tw]])
+        is_twin = np.concatenate([np.zeros(pi.size, bool), np.ones(tw.size, bool)])
+        edges = np.concatenate([self.base[gi], self.twin[gi[tw]]])
+        along = np.concatenate([s, length[tw] - s[tw]])
+        dd = np.concatenate([dist, dist[tw]])
+        hh = np.concatenate([heading, heading[tw] + math.pi])
+        ff = np.concatenate([foot, foot[tw]])
+        # per point: its pieces nearest first, then their twins nearest first
+        rank = np.lexsort((np.concatenate([dist, dist[tw]]), is_twin, owner))
+        bounds = np.searchsorted(owner[rank], np.arange(1, n))
+        return [Candidates(*parts) for parts in zip(
+            *(np.split(v[rank], bounds) for v in (edges, along, dd, hh, ff)), strict=True)]
+
+    def nearest_distance(self, xy: np.ndarray, max_distance_m: float) -> np.ndarray:
+        """Distance [m] of each point to its nearest way piece; NaN beyond
+        ``max_distance_m``."""
+        out = np.full(len(xy), np.nan)
+        if not len(xy) or not len(self.lines):
+            return out
+        pts = shapely.points(xy[:, 0], xy[:, 1])
+        (pi, _), d = self.tree.query_nearest(pts, max_distance=max_distance_m,
+                                             return_distance=True, all_matches=False)
+        out[pi] = d
         return out

@@ -63,8 +63,8 @@ def transition_logp(dist: EdgeDistances, length_m: np.ndarray, twin: np.ndarray,
     """Log-probability of moving from each previous candidate to each current one,
     (len(edges_p), len(edges_t)); -inf where impossible."""
     gaps = np.array([[row.get(int(b), np.nan) for b in edges_t]
-                     for row in (dist.rows[int(a)] for a in edges_p)], dtype=float)
-    gaps = gaps.reshape(len(edges_p), len(edges_t))
+                     for row in (dist.rows[int(a)] for a in edges_p)],
+                    dtype=float).reshape(len(edges_p), len(edges_t))
     is_twin = twin[edges_p][:, None] == edges_t[None, :]
     gaps = np.where(is_twin, 0.0, gaps)  # turning round in the street, not via the graph
     d_route = (length_m[edges_p] - s_p)[:, None] + gaps + s_t[None, :]
@@ -117,9 +117,9 @@ def viterbi(lat: Lattice, xy_m: np.ndarray, t_s: np.ndarray, still: np.ndarray,
             if not m or not np.isfinite(score[tp]).any():
                 continue
             valid = np.flatnonzero(np.isfinite(score[tp]))
+            d_gc = float(np.hypot(*(xy_m[t] - xy_m[tp])))
             lp = transition_logp(dist, length_m, twin, lat.edges[tp][valid],
-                                 lat.s_m[tp][valid], edges_t, s_t,
-                                 float(np.hypot(*(xy_m[t] - xy_m[tp]))),
+                                 lat.s_m[tp][valid], edges_t, s_t, d_gc,
                                  float(t_s[t] - t_s[tp]), bool(still[t] and still[tp]), prm)
             total = score[tp][valid][:, None] + prm.skip_logp * (k - 1) + lp
             arg = np.argmax(total, axis=0)

@@ -25,12 +25,13 @@ Dijkstra with a cutoff), cached per node for the whole trace.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, field
 
 import numpy as np
 import shapely
 
-from vid2sim.geo.alongroute import rts_along, trim_route
+from vid2sim.geo.alongroute import join_xy, rts_along, signed_offsets, trim_route
 from vid2sim.geo.candidates import EdgeIndex, lines_array, wrap_angle
 from vid2sim.geo.hmm import ChainParams, Lattice, viterbi
 from vid2sim.geo.osm import RoadNetwork
@@ -41,10 +42,23 @@ from vid2sim.geo.routing import EdgeDistances
 class MatchConfig:
     """Tuning of the matcher (defaults suit consumer GPS at 1-10 Hz in cities).
 
-    :param sigma_m: GPS position noise, one sigma [m], used when a fix has no accuracy
-    :param search_radius_m: candidate edges are searched within this distance of a fix [m]
+    :param sigma_m: GPS position noise, one sigma [m], for fixes without an accuracy; None
+        estimates it from the trace (:func:`estimate_sigma`, then the matched route's offsets)
+    :param min_sigma_m, max_sigma_m: bounds of the estimate [m]: OSM draws a way's middle to
+        a metre or two and a car drives up to half a carriageway beside it; beyond 50 m a
+        trace says little about streets
+    :param refine_sigma: re-estimate the noise from the matched route's offsets and match
+        again when it is clearly larger than the first estimate
+    :param search_radius_m: candidate edges are searched within this distance of a fix, or
+        ``search_sigmas`` sigma if farther [m]
+    :param search_sigmas: search radius in units of sigma
     :param max_geometries: nearest way pieces kept per fix (each gives 1-2 directed edges)
     :param beta_m: scale of the route-vs-straight distance difference [m]
+    :param thin_sigmas: the HMM reasons about fixes at least this many sigma apart
+        (:func:`hmm_steps`); 0 uses every fix
+    :param obs_window_s: fixes less than this apart are one observation for the HMM (their
+        median, :func:`observations`): under a second, so a 1 Hz trace with some clock
+        jitter is used fix by fix and a 10 Hz one as about 1 Hz [s]
     :param heading_sigma_rad: heading error scale of the emission [rad]
     :param heading_cap_logp: the heading term never costs more than this (a wrong heading
         estimate must not veto the right road)
@@ -62,10 +76,16 @@ class MatchConfig:
         route (GPS noise at the start would otherwise add the way behind the start) [m]
     """
 
-    sigma_m: float = 5.0
+    sigma_m: float | None = None
+    min_sigma_m: float = 2.0
+    max_sigma_m: float = 50.0
+    refine_sigma: bool = True
     search_radius_m: float = 40.0
+    search_sigmas: float = 4.0
     max_geometries: int = 6
     beta_m: float = 5.0
+    thin_sigmas: float = 2.0
+    obs_window_s: float = 0.9
     heading_sigma_rad: float = 0.5
     heading_cap_logp: float = -4.0
     max_skip: int = 3
@@ -144,6 +164,7 @@ def match(net: RoadNetwork, x_m: np.ndarray, y_m: np.ndarray, t_s: np.ndarray, *
     heading_rad : direction of travel per fix, counter-clockwise from east [rad]; NaN where
         unknown (stationary, no course); None if unknown everywhere
     accuracy_m : one-sigma horizontal accuracy per fix [m]; NaN/None -> ``config.sigma_m``
+        or, when that is None, the noise estimated from the trace
     speed_mps : ground speed per fix [m/s] (e.g. from the smoothed ego track), used to tell
         standing still from driving; None -> estimated from the fixes (:func:`_chord_speed`)
     config : tuning
@@ -158,55 +179,165 @@ def match(net: RoadNetwork, x_m: np.ndarray, y_m: np.ndarray, t_s: np.ndarray, *
     n = len(xy)
     heading = (np.full(n, np.nan) if heading_rad is None
                else np.asarray(heading_rad, float).reshape(n))
-    sigma = np.full(n, cfg.sigma_m)
-    if accuracy_m is not None:
-        acc = np.asarray(accuracy_m, float).reshape(n)
-        sigma = np.where(np.isfinite(acc) & (acc > 0), np.maximum(acc, 1.0), cfg.sigma_m)
-    radius = max(cfg.search_radius_m, 4.0 * float(np.median(sigma)) if n else 0.0)
-
     index = EdgeIndex(net)
-    cands = index.candidates(xy, radius, cfg.max_geometries)
+    acc = (np.full(n, np.nan) if accuracy_m is None
+           else np.asarray(accuracy_m, float).reshape(n))
+    known = np.isfinite(acc) & (acc > 0)
+    obs = observations(xy, t_s, cfg.obs_window_s)
+    estimate = cfg.sigma_m is None and not known.all()
+    if cfg.sigma_m is not None:
+        sigma_fix = sigma_obs = float(cfg.sigma_m)
+    elif estimate:
+        sigma_fix = estimate_sigma(index, xy[~known], cfg)
+        # the median of several fixes is steadier than one fix if their errors are
+        # independent, and as bad if they move together: measured, not assumed
+        sigma_obs = min(estimate_sigma(index, obs.xy, cfg), sigma_fix)
+    else:
+        sigma_fix = sigma_obs = cfg.min_sigma_m  # every fix has its accuracy
+    sigma = np.where(known, np.maximum(acc, 1.0), sigma_fix)
+    obs_sigma = np.where(known[obs.fix], sigma[obs.fix], sigma_obs)
+    if speed_mps is None:
+        obs_still = _chord_speed(obs.xy, obs.t_s) < cfg.stationary_mps
+    else:
+        obs_still = np.asarray(speed_mps, float).reshape(n)[obs.fix] < cfg.stationary_mps
+
+    result = _match_once(net, index, xy, t_s, sigma, obs, heading[obs.fix], obs_sigma,
+                         obs_still, cfg)
+    if estimate and cfg.refine_sigma:
+        # the nearest-road estimate reads low where noise carries fixes towards other roads;
+        # the matched route's offsets are the noise across the road (Newson & Krumm's
+        # estimator on the route itself): match again if they say the noise is larger
+        used = ~result.fix_outlier & np.isfinite(result.fix_offset_m) & ~known
+        if used.sum() >= MIN_FIXES_FOR_SIGMA:
+            again = float(np.clip(MAD_TO_SIGMA * np.median(np.abs(result.fix_offset_m[used])),
+                                  cfg.min_sigma_m, cfg.max_sigma_m))
+            if again > SIGMA_RETRY_RATIO * sigma_fix:
+                scale = again / sigma_fix
+                sigma = np.where(known, sigma, again)
+                obs_sigma = np.where(known[obs.fix], obs_sigma, sigma_obs * scale)
+                result = _match_once(net, index, xy, t_s, sigma, obs, heading[obs.fix],
+                                     obs_sigma, obs_still, cfg)
+    return result
+
+
+@dataclass(slots=True)
+class Observations:
+    """What the HMM sees: fixes less than ``obs_window_s`` apart merged into one.
+
+    :param xy: component-wise median position of each group [m] (K, 2)
+    :param t_s: median time of each group [s]
+    :param fix: the group's middle fix (index into the input), which stands for it
+    """
+
+    xy: np.ndarray
+    t_s: np.ndarray
+    fix: np.ndarray
+
+
+def observations(xy: np.ndarray, t_s: np.ndarray, window_s: float) -> Observations:
+    """Group consecutive fixes within ``window_s`` of the group's first fix; each group
+    becomes its median (an outlier among several fixes does not move it). Fixes further
+    apart stay single, so a 1 Hz trace is used as it is."""
+    n = len(xy)
+    if n == 0 or window_s <= 0:
+        return Observations(xy.copy(), t_s.copy(), np.arange(n))
+    starts = [0]
+    for k in range(1, n):
+        if t_s[k] - t_s[starts[-1]] >= window_s:
+            starts.append(k)
+    bounds = [*starts, n]
+    if len(starts) == n:
+        return Observations(xy.copy(), t_s.copy(), np.arange(n))
+    mid = np.array([(a + b - 1) // 2 for a, b in itertools.pairwise(bounds)])
+    med_xy = np.array([np.median(xy[a:b], axis=0) for a, b in itertools.pairwise(bounds)])
+    med_t = np.array([np.median(t_s[a:b]) for a, b in itertools.pairwise(bounds)])
+    return Observations(med_xy, med_t, mid)
+
+
+def estimate_sigma(index: EdgeIndex, xy: np.ndarray, cfg: MatchConfig) -> float:
+    """GPS noise [m] from the fixes' distances to their nearest road: 1.4826 x their median
+    (Newson & Krumm 2009, section 4.1: the median absolute deviation of a Gaussian), within
+    ``[min_sigma_m, max_sigma_m]``; ``min_sigma_m`` when too few fixes lie near a road."""
+    near = index.nearest_distance(xy, cfg.max_sigma_m * 3.0)
+    near = near[np.isfinite(near)]
+    if near.size < MIN_FIXES_FOR_SIGMA:
+        return cfg.min_sigma_m
+    return float(np.clip(MAD_TO_SIGMA * np.median(near), cfg.min_sigma_m, cfg.max_sigma_m))
+
+
+def hmm_steps(xy: np.ndarray, sigma: np.ndarray, thin_sigmas: float) -> np.ndarray:
+    """Indices of the observations the HMM reasons about: the first, every one at least
+    ``thin_sigmas`` sigma from the previous step, and the last (Newson & Krumm 2009, section
+    4.1: closer fixes say little about the route and their noise dominates the route-length
+    comparison). The other fixes are placed on the matched route afterwards."""
+    n = len(xy)
+    if n <= 2 or thin_sigmas <= 0:
+        return np.arange(n)
+    keep = [0]
+    last = xy[0]
+    for k in range(1, n - 1):
+        if (xy[k, 0] - last[0]) ** 2 + (xy[k, 1] - last[1]) ** 2 >= (thin_sigmas * sigma[k]) ** 2:
+            keep.append(k)
+            last = xy[k]
+    keep.append(n - 1)
+    return np.asarray(keep)
+
+
+def _match_once(net: RoadNetwork, index: EdgeIndex, xy: np.ndarray, t_s: np.ndarray,
+                sigma: np.ndarray, obs: Observations, obs_heading: np.ndarray,
+                obs_sigma: np.ndarray, obs_still: np.ndarray, cfg: MatchConfig
+                ) -> MatchResult:
+    n = len(xy)
+    radius = max(cfg.search_radius_m,
+                 cfg.search_sigmas * float(np.median(obs_sigma)) if n else 0.0)
+    k_steps = hmm_steps(obs.xy, obs_sigma, cfg.thin_sigmas)
+    sxy = obs.xy[k_steps]
+    beta = cfg.beta_m
+    cands = index.candidates(sxy, radius, cfg.max_geometries)
     emis = []
-    for k, (edges_k, s_k, d, h) in enumerate(cands):
-        e = -0.5 * (d / sigma[k]) ** 2
+    for k, c in enumerate(cands):
+        edges_k, s_k, h = c.edges, c.s_m, c.heading_rad
+        e = -0.5 * (c.dist_m / obs_sigma[k_steps[k]]) ** 2
         # a projection clamped to an edge's end means the fix lies beyond it: the next or
         # previous edge holds the fix, and must win the tie at the shared node (this decides
         # the first and last way of the route)
         clamped = (s_k <= 1e-6) | (s_k >= net.edge_length_m[edges_k] - 1e-6)
         e = e - CLAMP_LOGP * clamped
-        if np.isfinite(heading[k]):
-            e = e + np.maximum(-0.5 * (wrap_angle(h - heading[k]) / cfg.heading_sigma_rad) ** 2,
+        hd = obs_heading[k_steps[k]]
+        if np.isfinite(hd):
+            e = e + np.maximum(-0.5 * (wrap_angle(h - hd) / cfg.heading_sigma_rad) ** 2,
                                cfg.heading_cap_logp)
         emis.append(e)
 
-    if speed_mps is None:
-        speed_mps = _chord_speed(xy, t_s)
-    stationary = np.asarray(speed_mps, float).reshape(n) < cfg.stationary_mps
-
-    step = np.hypot(*np.diff(xy, axis=0).T) if n > 1 else np.zeros(0)
-    window_gc = max(float(step.max()) if step.size else 0.0, 1.0) * (cfg.max_skip + 1)
+    hop = np.hypot(*np.diff(sxy, axis=0).T) if len(sxy) > 1 else np.zeros(0)
+    window_gc = max(float(hop.max()) if hop.size else 0.0, 1.0) * (cfg.max_skip + 1)
     dist = EdgeDistances(net, cutoff_m=min(2 * window_gc + 2 * radius + 50.0, 5000.0),
-                         uturn_m=-cfg.uturn_logp * cfg.beta_m,
-                         turn_m_per_rad=cfg.turn_m_per_rad)
-    dist.prefetch(np.concatenate([c[0] for c in cands]) if n else np.zeros(0, np.int64))
-    prm = ChainParams(beta_m=cfg.beta_m, uturn_cost=-cfg.uturn_logp, max_skip=cfg.max_skip,
+                         uturn_m=-cfg.uturn_logp * beta, turn_m_per_rad=cfg.turn_m_per_rad)
+    dist.prefetch(np.concatenate([c.edges for c in cands]) if n else np.zeros(0, np.int64))
+    prm = ChainParams(beta_m=beta, uturn_cost=-cfg.uturn_logp, max_skip=cfg.max_skip,
                       skip_logp=cfg.skip_logp, break_logp=cfg.break_logp,
                       max_speed_mps=cfg.max_speed_mps, slack_m=2 * radius)
-    lattice = Lattice([c[0] for c in cands], [c[1] for c in cands], emis)
-    chains = viterbi(lattice, xy, t_s, stationary, dist, net.edge_length_m, net.edge_twin, prm)
-    return _finish(net, xy, t_s, sigma, chains, dist, cfg)
+    lattice = Lattice([c.edges for c in cands], [c.s_m for c in cands], emis)
+    chains = viterbi(lattice, sxy, obs.t_s[k_steps], obs_still[k_steps], dist,
+                     net.edge_length_m, net.edge_twin, prm)
+    steps = obs.fix[k_steps]  # each step stands for its middle fix
+    chains = [[(int(steps[k]), e, s) for k, e, s in chain] for chain in chains]
+    return _finish(net, xy, t_s, sigma, chains, steps, dist, cfg)
 
 
-def _chord_speed(xy: np.ndarray, t_s: np.ndarray, half_window: int = 4) -> np.ndarray:
-    """Speed [m/s] from the median positions of the fixes before and after each fix.
+def _chord_speed(xy: np.ndarray, t_s: np.ndarray, half_window_s: float = 4.0) -> np.ndarray:
+    """Speed [m/s] from the median positions of the fixes in the ``half_window_s`` before and
+    after each fix (inf where fewer than 3 fixes lie in the window).
 
-    Medians over ``half_window`` fixes ignore outliers; the chord over several seconds keeps
-    GPS noise small against the distance driven (5 m noise over 4 s reads as ~1 m/s).
+    Medians ignore outliers; the chord over several seconds keeps GPS noise small against
+    the distance driven (5 m noise over 4 s reads as ~1 m/s).
     """
     n = len(xy)
     speed = np.full(n, np.inf)
+    lo = np.searchsorted(t_s, t_s - half_window_s, side="left")
+    hi = np.searchsorted(t_s, t_s + half_window_s, side="right")
     for k in range(n):
-        a, b = max(0, k - half_window), min(n, k + half_window + 1)
+        a, b = int(lo[k]), int(hi[k])
         if b - a < 3:
             continue
         before = np.median(xy[a:k + 1], axis=0)
@@ -218,8 +349,8 @@ def _chord_speed(xy: np.ndarray, t_s: np.ndarray, half_window: int = 4) -> np.nd
 
 
 def _finish(net: RoadNetwork, xy: np.ndarray, t_s: np.ndarray, sigma: np.ndarray,
-            chains: list[list[tuple[int, int, float]]], dist: EdgeDistances,
-            cfg: MatchConfig) -> MatchResult:
+            chains: list[list[tuple[int, int, float]]], steps: np.ndarray,
+            dist: EdgeDistances, cfg: MatchConfig) -> MatchResult:
     n = len(xy)
     if not chains:
         empty = MatchResult([], np.full(n, -1), np.full(n, np.nan), np.full(n, -1),
@@ -232,32 +363,29 @@ def _finish(net: RoadNetwork, xy: np.ndarray, t_s: np.ndarray, sigma: np.ndarray
     fix_piece = np.full(n, -1)
     fix_s = np.full(n, np.nan)
     outlier = np.ones(n, bool)
+    is_step = np.zeros(n, bool)
+    is_step[steps] = True
     for chain in chains:
-        piece: list[int] = [chain[0][1]]
-        cum = 0.0  # route length before the current (last) edge of the piece
-        s_raw = {}
-        prev_e = chain[0][1]
-        for t, e, s in chain:
-            if e != prev_e:
-                between = [] if e == net.edge_twin[prev_e] else dist.path(prev_e, e)
-                for f in between:
-                    cum += float(net.edge_length_m[piece[-1]])
-                    piece.append(f)
-                cum += float(net.edge_length_m[piece[-1]])
-                piece.append(e)
-                prev_e = e
-            s_raw[t] = cum + s
-            outlier[t] = False
-        route_edges.append(piece)
-        k = len(route_edges) - 1
+        piece, s_raw = _route_of_chain(net, chain, dist)
         t0, t1 = chain[0][0], chain[-1][0]
         sel = np.arange(t0, t1 + 1)
         meas = np.array([s_raw.get(int(t), np.nan) for t in sel])
-        smooth = rts_along(t_s[sel], meas, sigma[sel], cfg.accel_sigma_mps2)
+        # fixes between the steps (thinned out, not skipped as outliers): their place on
+        # the route near where the steps around them put the car
+        between = ~is_step[sel]
+        if between.any():
+            known_t = np.array(sorted(s_raw))
+            expect = np.interp(t_s[sel[between]], t_s[known_t], [s_raw[t] for t in known_t])
+            window = PROJECT_WINDOW_SIGMAS * float(np.max(sigma[sel])) + PROJECT_WINDOW_M
+            meas[between], _ = signed_offsets(join_xy(net, piece), xy[sel[between]], expect,
+                                              window)
+        smooth, accepted = rts_along(t_s[sel], meas, sigma[sel], cfg.accel_sigma_mps2,
+                                     return_accepted=True)
+        outlier[sel] = ~accepted
         piece, smooth = trim_route(net, piece, np.maximum.accumulate(smooth), cfg.min_cover_m)
-        route_edges[k] = piece
+        route_edges.append(piece)
         fix_s[sel] = np.clip(smooth, 0.0, float(net.edge_length_m[piece].sum()))
-        fix_piece[sel] = k
+        fix_piece[sel] = len(route_edges) - 1
 
     result = MatchResult(route_edges, fix_piece, fix_s, np.full(n, -1),
                          np.full(n, -1, dtype=np.int64), np.full(n, np.nan), outlier,
@@ -267,6 +395,23 @@ def _finish(net: RoadNetwork, xy: np.ndarray, t_s: np.ndarray, sigma: np.ndarray
         result.warnings.append(f"the matched route has {result.n_breaks} break(s): no drivable "
                                "connection between parts of the trace")
     return result
+
+
+def _route_of_chain(net: RoadNetwork, chain: list[tuple[int, int, float]],
+                    dist: EdgeDistances) -> tuple[list[int], dict[int, float]]:
+    """The route edges of a Viterbi chain (consecutive states joined by their shortest
+    route) and each chain fix's position along them [m]."""
+    piece = [chain[0][1]]
+    cum = 0.0  # route length before the current (last) edge of the piece
+    s_raw: dict[int, float] = {}
+    for t, e, s in chain:
+        if e != piece[-1]:
+            between = [] if e == net.edge_twin[piece[-1]] else dist.path(piece[-1], e)
+            for f in [*between, e]:
+                cum += float(net.edge_length_m[piece[-1]])
+                piece.append(f)
+        s_raw[t] = cum + s
+    return piece, s_raw
 
 
 def _assign_edges(net: RoadNetwork, xy: np.ndarray, res: MatchResult) -> None:
@@ -298,3 +443,13 @@ def _assign_edges(net: RoadNetwork, xy: np.ndarray, res: MatchResult) -> None:
 
 #: emission cost of a projection clamped to an edge end (a tie-breaker, see match())
 CLAMP_LOGP = 0.2
+#: median absolute deviation -> standard deviation of a Gaussian (1 / 0.6745)
+MAD_TO_SIGMA = 1.4826
+#: fewest fixes a noise estimate is made from (fewer: ``min_sigma_m``)
+MIN_FIXES_FOR_SIGMA = 5
+#: re-match when the route's own offsets say the noise is this much above the first estimate
+SIGMA_RETRY_RATIO = 1.25
+#: a fix between steps is placed on the route within this many sigma + metres of where the
+#: steps around it put the car
+PROJECT_WINDOW_SIGMAS = 3.0
+PROJECT_WINDOW_M = 20.0
