@@ -251,3 +251,19 @@ def test_a_gps_outage_is_bridged_by_the_route(town):
     keep = (t < 20) | (t > 40)
     res = match(town, x[keep], y[keep], t[keep])
     assert res.n_breaks == 0 and res.way_sequence() == [101, 104]
+
+
+@pytest.mark.parametrize("rate_hz", [0.2, 1.0, 10.0])
+def test_chord_speed_known_answers(rate_hz):
+    from vid2sim.geo.mapmatch import _chord_speed
+
+    t = np.arange(0.0, 60.0, 1.0 / rate_hz)
+    x = np.where(t < 30, 12.0 * t, 360.0)  # 12 m/s, then standing
+    speed = _chord_speed(np.column_stack([x, np.zeros_like(x)]), t)
+    if rate_hz < 0.3:  # fewer than 3 fixes in 8 s: unknown, taken as driving
+        assert np.all(np.isinf(speed))
+        return
+    cruising = (t > 5) & (t < 25)
+    np.testing.assert_allclose(speed[cruising], 12.0, rtol=1e-9)
+    np.testing.assert_allclose(speed[t > 35], 0.0, atol=1e-9)
+    assert np.all(np.isinf(speed) | (speed >= 0))

@@ -3,6 +3,8 @@ signed lateral offsets from a polyline and joining edge geometries."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from vid2sim.geo.osm import RoadNetwork
@@ -20,41 +22,56 @@ def rts_along(t_s: np.ndarray, s_meas_m: np.ndarray, sigma_m: np.ndarray,
     rejected. Returns the smoothed positions [m], and with ``return_accepted`` also which
     measurements the filter used.
     """
+    # scalar arithmetic on the 2x2 state: numpy's per-call overhead would dominate at 10 Hz
     n = len(t_s)
+    ts = np.asarray(t_s, float).tolist()
+    zs = np.asarray(s_meas_m, float).tolist()
+    rs = (np.asarray(sigma_m, float) ** 2).tolist()
     first = int(np.flatnonzero(np.isfinite(s_meas_m))[0])
-    x = np.array([s_meas_m[first], 0.0])
-    p = np.diag([sigma_m[first] ** 2, 15.0 ** 2])
-    xs_f = np.zeros((n, 2))
-    ps_f = np.zeros((n, 2, 2))
-    xs_p = np.zeros((n, 2))
-    ps_p = np.zeros((n, 2, 2))
-    fs = np.zeros((n, 2, 2))
+    x0, x1 = zs[first], 0.0
+    p00, p01, p11 = rs[first], 0.0, 15.0 ** 2
     q = accel_sigma_mps2 ** 2
+    filt = [(0.0, 0.0, 0.0, 0.0, 0.0)] * n   # filtered x0, x1, p00, p01, p11
+    pred = [(0.0, 0.0, 0.0, 0.0, 0.0)] * n   # predicted, the same
+    dts = [0.0] * n
     accepted = np.zeros(n, bool)
     for k in range(n):
-        dt = float(t_s[k] - t_s[k - 1]) if k else 0.0
-        f = np.array([[1.0, dt], [0.0, 1.0]])
-        # white-acceleration process noise (Bar-Shalom, discretised continuous model)
-        qm = q * np.array([[dt ** 3 / 3, dt ** 2 / 2], [dt ** 2 / 2, dt]])
-        x = f @ x
-        p = f @ p @ f.T + qm
-        xs_p[k], ps_p[k], fs[k] = x, p, f
-        z = s_meas_m[k]
-        if np.isfinite(z):
-            r = sigma_m[k] ** 2
-            innov_var = p[0, 0] + r
-            innov = z - x[0]
-            if innov ** 2 <= GATE * innov_var:
+        dt = ts[k] - ts[k - 1] if k else 0.0
+        dts[k] = dt
+        # x <- F x, P <- F P F' + Q (white acceleration, Bar-Shalom's discretised model)
+        x0 = x0 + dt * x1
+        p00, p01, p11 = (p00 + 2 * dt * p01 + dt * dt * p11 + q * dt ** 3 / 3,
+                         p01 + dt * p11 + q * dt ** 2 / 2, p11 + q * dt)
+        pred[k] = (x0, x1, p00, p01, p11)
+        z = zs[k]
+        if not math.isnan(z):
+            innov_var = p00 + rs[k]
+            innov = z - x0
+            if innov * innov <= GATE * innov_var:
                 accepted[k] = True
-                gain = p[:, 0] / innov_var
-                x = x + gain * innov
-                p = p - np.outer(gain, p[0, :])
-        xs_f[k], ps_f[k] = x, p
-    xs = xs_f.copy()
+                g0, g1 = p00 / innov_var, p01 / innov_var
+                x0, x1 = x0 + g0 * innov, x1 + g1 * innov
+                p00, p01, p11 = p00 - g0 * p00, p01 - g0 * p01, p11 - g1 * p01
+        filt[k] = (x0, x1, p00, p01, p11)
+    out = [0.0] * n
+    s0, s1 = filt[n - 1][0], filt[n - 1][1]
+    out[n - 1] = s0
     for k in range(n - 2, -1, -1):
-        c = ps_f[k] @ fs[k + 1].T @ np.linalg.inv(ps_p[k + 1])
-        xs[k] = xs_f[k] + c @ (xs[k + 1] - xs_p[k + 1])
-    return (xs[:, 0], accepted) if return_accepted else xs[:, 0]
+        f0, f1, f00, f01, f11 = filt[k]
+        q0, q1, q00, q01, q11 = pred[k + 1]
+        dt = dts[k + 1]
+        # C = P_f F' inv(P_p)
+        a00, a01 = f00 + dt * f01, f01
+        a10, a11 = f01 + dt * f11, f11
+        det = q00 * q11 - q01 * q01
+        i00, i01, i11 = q11 / det, -q01 / det, q00 / det
+        c00, c01 = a00 * i00 + a01 * i01, a00 * i01 + a01 * i11
+        c10, c11 = a10 * i00 + a11 * i01, a10 * i01 + a11 * i11
+        d0, d1 = s0 - q0, s1 - q1
+        s0, s1 = f0 + c00 * d0 + c01 * d1, f1 + c10 * d0 + c11 * d1
+        out[k] = s0
+    xs = np.asarray(out)
+    return (xs, accepted) if return_accepted else xs
 
 
 def trim_route(net: RoadNetwork, piece: list[int], s_m: np.ndarray, min_cover_m: float

@@ -334,17 +334,28 @@ def _chord_speed(xy: np.ndarray, t_s: np.ndarray, half_window_s: float = 4.0) ->
     """
     n = len(xy)
     speed = np.full(n, np.inf)
+    if n < 3:
+        return speed
     lo = np.searchsorted(t_s, t_s - half_window_s, side="left")
     hi = np.searchsorted(t_s, t_s + half_window_s, side="right")
-    for k in range(n):
-        a, b = int(lo[k]), int(hi[k])
-        if b - a < 3:
-            continue
-        before = np.median(xy[a:k + 1], axis=0)
-        after = np.median(xy[k:b], axis=0)
-        dt = (np.median(t_s[k:b]) - np.median(t_s[a:k + 1]))
-        if dt > 0:
-            speed[k] = float(np.hypot(*(after - before))) / dt
+    k = np.arange(n)
+    # every fix's window before (lo..k) and after (k..hi-1) as NaN-padded rows
+    width = int(max((k - lo).max(), (hi - 1 - k).max())) + 1
+    offs = np.arange(width)
+    idx_b = k[:, None] - offs[None, :]
+    idx_a = k[:, None] + offs[None, :]
+    in_b = idx_b >= lo[:, None]
+    in_a = idx_a <= (hi - 1)[:, None]
+    idx_b, idx_a = np.clip(idx_b, 0, n - 1), np.clip(idx_a, 0, n - 1)
+
+    def med(values: np.ndarray, idx: np.ndarray, inside: np.ndarray) -> np.ndarray:
+        return np.nanmedian(np.where(inside, values[idx], np.nan), axis=1)
+
+    before = np.column_stack([med(xy[:, 0], idx_b, in_b), med(xy[:, 1], idx_b, in_b)])
+    after = np.column_stack([med(xy[:, 0], idx_a, in_a), med(xy[:, 1], idx_a, in_a)])
+    dt = med(t_s, idx_a, in_a) - med(t_s, idx_b, in_b)
+    ok = (hi - lo >= 3) & (dt > 0)
+    speed[ok] = np.hypot(*(after - before)[ok].T) / dt[ok]
     return speed
 
 
