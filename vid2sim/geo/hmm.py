@@ -2,8 +2,12 @@
 
 The lattice has one column per HMM step (a fix the matcher reasons about) and one state per
 candidate ``(directed edge, along-edge s)`` of that fix. A transition from step ``tp`` to step
-``t`` scores ``-|route length - straight-line distance| / beta`` (Newson & Krumm 2009, eq. 2)
-with the route taken on the edge graph (:class:`~vid2sim.geo.routing.EdgeDistances`), plus:
+``t`` scores ``-|route length - distance driven| / beta`` with the route taken on the edge
+graph (:class:`~vid2sim.geo.routing.EdgeDistances`). Newson & Krumm (2009, eq. 2) compare the
+route with the straight line between the two fixes; where the trace tells the speed (densely
+sampled stretches), the distance driven is the speed times the time instead: the straight
+line between two noisy fixes carries their noise twice, and an outlier that lies on the road
+ahead looks like a plausible hop to it but not like plausible driving. Further:
 
 - on the same edge, a projection behind the previous one is GPS jitter: free while standing
   still, ``back / beta`` while driving;
@@ -82,8 +86,8 @@ def transition_logp(dist: EdgeDistances, length_m: np.ndarray, twin: np.ndarray,
 
 
 def viterbi(lat: Lattice, xy_m: np.ndarray, t_s: np.ndarray, still: np.ndarray,
-            dist: EdgeDistances, length_m: np.ndarray, twin: np.ndarray, prm: ChainParams
-            ) -> list[list[tuple[int, int, float]]]:
+            dist: EdgeDistances, length_m: np.ndarray, twin: np.ndarray, prm: ChainParams,
+            travel_m: np.ndarray | None = None) -> list[list[tuple[int, int, float]]]:
     """Best chains through the lattice.
 
     Parameters
@@ -91,6 +95,9 @@ def viterbi(lat: Lattice, xy_m: np.ndarray, t_s: np.ndarray, still: np.ndarray,
     lat : candidates per step
     xy_m, t_s : the steps' fix positions [m] and times [s]
     still : per step, whether the car stands still there
+    travel_m : per step, distance driven since the first step [m] (cumulative; inf from
+        where the speed is unknown): the transitions compare routes with it, else with the
+        straight line between the fixes
 
     Returns
     -------
@@ -118,6 +125,8 @@ def viterbi(lat: Lattice, xy_m: np.ndarray, t_s: np.ndarray, still: np.ndarray,
                 continue
             valid = np.flatnonzero(np.isfinite(score[tp]))
             d_gc = float(np.hypot(*(xy_m[t] - xy_m[tp])))
+            if travel_m is not None and np.isfinite(travel_m[t]):  # cumulative: so is tp's
+                d_gc = float(travel_m[t] - travel_m[tp])
             lp = transition_logp(dist, length_m, twin, lat.edges[tp][valid],
                                  lat.s_m[tp][valid], edges_t, s_t, d_gc,
                                  float(t_s[t] - t_s[tp]), bool(still[t] and still[tp]), prm)

@@ -3,29 +3,38 @@
 Model (after Newson & Krumm, "Hidden Markov Map Matching Through Noise and Sparseness",
 ACM SIGSPATIAL 2009), with additions for dash-cam traces:
 
-- states: for each fix, candidate positions ``(edge, s_m)`` on directed edges within
-  ``search_radius_m``; both twins of a two-way street are separate states, so the direction
-  of travel is part of the state;
-- emission: Gaussian in the fix-to-edge distance (sigma = the fix's accuracy or
-  ``sigma_m``) plus, where the heading is known, a capped Gaussian in heading error;
-- transition: ``-|route distance - straight-line distance| / beta_m``; routes run on the line
-  graph, so they never turn back onto the twin edge; turning round in the street or at a dead
-  end costs ``uturn_logp``; moving backwards on the same edge is GPS jitter: free while
-  standing still, ``back / beta_m`` extra while driving;
-- outliers: a fix may be skipped (the chain jumps up to ``max_skip`` fixes, each skipped fix
-  costing ``skip_logp``); where no candidate can be reached the chain breaks and restarts
+- noise: each fix's reported accuracy, else ``sigma_m``, else estimated from the trace as
+  the paper does (1.4826 x the median distance of the fixes to their nearest road), checked
+  against the matched route's own offsets and matched again when those say it is larger;
+- observations: fixes less than ``obs_window_s`` apart (a 10 Hz receiver) are merged into
+  their median, and the HMM reasons about observations at least ``thin_sigmas`` sigma apart
+  (the paper's thinning; sparse fixes are all kept); every fix is placed on the matched
+  route afterwards;
+- states: for each observation, candidate positions ``(edge, s_m)`` on directed edges
+  within the search radius; both twins of a two-way street are separate states, so the
+  direction of travel is part of the state;
+- emission: Gaussian in the distance to the edge, plus, where the heading is known, a capped
+  Gaussian in heading error;
+- transition (:mod:`vid2sim.geo.hmm`): ``-|route length - distance driven| / beta_m``, the
+  distance driven from the trace's speed where it is known, else the straight line between
+  the fixes; routes run on the line graph, so they never turn back onto the twin edge;
+  turning round costs ``uturn_logp``; moving backwards on the same edge is GPS jitter;
+- outliers: an observation may be skipped (up to ``max_skip`` in a row, each costing
+  ``skip_logp``); where nothing can be reached the chain breaks and restarts
   (``break_logp``);
-- after Viterbi the fixes' along-route positions are smoothed with a constant-velocity
-  Rauch-Tung-Striebel smoother and made non-decreasing, so noise near a junction does not
-  flip a fix onto the neighbouring way and stationary periods never run backwards.
+- after Viterbi every fix's along-route position is smoothed with a constant-velocity
+  Rauch-Tung-Striebel smoother (4-sigma gate) and made non-decreasing, so noise near a
+  junction does not flip a fix onto the neighbouring way and stationary periods never run
+  backwards.
 
-Shortest-path distances are computed only from the end nodes of candidate edges (networkx
-Dijkstra with a cutoff), cached per node for the whole trace.
+Route lengths between candidate edges come from scipy's Dijkstra on the line graph with a
+cutoff (:mod:`vid2sim.geo.routing`), computed once per trace.
 """
 
 from __future__ import annotations
 
 import itertools
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -197,12 +206,19 @@ def match(net: RoadNetwork, x_m: np.ndarray, y_m: np.ndarray, t_s: np.ndarray, *
     sigma = np.where(known, np.maximum(acc, 1.0), sigma_fix)
     obs_sigma = np.where(known[obs.fix], sigma[obs.fix], sigma_obs)
     if speed_mps is None:
-        obs_still = _chord_speed(obs.xy, obs.t_s) < cfg.stationary_mps
+        obs_speed = _chord_speed(obs.xy, obs.t_s)
     else:
-        obs_still = np.asarray(speed_mps, float).reshape(n)[obs.fix] < cfg.stationary_mps
+        obs_speed = np.asarray(speed_mps, float).reshape(n)[obs.fix]
+    obs_still = obs_speed < cfg.stationary_mps
+    # distance driven between consecutive observations [m] (inf where the speed is unknown)
+    obs_travel = np.zeros(len(obs.t_s))
+    if len(obs.t_s) > 1:
+        v = np.where(np.isfinite(obs_speed[1:]), np.minimum(obs_speed[1:], cfg.max_speed_mps),
+                     np.inf)
+        obs_travel[1:] = np.diff(obs.t_s) * v
 
     result = _match_once(net, index, xy, t_s, sigma, obs, heading[obs.fix], obs_sigma,
-                         obs_still, cfg)
+                         obs_still, obs_travel, cfg)
     if estimate and cfg.refine_sigma:
         # the nearest-road estimate reads low where noise carries fixes towards other roads;
         # the matched route's offsets are the noise across the road (Newson & Krumm's
@@ -216,7 +232,7 @@ def match(net: RoadNetwork, x_m: np.ndarray, y_m: np.ndarray, t_s: np.ndarray, *
                 sigma = np.where(known, sigma, again)
                 obs_sigma = np.where(known[obs.fix], obs_sigma, sigma_obs * scale)
                 result = _match_once(net, index, xy, t_s, sigma, obs, heading[obs.fix],
-                                     obs_sigma, obs_still, cfg)
+                                     obs_sigma, obs_still, obs_travel, cfg)
     return result
 
 
@@ -265,18 +281,23 @@ def estimate_sigma(index: EdgeIndex, xy: np.ndarray, cfg: MatchConfig) -> float:
     return float(np.clip(MAD_TO_SIGMA * np.median(near), cfg.min_sigma_m, cfg.max_sigma_m))
 
 
-def hmm_steps(xy: np.ndarray, sigma: np.ndarray, thin_sigmas: float) -> np.ndarray:
+def hmm_steps(xy: np.ndarray, sigma: np.ndarray, thin_sigmas: float,
+              travel_m: np.ndarray) -> np.ndarray:
     """Indices of the observations the HMM reasons about: the first, every one at least
     ``thin_sigmas`` sigma from the previous step, and the last (Newson & Krumm 2009, section
     4.1: closer fixes say little about the route and their noise dominates the route-length
-    comparison). The other fixes are placed on the matched route afterwards."""
+    comparison). Observations whose travel from the previous one is unknown (``travel_m``
+    inf: too few fixes around them to tell the speed, i.e. sparse sampling) are all kept.
+    The other fixes are placed on the matched route afterwards."""
     n = len(xy)
     if n <= 2 or thin_sigmas <= 0:
         return np.arange(n)
     keep = [0]
     last = xy[0]
     for k in range(1, n - 1):
-        if (xy[k, 0] - last[0]) ** 2 + (xy[k, 1] - last[1]) ** 2 >= (thin_sigmas * sigma[k]) ** 2:
+        far = (xy[k, 0] - last[0]) ** 2 + (xy[k, 1] - last[1]) ** 2 >= \
+            (thin_sigmas * sigma[k]) ** 2
+        if far or not math.isfinite(travel_m[k]):
             keep.append(k)
             last = xy[k]
     keep.append(n - 1)
@@ -285,12 +306,12 @@ def hmm_steps(xy: np.ndarray, sigma: np.ndarray, thin_sigmas: float) -> np.ndarr
 
 def _match_once(net: RoadNetwork, index: EdgeIndex, xy: np.ndarray, t_s: np.ndarray,
                 sigma: np.ndarray, obs: Observations, obs_heading: np.ndarray,
-                obs_sigma: np.ndarray, obs_still: np.ndarray, cfg: MatchConfig
-                ) -> MatchResult:
+                obs_sigma: np.ndarray, obs_still: np.ndarray, obs_travel: np.ndarray,
+                cfg: MatchConfig) -> MatchResult:
     n = len(xy)
     radius = max(cfg.search_radius_m,
                  cfg.search_sigmas * float(np.median(obs_sigma)) if n else 0.0)
-    k_steps = hmm_steps(obs.xy, obs_sigma, cfg.thin_sigmas)
+    k_steps = hmm_steps(obs.xy, obs_sigma, cfg.thin_sigmas, obs_travel)
     sxy = obs.xy[k_steps]
     beta = cfg.beta_m
     cands = index.candidates(sxy, radius, cfg.max_geometries)
@@ -319,7 +340,7 @@ def _match_once(net: RoadNetwork, index: EdgeIndex, xy: np.ndarray, t_s: np.ndar
                       max_speed_mps=cfg.max_speed_mps, slack_m=2 * radius)
     lattice = Lattice([c.edges for c in cands], [c.s_m for c in cands], emis)
     chains = viterbi(lattice, sxy, obs.t_s[k_steps], obs_still[k_steps], dist,
-                     net.edge_length_m, net.edge_twin, prm)
+                     net.edge_length_m, net.edge_twin, prm, np.cumsum(obs_travel)[k_steps])
     steps = obs.fix[k_steps]  # each step stands for its middle fix
     chains = [[(int(steps[k]), e, s) for k, e, s in chain] for chain in chains]
     return _finish(net, xy, t_s, sigma, chains, steps, dist, cfg)
