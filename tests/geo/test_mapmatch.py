@@ -1,6 +1,7 @@
 """The HMM map matcher: known answers on a synthetic town (direction of two-way streets, turns,
 standing still, outliers), properties on random drives, and the accuracy evaluation on the
-real Helsinki extract (simulated 1 Hz drives with 5 m noise and 2 % outliers)."""
+real Helsinki extract (simulated 1 Hz drives with 5 m noise and 2 % outliers): the issue's bar
+on the route mismatch fraction, and regression floors."""
 
 from __future__ import annotations
 
