@@ -42,14 +42,12 @@ class Candidates:
     :param s_m: position along each edge [m]
     :param dist_m: distance from the point [m]
     :param heading_rad: travel direction of the edge there, counter-clockwise from east [rad]
-    :param foot_xy: the position on the edge [m] (K, 2)
     """
 
     edges: np.ndarray
     s_m: np.ndarray
     dist_m: np.ndarray
     heading_rad: np.ndarray
-    foot_xy: np.ndarray
 
 
 class EdgeIndex:
@@ -79,7 +77,6 @@ class EdgeIndex:
         pi, gi, lines, dist = pi[keep], gi[keep], lines[keep], dist[keep]
         s = shapely.line_locate_point(lines, pts[pi])
         length = self.length[gi]
-        foot = shapely.get_coordinates(shapely.line_interpolate_point(lines, s))
         # edge tangent at the projection from points 0.5 m either side
         a = shapely.get_coordinates(shapely.line_interpolate_point(lines, np.maximum(s - 0.5, 0)))
         b = shapely.get_coordinates(
@@ -92,12 +89,11 @@ class EdgeIndex:
         along = np.concatenate([s, length[tw] - s[tw]])
         dd = np.concatenate([dist, dist[tw]])
         hh = np.concatenate([heading, heading[tw] + math.pi])
-        ff = np.concatenate([foot, foot[tw]])
         # per point: its pieces nearest first, then their twins nearest first
         rank = np.lexsort((np.concatenate([dist, dist[tw]]), is_twin, owner))
         bounds = np.searchsorted(owner[rank], np.arange(1, n))
         return [Candidates(*parts) for parts in zip(
-            *(np.split(v[rank], bounds) for v in (edges, along, dd, hh, ff)), strict=True)]
+            *(np.split(v[rank], bounds) for v in (edges, along, dd, hh)), strict=True)]
 
     def nearest_distance(self, xy: np.ndarray, max_distance_m: float) -> np.ndarray:
         """Distance [m] of each point to its nearest way piece; NaN beyond
