@@ -78,7 +78,7 @@ def test_observations_group_fixes_under_the_window(dts, seed, window):
     obs = observations(xy, t, window)
     assert np.all(np.diff(obs.fix) > 0) and obs.fix[0] >= 0 and obs.fix[-1] < t.size
     assert np.all(np.diff(obs.t_s) > 0)
-    assert len(obs.t_s) <= t.size
+    assert len(obs.t_s) <= t.size and obs.size.sum() == t.size and np.all(obs.size >= 1)
     for k, f in enumerate(obs.fix):  # the fix standing for a group lies inside it
         assert abs(t[f] - obs.t_s[k]) < window + 1e-9
     if np.all(np.diff(t) >= window):  # a 1 Hz trace is used fix by fix

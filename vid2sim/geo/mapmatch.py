@@ -228,9 +228,10 @@ def match(net: RoadNetwork, x_m: np.ndarray, y_m: np.ndarray, t_s: np.ndarray, *
             again = float(np.clip(MAD_TO_SIGMA * np.median(np.abs(result.fix_offset_m[used])),
                                   cfg.min_sigma_m, cfg.max_sigma_m))
             if again > SIGMA_RETRY_RATIO * sigma_fix:
-                scale = again / sigma_fix
+                # the offsets are those of single fixes: they say nothing about how steady
+                # the median of several fixes is, so a merged observation keeps its estimate
                 sigma = np.where(known, sigma, again)
-                obs_sigma = np.where(known[obs.fix], obs_sigma, sigma_obs * scale)
+                obs_sigma = np.where(known[obs.fix] | (obs.size > 1), obs_sigma, again)
                 result = _match_once(net, index, xy, t_s, sigma, obs, heading[obs.fix],
                                      obs_sigma, obs_still, obs_travel, cfg)
     return result
@@ -243,11 +244,13 @@ class Observations:
     :param xy: component-wise median position of each group [m] (K, 2)
     :param t_s: median time of each group [s]
     :param fix: the group's middle fix (index into the input), which stands for it
+    :param size: fixes in the group
     """
 
     xy: np.ndarray
     t_s: np.ndarray
     fix: np.ndarray
+    size: np.ndarray
 
 
 def observations(xy: np.ndarray, t_s: np.ndarray, window_s: float) -> Observations:
@@ -256,18 +259,18 @@ def observations(xy: np.ndarray, t_s: np.ndarray, window_s: float) -> Observatio
     apart stay single, so a 1 Hz trace is used as it is."""
     n = len(xy)
     if n == 0 or window_s <= 0:
-        return Observations(xy.copy(), t_s.copy(), np.arange(n))
+        return Observations(xy.copy(), t_s.copy(), np.arange(n), np.ones(n, dtype=np.int64))
     starts = [0]
     for k in range(1, n):
         if t_s[k] - t_s[starts[-1]] >= window_s:
             starts.append(k)
     bounds = [*starts, n]
     if len(starts) == n:
-        return Observations(xy.copy(), t_s.copy(), np.arange(n))
+        return Observations(xy.copy(), t_s.copy(), np.arange(n), np.ones(n, dtype=np.int64))
     mid = np.array([(a + b - 1) // 2 for a, b in itertools.pairwise(bounds)])
     med_xy = np.array([np.median(xy[a:b], axis=0) for a, b in itertools.pairwise(bounds)])
     med_t = np.array([np.median(t_s[a:b]) for a, b in itertools.pairwise(bounds)])
-    return Observations(med_xy, med_t, mid)
+    return Observations(med_xy, med_t, mid, np.diff(bounds))
 
 
 def estimate_sigma(index: EdgeIndex, xy: np.ndarray, cfg: MatchConfig) -> float:
