@@ -42,3 +42,16 @@ def kitti_tracking_dir() -> Path:
 def model_dir() -> Path:
     """Folder with yolox_nano.onnx and picodet_s_416_coco.onnx (never downloaded in tests)."""
     return _need(MODELS, "detector weights folder")
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _private_cache_dir(tmp_path_factory):
+    """Tests never read or write the user's cache (parsed maps, downloads): one temporary
+    cache folder per test session (:func:`vid2sim.geo.mapcache.default_cache_dir`)."""
+    saved = os.environ.get("VID2SIM_CACHE_DIR")
+    os.environ["VID2SIM_CACHE_DIR"] = str(tmp_path_factory.mktemp("vid2sim-cache"))
+    yield
+    if saved is None:
+        os.environ.pop("VID2SIM_CACHE_DIR", None)
+    else:
+        os.environ["VID2SIM_CACHE_DIR"] = saved

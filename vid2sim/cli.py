@@ -195,7 +195,8 @@ def trace(gps_file: Path, rate_hz: float, gps_offset_s: float | None, out_path: 
               help="Video time of the first fix [s], overriding the file's own clock.")
 @click.option("--no-download", is_flag=True, help="Never fetch OpenStreetMap data.")
 @click.option("--cache-dir", type=EXISTING_PATH, default=None,
-              help="Download cache [default: ~/.cache/vid2sim/osm].")
+              help="Map cache: parsed map files and downloads [default: ~/.cache/vid2sim/osm, "
+                   "or $VID2SIM_CACHE_DIR/osm].")
 def road(gps_file: Path, map_path: Path | None, out_path: Path, plot_path: Path | None,
          gps_offset_s: float | None, no_download: bool, cache_dir: Path | None) -> None:
     """Match a GPS trace to OpenStreetMap and write the driven road with its lanes."""

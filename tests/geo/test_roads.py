@@ -13,8 +13,8 @@ from hypothesis import strategies as st
 
 from tests.geo.test_osm import NODES, ORIGIN, WAYS, osm_xml
 from vid2sim.cli import main
+from vid2sim.geo.alongroute import signed_offsets
 from vid2sim.geo.frames import EnuFrame
-from vid2sim.geo.mapmatch import signed_offsets
 from vid2sim.geo.roads import (
     DEFAULT_LANE_WIDTH_M,
     LANE_DEFAULTS,
@@ -275,3 +275,50 @@ def test_cli_bad_maps(tmp_path, capsys, content, problem):
     err = _one_line_error(capsys, main(["road", str(gps), "--map", str(bad),
                                         "--out", str(tmp_path / "r.json")]))
     assert problem in err and str(bad) in err
+
+
+# --------------------------------------------------------------------------- GPS time base
+
+
+@pytest.mark.parametrize("offset", [None, 0.0, 3.5, -2.0])
+def test_fixes_and_ego_share_one_clock(offset):
+    from vid2sim.geo.roads import fix_times_s
+    from vid2sim.geo.trace import smooth_ego, video_t0_utc
+
+    trace, _ = _trace_and_ego([(-280, 0), (280, 0)])
+    # a file whose fixes are out of order: the offset is the video time of the earliest fix
+    shuffled = GpsTrace([trace.fixes[3], *trace.fixes[:3], *trace.fixes[4:]], "csv")
+    t_fix = fix_times_s(shuffled, offset)
+    assert t_fix.min() == pytest.approx(0.0 if offset is None else offset, abs=1e-9)
+    assert t_fix[0] == pytest.approx(t_fix.min() + 3.0, abs=1e-9)  # file order kept
+    ego, stats = smooth_ego(shuffled, rate_hz=1.0, gps_offset_s=offset)
+    t0, how = video_t0_utc(shuffled, offset)
+    assert stats.time_alignment == how
+    # the ego's clock puts the earliest fix where fix_times_s puts it
+    assert ego.t_s[0] == pytest.approx(t_fix.min(), abs=0.5)
+    assert t0 == pytest.approx(min(f.t_utc_s for f in shuffled.fixes) - (offset or 0.0))
+
+
+def test_build_road_takes_the_gps_offset(town_map):
+    from vid2sim.geo.trace import smooth_ego
+
+    trace, _ = _trace_and_ego([(-280, 0), (0, 0), (0, 180)], seed=3)
+    plain = build_road(trace, smooth_ego(trace, rate_hz=10.0, origin=ORIGIN)[0], town_map,
+                       allow_download=False)
+    ego, _ = smooth_ego(trace, rate_hz=10.0, gps_offset_s=4.0, origin=ORIGIN)
+    shifted = build_road(trace, ego, town_map, gps_offset_s=4.0, allow_download=False)
+    assert [m["t"] for m in shifted.matches] == pytest.approx(
+        [m["t"] + 4.0 for m in plain.matches])
+    # the same fixes on the same road: the same ways and offsets, only the clock moved
+    assert [m["osm_way_id"] for m in shifted.matches] == [m["osm_way_id"] for m in plain.matches]
+    assert shifted.route_osm_way_ids == plain.route_osm_way_ids == [101, 104]
+    np.testing.assert_allclose([m["offset_m"] for m in shifted.matches],
+                               [m["offset_m"] for m in plain.matches], atol=1e-9)
+
+
+def test_lane_numbering_is_stated_once_and_printed(town_map):
+    from vid2sim.geo.roads import LANE_NUMBERING, format_summary
+
+    trace, ego = _trace_and_ego([(-280, 0), (280, 0)], offset_m=-4.5)
+    text = format_summary(build_road(trace, ego, town_map, allow_download=False))
+    assert LANE_NUMBERING in text and "rightmost" in LANE_NUMBERING

@@ -37,6 +37,7 @@ import numpy as np
 
 from vid2sim.errors import InputError
 from vid2sim.geo.frames import EnuFrame
+from vid2sim.geo.mapcache import DrivableMap, cached_map, default_cache_dir
 from vid2sim.records import Origin
 
 log = logging.getLogger(__name__)
@@ -278,16 +279,9 @@ def _way_chain(pairs: list[tuple[int, int]]) -> list[list[int]]:
     return chains
 
 
-def build_network(ways: _WaySegments, origin: Origin, *, source: str = "",
-                  bbox_lonlat: tuple[float, float, float, float] | None = None) -> RoadNetwork:
-    """Filter drivable ways, split them at junctions, project to ENU, add twin directions.
-
-    Parameters
-    ----------
-    ways : reader output
-    origin : ENU origin of the scenario
-    bbox_lonlat : optional (west, south, east, north) [deg]; way pieces entirely outside are
-        dropped (keeps the graph small: matching cost grows with it)
+def drivable_map(ways: _WaySegments, source: str = "") -> DrivableMap:
+    """Keep the drivable ways and split them at junctions (nodes used by more than one way,
+    or twice by one way, and way ends).
 
     Raises
     ------
@@ -298,7 +292,6 @@ def build_network(ways: _WaySegments, origin: Origin, *, source: str = "",
     for way_id, pairs in ways.segments.items():
         if is_drivable(ways.tags.get(way_id, {})):
             chains.extend((way_id, c) for c in _way_chain(pairs))
-    # junctions: nodes shared by several ways or by the same way twice, and chain ends
     uses: dict[int, int] = defaultdict(int)
     for _, chain in chains:
         for n in chain[1:-1]:
@@ -312,39 +305,69 @@ def build_network(ways: _WaySegments, origin: Origin, *, source: str = "",
             if uses[chain[k]] > 1 or k == len(chain) - 1:
                 pieces.append((way_id, chain[start:k + 1]))
                 start = k
+    # a reader drops nodes outside its extract: pieces through them cannot be drawn
     pieces = [(w, p) for w, p in pieces if all(n in ways.node_lonlat for n in p)]
-    if bbox_lonlat is not None:
-        west, south, east, north = bbox_lonlat
-
-        def inside(piece: list[int]) -> bool:
-            lon = [ways.node_lonlat[n][0] for n in piece]
-            lat = [ways.node_lonlat[n][1] for n in piece]
-            return max(lon) >= west and min(lon) <= east and max(lat) >= south and min(lat) <= north
-
-        pieces = [(w, p) for w, p in pieces if inside(p)]
     if not pieces:
-        raise InputError(source or None, "no drivable roads in this map" if bbox_lonlat is None
-                         else "no drivable roads near the trace",
+        raise InputError(source or None, "no drivable roads in this map",
                          "highway=* ways open to cars are needed")
+    node_id = np.array(sorted({n for _, p in pieces for n in p}), dtype=np.int64)
+    flat = np.array([n for _, p in pieces for n in p], dtype=np.int64)
+    return DrivableMap(
+        node_id=node_id,
+        node_lonlat=np.array([ways.node_lonlat[int(n)] for n in node_id], dtype=np.float64),
+        piece_way=np.array([w for w, _ in pieces], dtype=np.int64),
+        piece_ptr=np.concatenate([[0], np.cumsum([len(p) for _, p in pieces])]).astype(np.int64),
+        piece_node=np.searchsorted(node_id, flat).astype(np.int64),
+        way_tags={w: dict(ways.tags.get(w, {})) for w in sorted({w for w, _ in pieces})},
+    )
 
-    node_ids = sorted({n for _, p in pieces for n in p})
-    lonlat = np.array([ways.node_lonlat[n] for n in node_ids])
+
+def project_network(dmap: DrivableMap, origin: Origin, *, source: str = "",
+                    bbox_lonlat: tuple[float, float, float, float] | None = None) -> RoadNetwork:
+    """Project the pieces touching ``bbox_lonlat`` (all when None) to the ENU frame of
+    ``origin`` and add the twin direction of every two-way piece.
+
+    Raises
+    ------
+    InputError
+        when no piece touches the box.
+    """
+    keep = np.arange(dmap.n_pieces)
+    if bbox_lonlat is not None and dmap.n_pieces:
+        west, south, east, north = bbox_lonlat
+        ll = dmap.node_lonlat[dmap.piece_node]
+        starts = dmap.piece_ptr[:-1]
+        lo = np.minimum.reduceat(ll, starts, axis=0)
+        hi = np.maximum.reduceat(ll, starts, axis=0)
+        keep = np.flatnonzero((hi[:, 0] >= west) & (lo[:, 0] <= east)
+                              & (hi[:, 1] >= south) & (lo[:, 1] <= north))
+    if not keep.size:
+        raise InputError(source or None, "no drivable roads near the trace",
+                         "highway=* ways open to cars are needed")
+    used = np.unique(np.concatenate([dmap.piece_node[dmap.piece_ptr[k]:dmap.piece_ptr[k + 1]]
+                                     for k in keep]))
+    lonlat = dmap.node_lonlat[used]
     enu = EnuFrame(origin).to_enu(lonlat[:, 1], lonlat[:, 0])[:, :2]
-    node_xy = {n: enu[k] for k, n in enumerate(node_ids)}
+    xy_of = np.zeros((dmap.node_id.size, 2))
+    xy_of[used] = enu
+    node_xy = {int(dmap.node_id[i]): enu[k] for k, i in enumerate(used)}
 
     u, v, way, along, xy, tags = [], [], [], [], [], []
-    for way_id, piece in pieces:
-        way_tags = ways.tags.get(way_id, {})
+    for k in keep:
+        idx = dmap.piece_node[dmap.piece_ptr[k]:dmap.piece_ptr[k + 1]]
+        piece = dmap.node_id[idx]
+        way_id = int(dmap.piece_way[k])
+        way_tags = dmap.way_tags.get(way_id, {})
         oneway = way_tags.get("oneway", "")
         forward = oneway not in ONEWAY_REVERSE
         backward = oneway not in ONEWAY_FORWARD and not (
             way_tags.get("junction") in ("roundabout", "circular") and oneway != "no")
-        pts = np.array([node_xy[n] for n in piece])
+        pts = xy_of[idx]
         for ok, nodes, geometry, is_along in ((forward, piece, pts, True),
                                              (backward, piece[::-1], pts[::-1], False)):
             if ok:
-                u.append(nodes[0])
-                v.append(nodes[-1])
+                u.append(int(nodes[0]))
+                v.append(int(nodes[-1]))
                 way.append(way_id)
                 along.append(is_along)
                 xy.append(np.ascontiguousarray(geometry))
@@ -356,9 +379,8 @@ def build_network(ways: _WaySegments, origin: Origin, *, source: str = "",
         if way[k] == way[k - 1] and u[k] == v[k - 1] and v[k] == u[k - 1] and not along[k] \
                 and along[k - 1] and len(xy[k]) == len(xy[k - 1]):
             twin[k], twin[k - 1] = k - 1, k
-    all_lonlat = lonlat
-    bbox = (float(all_lonlat[:, 0].min()), float(all_lonlat[:, 1].min()),
-            float(all_lonlat[:, 0].max()), float(all_lonlat[:, 1].max()))
+    bbox = (float(lonlat[:, 0].min()), float(lonlat[:, 1].min()),
+            float(lonlat[:, 0].max()), float(lonlat[:, 1].max()))
     return RoadNetwork(
         origin=origin, edge_u=np.array(u, dtype=np.int64), edge_v=np.array(v, dtype=np.int64),
         edge_way_id=np.array(way, dtype=np.int64), edge_length_m=length, edge_twin=twin,
@@ -367,15 +389,36 @@ def build_network(ways: _WaySegments, origin: Origin, *, source: str = "",
     )
 
 
+def build_network(ways: _WaySegments, origin: Origin, *, source: str = "",
+                  bbox_lonlat: tuple[float, float, float, float] | None = None) -> RoadNetwork:
+    """Filter drivable ways, split them at junctions, project to ENU, add twin directions
+    (:func:`drivable_map` then :func:`project_network`).
+
+    Raises
+    ------
+    InputError
+        when no drivable way remains (in the box).
+    """
+    return project_network(drivable_map(ways, source), origin, source=source,
+                           bbox_lonlat=bbox_lonlat)
+
+
 def load_network(path: str | Path, origin: Origin, *,
-                 bbox_lonlat: tuple[float, float, float, float] | None = None) -> RoadNetwork:
+                 bbox_lonlat: tuple[float, float, float, float] | None = None,
+                 cache_dir: str | Path | None = None, use_cache: bool = True) -> RoadNetwork:
     """Read a map file and return its drivable network in the ENU frame of ``origin``.
+
+    The drivable pieces are read once per process and kept on disk, keyed by the file's
+    sha256 (:func:`vid2sim.geo.mapcache.cached_map`), so only the crop and the projection
+    run per call.
 
     Parameters
     ----------
     path : ``.osm`` (XML) or ``.osm.pbf`` file
     origin : scenario ENU origin
     bbox_lonlat : keep only ways touching (west, south, east, north) [deg]; None keeps all
+    cache_dir : map cache folder (default :func:`vid2sim.geo.mapcache.default_cache_dir`)
+    use_cache : False reads and parses the file (no memory or disk cache)
 
     Raises
     ------
@@ -383,22 +426,36 @@ def load_network(path: str | Path, origin: Origin, *,
         unreadable or empty file, or no drivable road (in the box).
     """
     path = Path(path)
-    ways = read_osm(path)
-    if not ways.segments:
-        raise InputError(path, "no ways in this map", "is the extract empty?")
+    if use_cache:
+        dmap = cached_map(path, lambda: _parse_map(path), cache_dir=cache_dir,
+                          config=_FILTER_DIGEST)
+    else:
+        dmap = _parse_map(path)
     try:
-        return build_network(ways, origin, source=path.name, bbox_lonlat=bbox_lonlat)
+        return project_network(dmap, origin, source=path.name, bbox_lonlat=bbox_lonlat)
     except InputError as exc:
         if bbox_lonlat is None:
             raise InputError(path, exc.problem, exc.hint) from None
     # nothing near the trace: say where the map's drivable roads are
+    raise InputError(path, f"the trace area ({format_bbox(bbox_lonlat)}) lies outside the map's "
+                     f"drivable roads ({format_bbox(dmap.bbox_lonlat())})",
+                     "pass a map that covers the drive")
+
+
+def _parse_map(path: Path) -> DrivableMap:
+    ways = read_osm(path)
+    if not ways.segments:
+        raise InputError(path, "no ways in this map", "is the extract empty?")
     try:
-        whole = build_network(ways, origin, source=path.name)
+        return drivable_map(ways, path.name)
     except InputError as exc:
         raise InputError(path, exc.problem, exc.hint) from None
-    raise InputError(path, f"the trace area ({format_bbox(bbox_lonlat)}) lies outside the map's "
-                     f"drivable roads ({format_bbox(whole.bbox_lonlat)})",
-                     "pass a map that covers the drive")
+
+
+#: what the drivable pieces depend on besides the file: a changed filter makes cached maps
+#: stale (part of the cache key)
+_FILTER_DIGEST = json.dumps([sorted(DRIVABLE_HIGHWAYS), sorted(EXCLUDED_SERVICE),
+                             sorted(_NO_ACCESS), list(KEPT_TAGS), "pieces-v1"])
 
 
 def format_bbox(bbox: Iterable[float]) -> str:
@@ -425,18 +482,19 @@ def download_network(bbox_lonlat: tuple[float, float, float, float], origin: Ori
                      timeout_s: float = DOWNLOAD_TIMEOUT_S) -> RoadNetwork | None:
     """Fetch the drivable network in a bounding box with osmnx (Overpass API).
 
-    Responses are cached by osmnx under ``cache_dir`` (default ``~/.cache/vid2sim/osm``), so a
+    Responses are cached by osmnx under ``cache_dir`` (default :func:`default_cache_dir`), so a
     second run over the same box is offline. Returns None when the server cannot be reached
     or answers with an error (the caller then derives the road from the trajectory).
     """
-    cache_dir = Path(cache_dir) if cache_dir else Path.home() / ".cache" / "vid2sim" / "osm"
+    cache_dir = Path(cache_dir) if cache_dir else default_cache_dir()
     try:
         import osmnx as ox
     except ImportError:  # pragma: no cover - declared dependency
         return None
     url = str(ox.settings.overpass_url)
     host = url.split("//", 1)[-1].split("/", 1)[0]
-    cached = cache_dir.is_dir() and any(cache_dir.iterdir())
+    # osmnx names its cached responses <hash>.json (the parsed maps live in maps/)
+    cached = cache_dir.is_dir() and any(cache_dir.glob("*.json"))
     if not cached and not _overpass_reachable(host, min(timeout_s, 3.0)):
         log.info("Overpass server %s unreachable; no map download", host)
         return None

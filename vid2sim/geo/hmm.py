@@ -1,0 +1,189 @@
+"""The Viterbi pass of the map matcher: the most likely sequence of candidate road positions.
+
+The lattice has one column per HMM step (a fix the matcher reasons about) and one state per
+candidate ``(directed edge, along-edge s)`` of that fix. A transition from step ``tp`` to step
+``t`` scores ``-|route length - distance driven| / beta`` with the route taken on the edge
+graph (:class:`~vid2sim.geo.routing.EdgeDistances`). Newson & Krumm (2009, eq. 2) compare the
+route with the straight line between the two fixes; where the trace tells the speed (densely
+sampled stretches), the distance driven is the speed times the time instead: the straight
+line between two noisy fixes carries their noise twice, and an outlier that lies on the road
+ahead looks like a plausible hop to it but not like plausible driving. Further:
+
+- on the same edge, a projection behind the previous one is GPS jitter: free while standing
+  still, ``back / beta`` while driving;
+- turning onto the twin edge (a U-turn in the street) costs ``uturn_cost``;
+- a route longer than the car could drive in the time (``max_speed_mps``) is impossible;
+- a step may be skipped as an outlier: the chain jumps up to ``max_skip`` steps, each skipped
+  step costing ``skip_logp``; where nothing is reachable the chain breaks and restarts after
+  the best recent state (``break_logp``).
+
+Every transition between two steps is one (previous candidates x candidates) numpy array.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from vid2sim.geo.routing import EdgeDistances
+
+
+@dataclass(frozen=True, slots=True)
+class ChainParams:
+    """What the Viterbi pass needs of the matcher's tuning (see :class:`MatchConfig`).
+
+    :param beta_m: scale of |route - straight| [m]
+    :param uturn_cost: cost of turning onto the twin edge [nats, > 0]
+    :param max_skip: steps the chain may skip
+    :param skip_logp: log-probability of one skipped step
+    :param break_logp: log-probability of a chain restart
+    :param max_speed_mps: fastest plausible driving [m/s]
+    :param slack_m: route length allowed on top of ``max_speed_mps * dt`` (two search radii:
+        both ends of a transition may lie that far from their fixes) [m]
+    """
+
+    beta_m: float
+    uturn_cost: float
+    max_skip: int
+    skip_logp: float
+    break_logp: float
+    max_speed_mps: float
+    slack_m: float
+
+
+@dataclass(slots=True)
+class Lattice:
+    """Candidates of each step: directed edges, along-edge positions [m], emission log-prob."""
+
+    edges: list[np.ndarray]
+    s_m: list[np.ndarray]
+    emission: list[np.ndarray]
+
+
+def transition_logp(dist: EdgeDistances, length_m: np.ndarray, twin: np.ndarray,
+                    edges_p: np.ndarray, s_p: np.ndarray, edges_t: np.ndarray, s_t: np.ndarray,
+                    d_gc_m: float, dt_s: float, still: bool, prm: ChainParams) -> np.ndarray:
+    """Log-probability of moving from each previous candidate to each current one,
+    (len(edges_p), len(edges_t)); -inf where impossible."""
+    gaps = np.array([[row.get(int(b), np.nan) for b in edges_t]
+                     for row in (dist.rows[int(a)] for a in edges_p)],
+                    dtype=float).reshape(len(edges_p), len(edges_t))
+    is_twin = twin[edges_p][:, None] == edges_t[None, :]
+    gaps = np.where(is_twin, 0.0, gaps)  # turning round in the street, not via the graph
+    d_route = (length_m[edges_p] - s_p)[:, None] + gaps + s_t[None, :]
+    penalty = np.where(is_twin, prm.uturn_cost, 0.0)
+    same = edges_p[:, None] == edges_t[None, :]
+    fwd = s_t[None, :] - s_p[:, None]
+    behind = fwd < -1e-9
+    d_same = np.where(behind, -fwd if still else 0.0, fwd)
+    pen_same = np.where(behind & (not still), -fwd / prm.beta_m, 0.0)
+    d_route = np.where(same, d_same, d_route)
+    penalty = np.where(same, pen_same, penalty)
+    logp = -np.abs(d_route - d_gc_m) / prm.beta_m - penalty
+    max_route = prm.max_speed_mps * max(dt_s, 1e-3) + prm.slack_m
+    return np.where(np.isfinite(d_route) & (d_route <= max_route), logp, -np.inf)
+
+
+def viterbi(lat: Lattice, xy_m: np.ndarray, t_s: np.ndarray, still: np.ndarray,
+            dist: EdgeDistances, length_m: np.ndarray, twin: np.ndarray, prm: ChainParams,
+            travel_m: np.ndarray | None = None) -> list[list[tuple[int, int, float]]]:
+    """Best chains through the lattice.
+
+    Parameters
+    ----------
+    lat : candidates per step
+    xy_m, t_s : the steps' fix positions [m] and times [s]
+    still : per step, whether the car stands still there
+    travel_m : per step, distance driven since the first step [m] (cumulative; inf from
+        where the speed is unknown): the transitions compare routes with it, else with the
+        straight line between the fixes
+
+    Returns
+    -------
+    chains in time order (more than one where the chain broke), each a list of
+    ``(step, directed edge, along-edge s [m])``; empty when no step has a candidate
+    """
+    n = len(lat.edges)
+    score: list[np.ndarray] = []
+    ptr_t: list[np.ndarray] = []
+    ptr_i: list[np.ndarray] = []
+    brk: list[bool] = []
+    for t in range(n):
+        edges_t, s_t = lat.edges[t], lat.s_m[t]
+        m = len(edges_t)
+        best = np.full(m, -np.inf)
+        from_t = np.full(m, -1)
+        from_i = np.full(m, -1)
+        if t < prm.max_skip + 1:  # start of the chain, earlier steps skipped as outliers
+            best = lat.emission[t] + prm.skip_logp * t
+        for k in range(1, prm.max_skip + 2):
+            tp = t - k
+            if tp < 0:
+                break
+            if not m or not np.isfinite(score[tp]).any():
+                continue
+            valid = np.flatnonzero(np.isfinite(score[tp]))
+            d_gc = float(np.hypot(*(xy_m[t] - xy_m[tp])))
+            if travel_m is not None and np.isfinite(travel_m[t]):  # cumulative: so is tp's
+                d_gc = float(travel_m[t] - travel_m[tp])
+            lp = transition_logp(dist, length_m, twin, lat.edges[tp][valid],
+                                 lat.s_m[tp][valid], edges_t, s_t, d_gc,
+                                 float(t_s[t] - t_s[tp]), bool(still[t] and still[tp]), prm)
+            total = score[tp][valid][:, None] + prm.skip_logp * (k - 1) + lp
+            arg = np.argmax(total, axis=0)
+            v = total[arg, np.arange(m)] + lat.emission[t]
+            better = v > best
+            best = np.where(better, v, best)
+            from_t = np.where(better, tp, from_t)
+            from_i = np.where(better, valid[arg], from_i)
+        is_break = False
+        if m and not np.isfinite(best).any() and t > 0:
+            src = _best_recent(score, t, prm)
+            if src is not None:  # nothing reachable: restart after the best recent state
+                tp, i, base = src
+                best = lat.emission[t] + base + prm.break_logp
+                from_t, from_i, is_break = np.full(m, tp), np.full(m, i), True
+        score.append(best)
+        ptr_t.append(from_t)
+        ptr_i.append(from_i)
+        brk.append(is_break)
+
+    end = _end_state(score, prm)
+    if end is None:
+        return []
+    chains: list[list[tuple[int, int, float]]] = [[]]
+    t, i = end
+    while t >= 0:
+        chains[-1].append((t, int(lat.edges[t][i]), float(lat.s_m[t][i])))
+        tp, ip = int(ptr_t[t][i]), int(ptr_i[t][i])
+        if brk[t]:
+            chains.append([])
+        t, i = tp, ip
+    return [c[::-1] for c in chains[::-1] if c]
+
+
+def _best_recent(score: list[np.ndarray], t: int, prm: ChainParams
+                 ) -> tuple[int, int, float] | None:
+    for tp in range(t - 1, -1, -1):
+        if score[tp].size and np.isfinite(score[tp]).any():
+            i = int(np.argmax(score[tp]))
+            return tp, i, float(score[tp][i]) + prm.skip_logp * min(t - tp - 1, prm.max_skip)
+    return None
+
+
+def _end_state(score: list[np.ndarray], prm: ChainParams) -> tuple[int, int] | None:
+    """Best final state: over the last steps, trailing ones skipped as outliers; failing
+    that, the best state of the last step that has one."""
+    n = len(score)
+    end, end_v = None, -np.inf
+    for t in range(n - 1, max(-1, n - 2 - prm.max_skip), -1):
+        if score[t].size and np.isfinite(score[t]).any():
+            v = float(score[t].max()) + prm.skip_logp * (n - 1 - t)
+            if v > end_v:
+                end, end_v = (t, int(np.argmax(score[t]))), v
+    if end is None:
+        for t in range(n - 1, -1, -1):
+            if score[t].size and np.isfinite(score[t]).any():
+                return t, int(np.argmax(score[t]))
+    return end
