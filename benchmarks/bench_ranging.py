@@ -61,7 +61,7 @@ def _random_profile(rng, duration_s: float, dt: float, x0: float, lo: float, hi:
 def _car_size(rng) -> tuple[float, float, float]:
     """Width, length and height [m] of a passenger car drawn from the fleet: body widths
     1.60-1.90 m about a 1.75 m mean, lengths 3.6-5.0 m, heights 1.40 m (saloons) to 1.75 m
-    (SUVs) about 1.52 m (see DEFAULT_PRIORS in ranging.py; the draws are independent of the
+    (SUVs) about 1.52 m (see DEFAULT_PRIORS in vid2sim/detect/ranging/config.py; the draws are independent of the
     priors' exact means so that no cue is exact by construction)."""
     return (float(np.clip(rng.normal(1.75, 0.12), 1.55, 2.0)),
             float(np.clip(rng.normal(4.4, 0.45), 3.5, 5.2)),

@@ -1,0 +1,233 @@
+"""range_tracks: monocular range, lateral offset and range rate of tracked vehicles.
+
+Per box, three cues are fused by weighted least squares in one measurement model: the box's
+bottom edge on the flat road (ground cue, needs the horizon), its pixel width against the
+vehicle's width (width cue, a per-class prior refined per track) and, weakly, its pixel height
+against a height prior. Each cue is a residual of the projected 3D vehicle box, so a pitched
+camera, lens distortion, the side of a laterally offset car that widens its box, and boxes cut
+by the image border (whose cut edge simply drops out) need no special cases. Per track, a
+Kalman filter with a Rauch-Tung-Striebel smoother turns the per-frame positions into smoothed
+range, lateral offset and their rates. The horizon is estimated from lane markings and from the
+agreement of ground and width cues across vehicles rather than taken from the camera file.
+
+Frames: vehicle frame x forward, y left, z up, origin on the road below the camera; range_m is
+the x of the vehicle's rear, lateral_m the y of its centre.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from vid2sim.camera import Camera
+from vid2sim.detect.lead import assign_lanes_and_lead
+from vid2sim.detect.ranging.boxfit import BoxArrays, colored_noise_factor, fit_boxes
+from vid2sim.detect.ranging.config import RangingConfig
+from vid2sim.detect.ranging.horizon import (
+    choose_horizon,
+    frame_horizon_offsets,
+    lane_horizon_offsets,
+    pitch_for_horizon,
+)
+from vid2sim.detect.ranging.smoother import smooth_track_adaptive
+from vid2sim.records import Note, NoteKind, RangedBox, RangingResult, TrackedBox
+
+
+def _size_from_track(values_m: np.ndarray, var_m2: np.ndarray, white_var_m2: np.ndarray,
+                     prior_m: float, prior_std_m: float) -> tuple[float, float]:
+    """A vehicle's size from its track's single-frame fits and the class prior.
+
+    The frames' weighted mean has the white (pixel) part of their variance shrinking with
+    the number of frames but the common part (road height under the vehicle, horizon) only
+    once: a sag ahead that makes every frame read the car narrower is one error, not many.
+    The result is the Gaussian product of that mean with the class prior.
+    """
+    if not values_m.size:
+        return prior_m, prior_std_m
+    var = np.maximum(var_m2, 1e-6)
+    white = np.clip(white_var_m2, 0.0, var)
+    wts = 1.0 / var
+    mean = float(np.sum(wts * values_m) / np.sum(wts))
+    common = float(np.sum(wts * (var - white)) / np.sum(wts))
+    mean_var = common + 1.0 / float(np.sum(1.0 / np.maximum(white, 1e-6)))
+    info = 1.0 / prior_std_m ** 2 + 1.0 / mean_var
+    est = (prior_m / prior_std_m ** 2 + mean / mean_var) / info
+    return est, math.sqrt(1.0 / info)
+
+
+# --------------------------------------------------------------------------- main entry
+
+
+def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
+                 horizon_hints_px: list[float] | None = None,
+                 horizon_hint_frames: list[int] | None = None,
+                 config: RangingConfig | None = None) -> RangingResult:
+    """Range, lateral offset and range rate of every tracked box.
+
+    Parameters
+    ----------
+    boxes : list of TrackedBox
+        Tracker output (any order); a track with one box is ranged from that frame alone.
+    camera : Camera
+        The camera; its pitch is only a prior for the horizon estimate.
+    horizon_hints_px : list of float, optional
+        Per-frame horizon rows from lane markings (:class:`vid2sim.detect.lanes.HorizonEstimator`).
+    horizon_hint_frames : list of int, optional
+        The frame of each hint: with them, each frame's horizon follows the hints about it
+        (:func:`lane_horizon_offsets`); without, all frames share the hints' median.
+    config : RangingConfig, optional
+        Priors and noise settings.
+
+    Returns
+    -------
+    RangingResult
+        One :class:`RangedBox` per input box in the input order; lead and lane assigned.
+    """
+    config = config or RangingConfig()
+    warnings: list[Note] = []
+    if not boxes:
+        h = camera.horizon_y_px()
+        return RangingResult([], camera.pitch_deg, h, "camera file", {},
+                             [Note.warning("no boxes to range")])
+    unknown = sorted({b.category for b in boxes} - set(config.priors))
+    if unknown:
+        warnings.append(Note.warning(f"no size prior for {', '.join(unknown)}: used the car "
+                                     "prior"))
+
+    horizon, source, notes = choose_horizon(boxes, camera, config, horizon_hints_px)
+    warnings.extend(n for n in notes if n.kind is NoteKind.WARNING)
+    pitch = pitch_for_horizon(camera, horizon)
+    cam = camera.with_pitch(pitch)
+    ba = BoxArrays.from_boxes(boxes, cam, config.border_margin_px)
+    frame_box = np.array([b.frame for b in boxes])
+    t_box = np.array([b.t_s for b in boxes], dtype=float)
+    if horizon_hint_frames is not None and horizon_hints_px is not None:
+        hf = np.asarray(horizon_hint_frames, dtype=float)
+        hr = np.asarray(horizon_hints_px, dtype=float)
+        ok = np.isfinite(hr) & np.isfinite(hf)
+        slow_px = lane_horizon_offsets(frame_box, t_box, hf[ok], hr[ok], horizon, config)
+        if np.any(slow_px != 0):
+            ba = BoxArrays(ba.x1, ba.y1 - slow_px, ba.x2, ba.y2 - slow_px, ba.cut_left,
+                           ba.cut_right, ba.cut_top, ba.cut_bottom)
+            notes.append(Note.estimate(
+                f"per-frame horizon from lane markings within "
+                f"{config.lane_horizon_window_s:g} s: {slow_px.min():+.1f} to "
+                f"{slow_px.max():+.1f} px about {horizon:.1f} px"))
+    priors = [config.prior_for(b.category) for b in boxes]
+    w0 = np.array([p.width_m for p in priors])
+    w0_std = np.array([p.width_std_m for p in priors])
+    h0 = np.array([p.height_m for p in priors])
+    h0_std = np.array([p.height_std_m for p in priors])
+    l0 = np.array([p.length_m for p in priors])
+    l0_std = np.array([p.length_std_m for p in priors])
+    track_ids = np.array([b.track_id for b in boxes])
+
+    # 1) Each track's own width and height: fit with loose size priors on frames where the
+    # ground cue is sharp and no side is cut, then combine with the class prior (Gaussian
+    # product). Once known, the box's width and height follow the range frame by frame
+    # with nothing but pixel noise: the cues that make the range rate.
+    loose = fit_boxes(cam, ba, w0, np.full(len(boxes), 1.0), h0, np.full(len(boxes), 1.0),
+                      l0, config, length_std_m=l0_std)
+    learn = (loose.valid & loose.ground_ok & loose.width_ok
+             & (loose.range_m < config.width_learning_max_range_m))
+    learn_h = learn & ~(ba.cut_top | ba.cut_bottom)
+    w_track = w0.copy()
+    w_track_std = w0_std.copy()
+    h_track = h0.copy()
+    h_track_std = h0_std.copy()
+    road_std = np.full(len(boxes), config.road_height_std_m)
+    width_by_track: dict[int, float] = {}
+    order = np.argsort(track_ids, kind="stable")
+    splits = np.flatnonzero(np.diff(track_ids[order])) + 1
+    for members in np.split(order, splits):
+        tid = int(track_ids[members[0]])
+        m = members[learn[members]]
+        prior_w, prior_sd = w0[members[0]], w0_std[members[0]]
+        w_est, w_sd = _size_from_track(loose.width_m[m], loose.width_var_m2[m],
+                                       loose.cov_white[m, 2, 2], prior_w, prior_sd)
+        mh = members[learn_h[members]]
+        h_track[members], h_track_std[members] = _size_from_track(
+            loose.height_m[mh], loose.height_var_m2[mh], loose.cov_white[mh, 3, 3],
+            h0[members[0]], h0_std[members[0]])
+        if w_est < prior_w - 4.0 * prior_sd:
+            # No vehicle of the class is that narrow (4 sigma: 1.27 m for a car; partial
+            # occlusion, which also narrows a box, rarely goes that far for a whole track):
+            # the road under this one lies below the ego's plane (a sag, a dip; a box wider
+            # than the class may be a turned vehicle instead, so that side is left alone).
+            # Its width is the class prior, and its
+            # ground cue counts with the road offset that the disagreement implies,
+            # dz = H (W_prior / W_ground - 1), as the road height's spread.
+            road_std[members] = max(config.road_height_std_m,
+                                    cam.height_m * abs(prior_w / max(w_est, 0.1) - 1.0))
+            w_est, w_sd = prior_w, prior_sd
+            # Its height was read off the same misleading ground cue.
+            h_track[members], h_track_std[members] = h0[members[0]], h0_std[members[0]]
+        w_track[members], w_track_std[members] = w_est, w_sd
+        width_by_track[tid] = round(w_est, 3)
+
+    # 2) Per-frame horizon offset (body pitch), then the final per-frame fit.
+    frame_offset_px = np.zeros(len(boxes))
+    if config.per_frame_pitch:
+        frame_offset_px = frame_horizon_offsets(boxes, cam, ba, loose, w_track, h_track, l0,
+                                                config, l0_std)
+        if np.any(frame_offset_px != 0):
+            ba = BoxArrays(ba.x1, ba.y1 - frame_offset_px, ba.x2, ba.y2 - frame_offset_px,
+                           ba.cut_left, ba.cut_right, ba.cut_top, ba.cut_bottom)
+    # Each track's frame spacing sets how strongly its measurements share the body pitch.
+    inflation = np.ones(len(boxes))
+    for members in np.split(order, splits):
+        t_m = np.unique(t_box[members])
+        if t_m.size > 1:
+            inflation[members] = colored_noise_factor(float(np.median(np.diff(t_m))),
+                                                      config.body_pitch_correlation_s)
+    fit = fit_boxes(cam, ba, w_track, w_track_std, h_track, h_track_std, l0, config,
+                    length_std_m=l0_std, pitch_noise_inflation=inflation,
+                    road_height_std_m=road_std)
+    if (~fit.valid).any():
+        warnings.append(Note.warning(
+            f"{int((~fit.valid).sum())} boxes gave no usable range cue (cut by the border on "
+            "too many sides); their range comes from the track filter"))
+
+    # 3) Per-track Kalman filter + RTS smoother.
+    n = len(boxes)
+    out_range = np.full(n, np.nan)
+    out_rate = np.full(n, np.nan)
+    out_lat = np.full(n, np.nan)
+    out_lat_rate = np.full(n, np.nan)
+    out_std = np.full(n, np.nan)
+    for members in np.split(order, splits):
+        members = members[np.lexsort((frame_box[members], t_box[members]))]
+        if not fit.valid[members].any():
+            # Nothing but weak cues (e.g. a car alongside, cut at the bottom and a side):
+            # report the single-frame fit with its large spread rather than nothing.
+            out_range[members] = fit.range_m[members]
+            out_lat[members] = fit.lateral_m[members]
+            out_std[members] = np.sqrt(np.maximum(fit.range_var_m2[members], 0))
+            continue
+        z = np.column_stack((fit.range_m[members], fit.lateral_m[members]))
+        r = np.zeros((len(members), 2, 2))
+        # The filter sees only the frame-to-frame noise; the common part (size prior, road
+        # height) is added back to the reported spread.
+        r[:, 0, 0] = fit.range_white_var_m2[members]
+        r[:, 1, 1] = fit.lateral_white_var_m2[members]
+        common = np.maximum(fit.range_var_m2[members] - fit.range_white_var_m2[members], 0)
+        sm = smooth_track_adaptive(t_box[members], z, r, fit.valid[members], config)
+        out_range[members] = sm.range_m
+        out_lat[members] = sm.lateral_m
+        out_std[members] = np.sqrt(sm.range_std_m ** 2 + common)
+        if len(members) > 1:
+            out_rate[members] = sm.range_rate_mps
+            out_lat_rate[members] = sm.lateral_rate_mps
+
+    lanes, is_lead = assign_lanes_and_lead(boxes, out_range, out_lat, config)
+    ranged = [
+        RangedBox(frame=b.frame, t_s=b.t_s, track_id=b.track_id, category=b.category,
+                  score=b.score, x1=b.x1, y1=b.y1, x2=b.x2, y2=b.y2,
+                  range_m=float(out_range[i]), lateral_m=float(out_lat[i]),
+                  range_rate_mps=float(out_rate[i]), range_std_m=float(out_std[i]),
+                  is_lead=bool(is_lead[i]), width_m=float(w_track[i]),
+                  lateral_rate_mps=float(out_lat_rate[i]), lane=lanes[i])
+        for i, b in enumerate(boxes)]
+    return RangingResult(ranged, pitch, horizon, source, width_by_track, warnings + [
+        n for n in notes if n.kind is not NoteKind.WARNING])
