@@ -15,6 +15,29 @@ from vid2sim.camera import Camera
 from vid2sim.detect.ranging.config import RangingConfig
 from vid2sim.records import TrackedBox
 
+# Solver settings of :func:`fit_boxes` (numerical choices, not properties of the world).
+# A ground point nearer than this [m] is a bottom edge at or below the camera's own bumper:
+# no starting range from it.
+MIN_GROUND_POINT_M = 0.5
+# Starting ranges are clipped to [1 m, RANGE_BOUND_FACTOR * max_range_m]; the fit itself runs
+# between 1 m (log range 0) and that far end, and a fit on a bound is not valid.
+MIN_INITIAL_RANGE_M = 1.0
+RANGE_BOUND_FACTOR = 3.0
+# A starting width is at most this many times the prior (a box far wider is a turned car).
+MAX_WIDTH_INIT_FACTOR = 3.0
+# Finite-difference step of the Jacobian, in the parameters' units (log range, metres, px).
+FD_STEP = 1e-3
+# Largest Gauss-Newton step in log range (a factor 1.65): keeps a far start from jumping past
+# the camera.
+MAX_LOG_RANGE_STEP = 0.5
+# Sizes stay above this [m] (a width or height of zero would make the edges degenerate).
+MIN_SIZE_M = 0.2
+# A box has converged when its step is below these (log range: 10 ppm; lateral: 0.1 mm).
+CONVERGED_LOG_RANGE = 1e-5
+CONVERGED_LATERAL_M = 1e-4
+# Length spread [m] that holds the length at its prior when no spread is given.
+FIXED_LENGTH_STD_M = 1e-4
+
 
 @dataclass
 class BoxArrays:
@@ -162,9 +185,10 @@ def fit_boxes(camera: Camera, ba: BoxArrays, width_m: np.ndarray, width_std_m: n
     rng0 = f * width_m / bw
     if ground_ok.any():
         pts, ok = camera.pixel_to_ground(np.column_stack(((ba.x1 + ba.x2) / 2, ba.y2)))
-        g = ground_ok & ok & np.isfinite(pts[:, 0]) & (pts[:, 0] > 0.5)
+        g = ground_ok & ok & np.isfinite(pts[:, 0]) & (pts[:, 0] > MIN_GROUND_POINT_M)
         rng0 = np.where(g, pts[:, 0], rng0)
-    rng0 = np.clip(rng0, 1.0, 3 * config.max_range_m)
+    max_fit_range_m = RANGE_BOUND_FACTOR * config.max_range_m
+    rng0 = np.clip(rng0, MIN_INITIAL_RANGE_M, max_fit_range_m)
     # A road dz higher than the plane moves a vehicle's bottom edge by f dz / Z pixels; Z is
     # only known after the fit, so take the first guess (the ground cue's own range where it
     # is usable, not the width cue's: a turned vehicle's wide box would say "near" and so
@@ -189,18 +213,19 @@ def fit_boxes(camera: Camera, ba: BoxArrays, width_m: np.ndarray, width_std_m: n
     # horizon, so alone it would say little about range.
     use = np.stack([~ba.cut_left, height_ok & ground_ok, ~ba.cut_right, ground_ok], axis=1)
     if length_std_m is None:
-        length_std_m = np.full(n, 1e-4)
+        length_std_m = np.full(n, FIXED_LENGTH_STD_M)
     # Width: what the box says at the ground cue's range (at least the prior), so that the
     # reweighting below sees a turned vehicle's wide box from the first step on rather than
     # being pulled by it towards the camera first (a redescending prior needs a fair start).
     w_init = width_m.copy()
     if ground_ok.any():
-        w_init = np.where(g, np.clip(bw * rng0 / f, width_m, 3.0 * width_m), width_m)
+        w_init = np.where(g, np.clip(bw * rng0 / f, width_m, MAX_WIDTH_INIT_FACTOR * width_m),
+                          width_m)
     theta = np.column_stack((np.log(rng0), lat0, w_init, prior_h, length_m, np.zeros(n)))
     prior_mean = np.column_stack((width_m, prior_h, length_m, np.zeros(n)))
     prior_std = np.column_stack((width_std_m, prior_h_std, length_std_m, sig_off))
     n_par = 6
-    steps = np.full(n_par, 1e-3)
+    steps = np.full(n_par, FD_STEP)
 
     # Apparent width is heavy-tailed upwards: a vehicle turned away from the ego axis (at a
     # junction, parked across or at an angle, changing lanes) shows part of its side, and its
@@ -245,12 +270,13 @@ def fit_boxes(camera: Camera, ba: BoxArrays, width_m: np.ndarray, width_std_m: n
         jtj = np.einsum("nik,nil->nkl", jac, jac) + 1e-9 * np.eye(n_par)
         jtr = np.einsum("nik,ni->nk", jac, r0)
         delta = np.linalg.solve(jtj, jtr[..., None])[..., 0]
-        delta[:, 0] = np.clip(delta[:, 0], -0.5, 0.5)
+        delta[:, 0] = np.clip(delta[:, 0], -MAX_LOG_RANGE_STEP, MAX_LOG_RANGE_STEP)
         th = theta[active] + delta
-        th[:, 0] = np.clip(th[:, 0], 0.0, math.log(3 * config.max_range_m))
-        th[:, 2:5] = np.maximum(th[:, 2:5], 0.2)
+        th[:, 0] = np.clip(th[:, 0], 0.0, math.log(max_fit_range_m))
+        th[:, 2:5] = np.maximum(th[:, 2:5], MIN_SIZE_M)
         theta[active] = th
-        active = active[(np.abs(delta[:, 0]) > 1e-5) | (np.abs(delta[:, 1]) > 1e-4)]
+        active = active[(np.abs(delta[:, 0]) > CONVERGED_LOG_RANGE)
+                        | (np.abs(delta[:, 1]) > CONVERGED_LATERAL_M)]
     _, jac = jacobian(theta, np.arange(n))
     jtj = np.einsum("nik,nil->nkl", jac, jac) + 1e-9 * np.eye(n_par)
     cov = np.linalg.inv(jtj)
@@ -269,8 +295,9 @@ def fit_boxes(camera: Camera, ba: BoxArrays, width_m: np.ndarray, width_std_m: n
     rng = np.exp(theta[:, 0])
     # Unobservable range: the log-range spread stays near what the priors alone allow, or
     # the fit ran onto its range bounds (weak cues that disagree have no interior optimum).
-    on_bound = (theta[:, 0] <= 1e-6) | (theta[:, 0] >= math.log(3 * config.max_range_m) - 1e-6)
-    valid = (np.sqrt(np.maximum(cov[:, 0, 0], 0)) < 0.5) & np.isfinite(rng) & ~on_bound
+    on_bound = (theta[:, 0] <= 1e-6) | (theta[:, 0] >= math.log(max_fit_range_m) - 1e-6)
+    valid = ((np.sqrt(np.maximum(cov[:, 0, 0], 0)) < config.max_log_range_std)
+             & np.isfinite(rng) & ~on_bound)
     return BoxFit(rng, theta[:, 1], theta[:, 2], cov, cov_white, ground_ok, width_ok, valid,
                   theta[:, 4], theta[:, 3])
 

@@ -133,6 +133,52 @@ class RangingConfig:
         slowly changing horizon of each frame (see :func:`lane_horizon_offsets`).
     lane_horizon_min_frames : int
         Lane-marking horizons a window needs; with fewer, that frame keeps the video's one.
+    lane_horizon_min_hints : int
+        Lane-marking horizons the whole video needs before they count as an estimate (3:
+        the fewest whose median and MAD say anything).
+    lane_horizon_floor_px : float
+        Floor added to the lane-marking horizon's spread [px]: however many frames agree,
+        the markings' vanishing row carries a common error of about a pixel (curvature,
+        lens distortion left in the frame).
+    horizon_vehicle_min_box_px : tuple of float
+        Smallest (height, width) of a box that votes for the horizon from vehicles [px]:
+        below 20 x 12 px one pixel of edge noise is over 5 % of the size cue.
+    horizon_vehicle_range_m : tuple of float
+        Width-cue ranges of the vehicles that vote for the horizon [m]: nearer than 5 m the
+        box is often cut or the bumper hides the road; beyond 60 m a pixel of bottom edge
+        is worth more than the horizon shift sought.
+    horizon_min_vehicles : int
+        Tracks the horizon from vehicles needs before it counts (3: one odd car cannot
+        outvote the camera file alone).
+    horizon_typical_range_m : float
+        Range [m] at which the vehicle horizon's spread floors are evaluated (the middle of
+        the 5-60 m votes, where most cars of a street scene are seen).
+    horizon_few_tracks_mad_px : float
+        Scatter [px] assumed for the horizon from vehicles when two or fewer tracks vote
+        (no MAD can be computed): about a degree at f = 600 px, i.e. no better than a
+        guessed mounting.
+    horizon_disagreement_sigmas : float
+        Lane-marking and vehicle horizons further apart than this many combined sigmas
+        disagree, and the markings are kept (3: a 0.3 % false alarm for Gaussian errors).
+    pitch_offset_max_range_m : float
+        Vehicles further than this [m] do not vote for a frame's body pitch (the same limit
+        as ``horizon_vehicle_range_m``'s far end, for the same reason).
+    pitch_offset_min_track_boxes : int
+        Boxes a track needs before its median (the constant part of its pitch offsets: its
+        size and road height) is known well enough to subtract.
+    pitch_offset_clip_jitters : float
+        A frame's body-pitch offset is clipped to this many ``horizon_jitter_deg`` sigmas
+        (5: a braking dive of 0.8 deg is 5 sigma of 0.15 deg; beyond it, a wrong box).
+    narrow_width_sigmas : float
+        A track whose learnt width lies more than this many class sigmas below the prior is
+        taken as standing on lower ground instead (4 sigma: 1.27 m for a car; partial
+        occlusion rarely narrows a whole track that far).
+    loose_size_std_m : float
+        Spread of the size priors [m] of the first, loose fit from which each track learns
+        its own width and height: 1 m, wide enough that the cues decide.
+    max_log_range_std : float
+        A single-frame fit whose log-range spread exceeds this is unobservable (0.5: the
+        range is known to no better than a factor 1.65 either way).
     """
 
     priors: dict[str, VehiclePrior] = field(default_factory=lambda: dict(DEFAULT_PRIORS))
@@ -163,6 +209,20 @@ class RangingConfig:
     lane_horizon_window_s: float = 1.5
     horizon_vehicle_max_lateral_m: float = 5.4
     lane_horizon_min_frames: int = 5
+    lane_horizon_min_hints: int = 3
+    lane_horizon_floor_px: float = 1.0
+    horizon_vehicle_min_box_px: tuple[float, float] = (20.0, 12.0)
+    horizon_vehicle_range_m: tuple[float, float] = (5.0, 60.0)
+    horizon_min_vehicles: int = 3
+    horizon_typical_range_m: float = 20.0
+    horizon_few_tracks_mad_px: float = 10.0
+    horizon_disagreement_sigmas: float = 3.0
+    pitch_offset_max_range_m: float = 60.0
+    pitch_offset_min_track_boxes: int = 5
+    pitch_offset_clip_jitters: float = 5.0
+    narrow_width_sigmas: float = 4.0
+    loose_size_std_m: float = 1.0
+    max_log_range_std: float = 0.5
 
     def prior_for(self, category: str) -> VehiclePrior:
         return self.priors.get(category, self.priors["car"])

@@ -127,8 +127,8 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
     # ground cue is sharp and no side is cut, then combine with the class prior (Gaussian
     # product). Once known, the box's width and height follow the range frame by frame
     # with nothing but pixel noise: the cues that make the range rate.
-    loose = fit_boxes(cam, ba, w0, np.full(len(boxes), 1.0), h0, np.full(len(boxes), 1.0),
-                      l0, config, length_std_m=l0_std)
+    loose_std = np.full(len(boxes), config.loose_size_std_m)
+    loose = fit_boxes(cam, ba, w0, loose_std, h0, loose_std, l0, config, length_std_m=l0_std)
     learn = (loose.valid & loose.ground_ok & loose.width_ok
              & (loose.range_m < config.width_learning_max_range_m))
     learn_h = learn & ~(ba.cut_top | ba.cut_bottom)
@@ -150,7 +150,7 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
         h_track[members], h_track_std[members] = _size_from_track(
             loose.height_m[mh], loose.height_var_m2[mh], loose.cov_white[mh, 3, 3],
             h0[members[0]], h0_std[members[0]])
-        if w_est < prior_w - 4.0 * prior_sd:
+        if w_est < prior_w - config.narrow_width_sigmas * prior_sd:
             # No vehicle of the class is that narrow (4 sigma: 1.27 m for a car; partial
             # occlusion, which also narrows a box, rarely goes that far for a whole track):
             # the road under this one lies below the ego's plane (a sag, a dip; a box wider

@@ -9,10 +9,18 @@ from collections import defaultdict
 import numpy as np
 
 from vid2sim.camera import Camera
+from vid2sim.defaults import IMAGE_FOLDER_FPS, MAD_TO_SIGMA
 from vid2sim.detect.ranging.boxfit import BoxArrays, BoxFit, fit_boxes, predict_edges
 from vid2sim.detect.ranging.config import RangingConfig
 from vid2sim.detect.ranging.smoother import _kf_rts_cv
 from vid2sim.records import Note, TrackedBox
+
+# A size prior this tight [m] holds the size fixed at the value given (the width-only fit of
+# the per-frame pitch uses each track's learnt size as known).
+FIXED_SIZE_STD_M = 1e-3
+# Prior spread of the body-pitch offset's rate [px/s], in units of the pitch jitter [px]:
+# ten jitters a second is diffuse (the filter's first frames decide).
+PITCH_OFFSET_RATE_PRIOR_JITTERS = 10.0
 
 
 def pitch_for_horizon(camera: Camera, horizon_y_px: float) -> float:
@@ -32,7 +40,7 @@ def horizon_from_vehicles(boxes: list[TrackedBox], camera: Camera, config: Rangi
                           ba: BoxArrays | None = None) -> tuple[float | None, float, int]:
     """Horizon row that makes ground-cue ranges agree with width-cue ranges.
 
-    For each well-seen car (box not cut, at least 20 px high, width cue range 5-60 m, within
+    For each well-seen car (box not cut, at least 20 x 12 px, width cue range 5-60 m, within
     ``config.horizon_vehicle_max_lateral_m`` of the camera's axis) the
     width cue alone gives its range; the row where that range meets the road, compared with
     the observed bottom edge, says how far the true horizon lies from the assumed one (a pitch
@@ -45,8 +53,9 @@ def horizon_from_vehicles(boxes: list[TrackedBox], camera: Camera, config: Rangi
     """
     ba = ba or BoxArrays.from_boxes(boxes, camera, config.border_margin_px)
     cat = np.array([b.category for b in boxes])
+    min_h_px, min_w_px = config.horizon_vehicle_min_box_px
     sel = ((cat == "car") & ~(ba.cut_left | ba.cut_right | ba.cut_top | ba.cut_bottom)
-           & (ba.y2 - ba.y1 >= 20) & (ba.x2 - ba.x1 >= 12))
+           & (ba.y2 - ba.y1 >= min_h_px) & (ba.x2 - ba.x1 >= min_w_px))
     if sel.sum() == 0:
         return None, math.inf, 0
     idx = np.flatnonzero(sel)
@@ -64,7 +73,9 @@ def horizon_from_vehicles(boxes: list[TrackedBox], camera: Camera, config: Rangi
     # falls 2-3 % to the gutter, parking strips and kerbs add 0.1-0.15 m). In KITTI raw 0001
     # they put the horizon at 180 px where the lane markings and the calibration say 173.
     near = np.abs(fit.lateral_m) < config.horizon_vehicle_max_lateral_m
-    keep = fit.valid & (fit.range_m > 5) & (fit.range_m < 60) & np.isfinite(offset) & near
+    near_m, far_m = config.horizon_vehicle_range_m
+    keep = (fit.valid & (fit.range_m > near_m) & (fit.range_m < far_m) & np.isfinite(offset)
+            & near)
     by_track: dict[int, list[float]] = defaultdict(list)
     for i, off in zip(idx[keep], offset[keep], strict=True):
         by_track[boxes[i].track_id].append(float(off))
@@ -77,10 +88,12 @@ def horizon_from_vehicles(boxes: list[TrackedBox], camera: Camera, config: Rangi
     # and road height are expected to give (a few vehicles that happen to agree prove
     # little), plus the floor that the local fleet's mean width, off the prior's mean, shifts
     # every vehicle alike by (f H / Z * sigma_mean / W at a typical 20 m).
-    gap_px = camera.fy * camera.height_m / 20.0
+    typical_m = config.horizon_typical_range_m
+    gap_px = camera.fy * camera.height_m / typical_m
     per_vehicle = math.hypot(gap_px * p.width_std_m / p.width_m,
-                             camera.fy * config.road_height_std_m / 20.0)
-    mad = 1.4826 * float(np.median(np.abs(per_track - med))) if n > 2 else 10.0
+                             camera.fy * config.road_height_std_m / typical_m)
+    mad = (MAD_TO_SIGMA * float(np.median(np.abs(per_track - med))) if n > 2
+           else config.horizon_few_tracks_mad_px)
     floor = gap_px * config.fleet_width_mean_std_m / p.width_m
     std = math.hypot(max(mad, per_vehicle) / math.sqrt(n), floor)
     return camera.horizon_y_px() + med, std, n
@@ -97,15 +110,16 @@ def choose_horizon(boxes: list[TrackedBox], camera: Camera, config: RangingConfi
     std_cam = camera.fy * math.tan(math.radians(config.pitch_std_for(camera)))
     estimates = [(h_cam, std_cam, "camera file")]
     hints = np.array([h for h in (horizon_hints_px or []) if h is not None and np.isfinite(h)])
-    if hints.size >= 3:
+    if hints.size >= config.lane_horizon_min_hints:
         h_lane = float(np.median(hints))
-        mad = 1.4826 * float(np.median(np.abs(hints - h_lane)))
-        std_lane = max(mad, config.lane_horizon_std_px) / math.sqrt(hints.size) + 1.0
+        mad = MAD_TO_SIGMA * float(np.median(np.abs(hints - h_lane)))
+        std_lane = (max(mad, config.lane_horizon_std_px) / math.sqrt(hints.size)
+                    + config.lane_horizon_floor_px)
         estimates.append((h_lane, std_lane, "lane markings"))
         notes.append(Note.estimate(f"lane markings: horizon {h_lane:.1f} px from {hints.size} "
                                    "frames"))
     h_veh, std_veh, n_veh = horizon_from_vehicles(boxes, camera, config)
-    if h_veh is not None and n_veh >= 3:
+    if h_veh is not None and n_veh >= config.horizon_min_vehicles:
         # One iteration at the new pitch: the width cue itself depends slightly on pitch.
         cam2 = camera.with_pitch(pitch_for_horizon(camera, h_veh))
         h2, std2, n2 = horizon_from_vehicles(boxes, cam2, config)
@@ -114,8 +128,9 @@ def choose_horizon(boxes: list[TrackedBox], camera: Camera, config: RangingConfi
         estimates.append((h_veh, std_veh, "vehicle consistency"))
         notes.append(Note.estimate(f"vehicle consistency: horizon {h_veh:.1f} px from {n_veh} "
                                    "vehicles"))
-    if len(estimates) > 2 and abs(estimates[1][0] - estimates[2][0]) > 3 * math.hypot(
-            estimates[1][1], estimates[2][1]):
+    if len(estimates) > 2 and abs(estimates[1][0] - estimates[2][0]) > (
+            config.horizon_disagreement_sigmas * math.hypot(
+            estimates[1][1], estimates[2][1])):
         # Lane markings are pure geometry; the vehicle estimate leans on size priors and on
         # parked cars standing level with the road. When they disagree, keep the markings.
         notes.append(Note.warning(
@@ -145,11 +160,11 @@ def frame_horizon_offsets(boxes: list[TrackedBox], camera: Camera, ba: BoxArrays
     n = len(boxes)
     out = np.zeros(n)
     sel = np.flatnonzero(loose.valid & loose.ground_ok & loose.width_ok & ~ba.cut_top
-                         & (loose.range_m < 60))
+                         & (loose.range_m < config.pitch_offset_max_range_m))
     if sel.size == 0:
         return out
     sub = BoxArrays(*(getattr(ba, k)[sel] for k in ba.__dataclass_fields__))
-    tiny = np.full(sel.size, 1e-3)
+    tiny = np.full(sel.size, FIXED_SIZE_STD_M)
     wfit = fit_boxes(camera, sub, width_m[sel], tiny, height_m[sel], tiny, length_m[sel],
                      config, use_ground=False, use_height=False,
                      length_std_m=None if length_std_m is None else length_std_m[sel])
@@ -165,7 +180,7 @@ def frame_horizon_offsets(boxes: list[TrackedBox], camera: Camera, ba: BoxArrays
     tids = np.array([boxes[i].track_id for i in sel])
     for tid in np.unique(tids[ok]):
         m = ok & (tids == tid)
-        if m.sum() < 5:  # too short to know its constant part
+        if m.sum() < config.pitch_offset_min_track_boxes:  # too short to know its constant part
             ok &= ~m
             continue
         offset[m] -= np.median(offset[m])
@@ -190,10 +205,12 @@ def frame_horizon_offsets(boxes: list[TrackedBox], camera: Camera, ba: BoxArrays
     z = [zi * jitter_px ** 2 / (jitter_px ** 2 + ri) for zi, ri in zip(z, r, strict=True)]
     r = [ri * jitter_px ** 2 / (jitter_px ** 2 + ri) for ri in r]
     smoothed, _, _, _ = _kf_rts_cv([t_by_frame[f] for f in all_frames], z, r, valid,
-                                   config.pitch_accel_noise_px, jitter_px * 10)
+                                   config.pitch_accel_noise_px,
+                                   jitter_px * PITCH_OFFSET_RATE_PRIOR_JITTERS)
     by_frame = dict(zip(all_frames, smoothed, strict=True))
     out[:] = [by_frame[b.frame] for b in boxes]
-    return np.clip(out, -5 * jitter_px, 5 * jitter_px)
+    limit_px = config.pitch_offset_clip_jitters * jitter_px
+    return np.clip(out, -limit_px, limit_px)
 
 
 def lane_horizon_offsets(frames: np.ndarray, t_s: np.ndarray, hint_frames: np.ndarray,
@@ -235,7 +252,7 @@ def lane_horizon_offsets(frames: np.ndarray, t_s: np.ndarray, hint_frames: np.nd
     if uf.size > 1:
         sec_per_frame = float(np.median(np.diff(t_s[first]) / np.diff(uf)))
     else:
-        sec_per_frame = 0.1
+        sec_per_frame = 1.0 / IMAGE_FOLDER_FPS  # one frame: any spacing will do
     half = config.lane_horizon_window_s / max(sec_per_frame, 1e-3)
     order = np.argsort(hint_frames, kind="stable")
     hf, hr = hint_frames[order].astype(float), hint_rows_px[order].astype(float)

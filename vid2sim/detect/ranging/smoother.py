@@ -10,6 +10,19 @@ import numpy as np
 
 from vid2sim.detect.ranging.config import RangingConfig
 
+# Normalised innovation squared beyond which a measurement is down-weighted to sit at the
+# gate (16 = 4 sigma: one bad box in a thousand good ones trips it, a wrong one always does).
+INNOVATION_GATE_NIS = 16.0
+# The inverse-range variance correction (x/z)^4 is clamped to [1/16, 16]: a factor two in
+# range either way; beyond that the reading is an outlier for the gate, not a rescaling.
+INVERSE_RATIO_CLAMP = 16.0
+# Prior spread of the lateral rate as a share of the range rate's: vehicles drift sideways
+# at a lane change's 1-2 m/s, not at the 8 m/s a range can close at.
+LATERAL_RATE_PRIOR_FRACTION = 0.25
+# Initial position variance of a track in units of its first measurement's [m^2, plus a
+# constant]: diffuse, so the first frame alone sets the start.
+DIFFUSE_PRIOR = 1e4
+
 
 @dataclass
 class SmoothedTrack:
@@ -48,7 +61,7 @@ def _kf_rts_cv(t_s: list[float], z: list[float], r: list[float], valid: list[boo
     n = len(t_s)
     first = valid.index(True) if True in valid else 0
     x, v = z[first], 0.0
-    pxx, pxv, pvv = r[first] * 1e4 + 1e4, 0.0, v0_std ** 2
+    pxx, pxv, pvv = r[first] * DIFFUSE_PRIOR + DIFFUSE_PRIOR, 0.0, v0_std ** 2
     # Filtered and predicted states/covariances, needed by the backward pass.
     fx, fv, fpxx, fpxv, fpvv = [0.0] * n, [0.0] * n, [0.0] * n, [0.0] * n, [0.0] * n
     ppxx, ppxv, ppvv, dts = [0.0] * n, [0.0] * n, [0.0] * n, [0.0] * n
@@ -67,14 +80,14 @@ def _kf_rts_cv(t_s: list[float], z: list[float], r: list[float], valid: list[boo
             rk = r[k]
             if inverse and k > first and z[k] > 0 and x > 0:
                 # The variance at the predicted range, not at the noisy reading.
-                rk *= min(max((x / z[k]) ** 4, 1 / 16), 16.0)
+                rk *= min(max((x / z[k]) ** 4, 1 / INVERSE_RATIO_CLAMP), INVERSE_RATIO_CLAMP)
             innov = z[k] - x
             s = pxx + rk
             nis = innov * innov / s
-            if nis > 16.0 and k > first:
+            if nis > INNOVATION_GATE_NIS and k > first:
                 # Robust: an innovation beyond 4 sigma inflates that frame's noise until it
                 # sits at 4 sigma, so one bad box does not throw the track.
-                s = pxx + rk * nis / 16.0
+                s = pxx + rk * nis / INNOVATION_GATE_NIS
             elif k > first:
                 loglik -= 0.5 * (nis + math.log(s))
             kx, kv = pxx / s, pxv / s
@@ -134,7 +147,7 @@ def smooth_track(t_s: np.ndarray, z: np.ndarray, r: np.ndarray, valid: np.ndarra
     rx = [max(float(v), 1e-6) if np.isfinite(v) else 1e6 for v in r[:, 0, 0]]
     ry = [max(float(v), 1e-6) if np.isfinite(v) else 1e6 for v in r[:, 1, 1]]
     x, vx, sdx, ll = _kf_rts_cv(t, zx, rx, ok, q_long, v0_std, inverse=inverse)
-    y, vy, _, _ = _kf_rts_cv(t, zy, ry, ok, q_lat, v0_std / 4)
+    y, vy, _, _ = _kf_rts_cv(t, zy, ry, ok, q_lat, v0_std * LATERAL_RATE_PRIOR_FRACTION)
     return SmoothedTrack(np.array(x), np.array(vx), np.array(y), np.array(vy), np.array(sdx),
                          q_long, ll)
 
