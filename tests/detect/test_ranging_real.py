@@ -21,6 +21,12 @@ import pytest
 from vid2sim.camera import load_camera
 from vid2sim.detect.external import read_kitti_tracking_labels
 from vid2sim.detect.ranging import RangingConfig, range_tracks
+from vid2sim.evaluate.ranging.kitti import (
+    join_rows,
+    kitti_label_boxes,
+    kitti_rate_figures,
+    kitti_rate_rows,
+)
 from vid2sim.records import TrackedBox
 
 # What a detector would call each labelled class (COCO has no van: a van is a "car").
@@ -139,13 +145,14 @@ def test_range_rate_and_lead_on_labelled_sequences(kitti_tracking_dir):
     # Range RATE on real data: the labelled boxes of every frame (10 Hz) of all sequences as
     # tracks, against the slope of the labelled rear distance (a quadratic over 1.1 s; the
     # labels' position noise gives it ~0.04 m/s, windows of 0.7-1.5 s agree to ~0.1 m/s).
-    # Helpers shared with `python benchmarks/bench_ranging.py --kitti-rate`, which prints
-    # the same figures per sequence.
-    from benchmarks.bench_ranging import join_rows, kitti_rate_figures, kitti_rate_rows
-
+    # Truth and figures from vid2sim.evaluate.ranging.kitti, shared with
+    # `python benchmarks/bench_ranging.py --kitti-rate`, which prints them per sequence.
     labels = sorted((kitti_tracking_dir / "label_02").glob("*.txt"))
-    per_seq = {lab.stem: kitti_rate_rows(lab, kitti_tracking_dir / "calib" / lab.name)
-               for lab in labels}
+    per_seq = {}
+    for lab in labels:
+        objs, boxes = kitti_label_boxes(lab)
+        res = range_tracks(boxes, load_camera(kitti_tracking_dir / "calib" / lab.name))
+        per_seq[lab.stem] = kitti_rate_rows(objs, res.boxes)
     for name, rows in {**per_seq, "all": join_rows(per_seq)}.items():
         f = kitti_rate_figures(rows)
         print(f"KITTI {name} range rate [m/s]: lead (n={f['lead_n']}) RMSE {f['lead_rmse']:.2f}"

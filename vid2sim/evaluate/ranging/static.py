@@ -1,7 +1,7 @@
 """Range-rate and range truth for STATIC vehicles from the ego motion of a KITTI raw drive.
 
-Shared by ``tests/detect/test_ranging_parked.py`` and ``benchmarks/bench_ranging.py --parked``
-(one definition of the truth; it is test tooling, not part of the package).
+Used by ``tests/detect/test_ranging_parked.py`` and ``benchmarks/bench_ranging.py --parked``
+(one definition of the truth for both).
 
 Derivation. Take a body frame x forward, y left, z up, moving in the road plane with
 velocity (vf, vl) and yaw rate wz (positive turning left, counter-clockwise seen from above:
@@ -42,7 +42,7 @@ from vid2sim.geo.readers import (
     read_kitti_oxts_table,
     read_kitti_stamps,
 )
-from vid2sim.records import RangedBox
+from vid2sim.records import RangedBox, RangingResult
 
 RANGE_BINS_M = ((0.0, 20.0), (20.0, 40.0), (40.0, math.inf))
 
@@ -328,27 +328,10 @@ def format_report(rows: list[ParkedRow], excluded: dict[int, str], label: str,
     return "\n".join(lines)
 
 
-def run_pipeline(drive: Path, model_dir: Path, detect_every: int = 1):
-    """The real pipeline on a drive's ``video.mp4`` and ``camera.yaml`` as ``vid2sim track``
-    runs it (YOLOX-nano, the tracker's low score threshold): (RangingResult, camera used)."""
-    from vid2sim.camera import fit_camera_to_frames, load_camera
-    from vid2sim.detect.detector import load_detector
-    from vid2sim.detect.pipeline import detect_and_range
-    from vid2sim.detect.tracker import TrackerConfig
-    from vid2sim.detect.video import video_info
-
-    video = drive / "video.mp4"
-    info = video_info(video)
-    camera, _ = fit_camera_to_frames(load_camera(drive / "camera.yaml"), info.width,
-                                     info.height)
-    detector = load_detector("yolox-nano", model_dir, score_threshold=TrackerConfig().low_score)
-    result, camera, _ = detect_and_range(video, camera, detector=detector,
-                                         detect_every=detect_every, progress=False)
-    return result, camera
-
-
 @dataclass
 class ParkedEvaluation:
+    """The parked cars of a ranging result with their truths (see :func:`evaluate_parked`)."""
+
     keep: list[int]
     excluded: dict[int, str]
     rows: list[ParkedRow]
@@ -358,7 +341,8 @@ class ParkedEvaluation:
         return format_report(self.rows, self.excluded, label, self.tri)
 
 
-def evaluate_parked(result, camera: Camera, motion: EgoMotion) -> ParkedEvaluation:
+def evaluate_parked(result: RangingResult, camera: Camera, motion: EgoMotion
+                    ) -> ParkedEvaluation:
     """Select the parked cars of a ranging result and attach all three truths."""
     keep, excluded = select_static(result.boxes)
     return ParkedEvaluation(keep, excluded, static_truth(result.boxes, motion, keep),
