@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from vid2sim.camera import Camera, PitchSource
+from vid2sim.defaults import LANE_WIDTH_M
 
 
 @dataclass(frozen=True)
@@ -100,7 +101,8 @@ class RangingConfig:
     initial_range_rate_std_mps : float
         Prior spread of a new track's range rate [m/s].
     lane_width_m : float
-        Width of a lane [m]; the ego corridor is +-lane_width_m/2 about the camera.
+        Width of a lane [m]; the ego corridor is +-lane_width_m/2 about the camera (the
+        project's one default, :data:`vid2sim.defaults.LANE_WIDTH_M`).
     lane_hysteresis_m : float
         A vehicle changes lane only once its centre is this far past the boundary.
     lead_switch_frames : int
@@ -197,7 +199,7 @@ class RangingConfig:
     accel_noise_margin_loglik: float = 2.0
     lateral_accel_noise_mps2: float = 0.3
     initial_range_rate_std_mps: float = 8.0
-    lane_width_m: float = 3.6
+    lane_width_m: float = LANE_WIDTH_M
     lane_hysteresis_m: float = 0.3
     lead_switch_frames: int = 3
     max_range_m: float = 150.0
