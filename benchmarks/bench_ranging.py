@@ -3,13 +3,15 @@
     python benchmarks/bench_ranging.py [--clips 6] [--seconds 30] [--kitti] [--kitti-rate]
                                        [--video] [--parked]
 
-1. Synthetic clips with known truth (generated here): a pitched dash-cam whose camera file
+1. Synthetic clips with known truth (generated here; boxes are the hull of each vehicle's
+   outline, tyres, arches and mirrors, not a cuboid): a pitched dash-cam whose camera file
    says "level", body pitch on the suspension and braking nose-dives, a road that is not a
    plane (a grade change ahead, cross-fall), a lead that speeds up and brakes at random,
    traffic in the neighbouring lanes (cars of fleet-spread widths and lengths, trucks), a
    cut-in, box noise and missed detections. Reported: median |relative range error| (lead, all), lead range-rate
    RMSE, share of frames with a true lead where the lead chosen is the right vehicle.
-2. ``--kitti``: single-frame ranging of the labelled boxes of every 10th frame of all KITTI
+2. ``--kitti``: single-frame ranging (with the cuboid outline: a label's 2D box is its projected
+   cuboid) of the labelled boxes of every 10th frame of all KITTI
    tracking sequences in ``../shared/data/kitti_tracking`` (median |rel. error| per range bin).
 3. ``--kitti-rate``: range RATE on real data: the labelled boxes of every frame (10 Hz) of all
    KITTI tracking sequences as tracks, against the rate of the labelled rear distance Z - l/2
@@ -43,7 +45,7 @@ from vid2sim.camera import Camera, fit_camera_to_frames, load_camera
 from vid2sim.detect.detector import load_detector
 from vid2sim.detect.external import read_kitti_tracking_labels
 from vid2sim.detect.pipeline import detect_and_range
-from vid2sim.detect.ranging import RangingConfig, range_tracks
+from vid2sim.detect.ranging import RangingConfig, cuboid_config, range_tracks
 from vid2sim.detect.tracker import TrackerConfig
 from vid2sim.detect.video import video_info
 from vid2sim.evaluate.ranging.kitti import (
@@ -54,6 +56,7 @@ from vid2sim.evaluate.ranging.kitti import (
     kitti_rate_rows,
 )
 from vid2sim.evaluate.ranging.static import ego_motion, evaluate_parked
+from vid2sim.outline import CAR_SHAPE, TRUCK_SHAPE, OutlineShape, project_outline
 from vid2sim.records import TrackedBox
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared"
@@ -85,6 +88,27 @@ def _car_size(rng) -> tuple[float, float, float]:
             float(np.clip(rng.normal(1.52, 0.10), 1.35, 1.85)))
 
 
+def _car_shape(rng) -> OutlineShape:
+    """A passenger car's outline drawn from the fleet about the class shape (see
+    vid2sim/outline.py for the sources): tyre contact 0.6-1.1 m ahead of the rear face (city
+    cars to saloons), the rear face 0.05-0.18 m narrower on each side, mirrors 0.06-0.14 m out,
+    the rear bumper 0.25-0.45 m high. Drawn independently of the class shape's exact values,
+    so that no cue is exact by construction."""
+    contact = float(np.clip(rng.normal(0.85, 0.12), 0.6, 1.1))
+    return replace(CAR_SHAPE, contact_m=contact, widest_m=contact,
+                   rear_inset_m=float(np.clip(rng.normal(0.11, 0.04), 0.05, 0.18)),
+                   mirror_out_m=float(np.clip(rng.normal(0.1, 0.02), 0.06, 0.14)),
+                   rear_clearance_m=float(np.clip(rng.normal(0.35, 0.05), 0.25, 0.45)))
+
+
+def _truck_shape(rng) -> OutlineShape:
+    """A truck seen from behind: square box body, underrun guard 0.4-0.55 m high, last axle
+    1.5-3 m ahead of the rear, mirrors 0.2-0.3 m out."""
+    return replace(TRUCK_SHAPE, contact_m=float(rng.uniform(1.5, 3.0)),
+                   rear_clearance_m=float(rng.uniform(0.4, 0.55)),
+                   mirror_out_m=float(rng.uniform(0.2, 0.3)))
+
+
 def road_height_m(x_m: float, y_m: float, grade_change: float, grade_start_m: float) -> float:
     """Height of the road [m] at (x, y) relative to the plane under the ego wheels: a change
     of grade ``grade_change`` (e.g. a sag or crest ahead) from ``grade_start_m`` on, and a
@@ -99,8 +123,14 @@ def synthetic_clip(seed: int, duration_s: float = 30.0, dt: float = 0.1, flat: b
     true mean pitch [deg] and lane-marking horizon hints [px] (emulated).
 
     Unless ``flat``, the road is not a plane: a grade change of N(0, 2 %) begins 15-60 m
-    ahead and the lanes have cross-fall (:func:`road_height_m`)."""
+    ahead and the lanes have cross-fall (:func:`road_height_m`). Boxes are the hull of each
+    vehicle's outline as the camera sees it (:func:`vid2sim.outline.project_outline`: tyre
+    contact, widest section, mirrors; outlines drawn by :func:`_car_shape` and
+    :func:`_truck_shape`), not projected cuboids."""
     rng = np.random.default_rng(seed)
+    # The outlines come from their own stream, so the trajectories and sizes are those of
+    # the cuboid boxes this bench used before issue 13.
+    shape_rng = np.random.default_rng(10_000 + seed)
     hfov = float(rng.uniform(70, 100))
     cam_file = Camera.default_for(1280, 720, hfov_deg=hfov)
     true_pitch = float(rng.uniform(-2.0, 2.0))
@@ -114,9 +144,9 @@ def synthetic_clip(seed: int, duration_s: float = 30.0, dt: float = 0.1, flat: b
         for _ in range(2):
             x, v = _random_profile(rng, duration_s, dt, float(rng.uniform(10, 70)), 6, 90)
             truck = rng.random() < 0.25
-            # Trucks: 2.55 m bodies (smaller ones 2.3 m), up to ~3 m across the mirrors.
-            w_m, l_m, h_m = ((float(rng.uniform(2.3, 3.0)), 10.0, float(rng.uniform(3.0, 4.0)))
-                             if truck else _car_size(rng))
+            # Trucks: 2.55 m bodies (smaller ones 2.3 m; the mirrors are in the outline).
+            w_m, l_m, h_m = ((min(float(rng.uniform(2.3, 3.0)), 2.55), 10.0,
+                              float(rng.uniform(3.0, 4.0))) if truck else _car_size(rng))
             vehicles.append((tid, x, np.full(n, lane_y + rng.normal(0, 0.3)), v, w_m, l_m,
                              h_m, "truck" if truck else "car"))
             tid += 1
@@ -131,6 +161,8 @@ def synthetic_clip(seed: int, duration_s: float = 30.0, dt: float = 0.1, flat: b
     gap_rate = 4.0 * w * np.cos(w * t_all + phase)
     x, v = x_lead - gap, v_lead - gap_rate
     vehicles.append((tid, x, y_cut, v, *_car_size(rng), "car"))
+    shapes = {vid: (_truck_shape(shape_rng) if cat == "truck" else _car_shape(shape_rng))
+              for vid, *_, cat in vehicles}
     grade_change = 0.0 if flat else float(rng.normal(0, 0.02))
     grade_start_m = float(rng.uniform(15, 60))
 
@@ -154,8 +186,8 @@ def synthetic_clip(seed: int, duration_s: float = 30.0, dt: float = 0.1, flat: b
         for vid, xs, ys, vs, w, length, h, cat in vehicles:
             # A vehicle dz above the ego's road plane looks like a camera dz lower.
             dz = 0.0 if flat else road_height_m(xs[k], ys[k], grade_change, grade_start_m)
-            box = replace(cam, height_m=cam.height_m - dz).project_box(
-                np.array([xs[k] + length / 2, ys[k]]), length, w, h)
+            box = project_outline(replace(cam, height_m=cam.height_m - dz), xs[k], ys[k], w,
+                                  h, length, shapes[vid])
             if box is None:
                 continue
             if abs(ys[k]) < 1.8:
@@ -225,10 +257,12 @@ def bench_kitti() -> None:
         print(f"KITTI tracking labels not found at {data}: skipped")
         return
     cat = {"Car": "car", "Van": "car", "Truck": "truck"}
-    for name, cfg in (("guessed pitch (std 1 deg)", RangingConfig(camera_pitch_std_deg=1.0)),
-                      ("default (a calibration's pitch: std 0.25 deg)", RangingConfig()),
+    # The label boxes are projected cuboids: ranged with the cuboid outline (what they are).
+    for name, cfg in (("guessed pitch (std 1 deg)",
+                       cuboid_config(RangingConfig(camera_pitch_std_deg=1.0))),
+                      ("default (a calibration's pitch: std 0.25 deg)", cuboid_config()),
                       ("calibrated camera (pitch std 0.05 deg)",
-                       RangingConfig(camera_pitch_std_deg=0.05))):
+                       cuboid_config(RangingConfig(camera_pitch_std_deg=0.05)))):
         rows = []
         for lab in sorted((data / "label_02").glob("*.txt")):
             cam = load_camera(data / "calib" / lab.name)
@@ -266,7 +300,8 @@ def bench_kitti_rate() -> None:
     per_seq = {}
     for lab in sorted((data / "label_02").glob("*.txt")):
         objs, boxes = kitti_label_boxes(lab)
-        res = range_tracks(boxes, load_camera(data / "calib" / lab.name))
+        res = range_tracks(boxes, load_camera(data / "calib" / lab.name),
+                           config=cuboid_config())  # label boxes are projected cuboids
         per_seq[lab.stem] = kitti_rate_rows(objs, res.boxes)
     print("KITTI tracking, labelled boxes of every frame (10 Hz) as tracks, default config; "
           "range rate [m/s] against the labels' rear distance (quadratic over 1.1 s):")

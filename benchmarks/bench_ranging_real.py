@@ -1,6 +1,7 @@
 """Monocular ranging on REAL detector boxes against lidar truth, by range bin (issue 13).
 
     python benchmarks/bench_ranging_real.py [--cache DIR] [--shared DIR] [--skip-build]
+                                            [--cuboid]
 
 The project's own YOLOX-nano (``../shared/models``, the detector code of ``vid2sim track``:
 tiles and the centre window on, score >= 0.3) runs on real images; each image's vehicle boxes
@@ -21,6 +22,7 @@ count, signed median error (bias), median and 90th percentile of |error|.
     left and within 45 m must replay standing still (scenario.json actor speeds); the median
     speed, the bias (median velocity along the ego's heading) and the speed per actor.
 
+``--cuboid`` also ranges (a) and (b) with the cuboid outline (the model before issue 13).
 Detections are cached per image in ``--cache`` (default /tmp/vid2sim-realboxes):
 delete it after changing the detector.
 """
@@ -44,7 +46,7 @@ from vid2sim.app.settings import DetectorSettings, Settings
 from vid2sim.camera import Camera, load_camera
 from vid2sim.detect.detector import load_detector
 from vid2sim.detect.external import read_kitti_tracking_labels
-from vid2sim.detect.ranging import RangingConfig, range_tracks
+from vid2sim.detect.ranging import RangingConfig, cuboid_config, range_tracks
 from vid2sim.errors import InputError
 from vid2sim.evaluate.ranging.dgp import calibration_camera, ground_camera, read_dgp_scene
 from vid2sim.evaluate.ranging.realboxes import (
@@ -142,6 +144,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--shared", type=Path, default=SHARED)
     parser.add_argument("--cache", type=Path, default=Path("/tmp/vid2sim-realboxes"))
     parser.add_argument("--skip-build", action="store_true", help="leave out (c)")
+    parser.add_argument("--cuboid", action="store_true",
+                        help="also range (a) and (b) with the cuboid outline (the model before "
+                        "issue 13), for comparison")
     args = parser.parse_args(argv)
     data, models = args.shared / "data", args.shared / "models"
     for p in (data / "tri_dgp_front", data / "kitti_tracking", models):
@@ -156,6 +161,8 @@ def main(argv: list[str] | None = None) -> int:
         return loaded[0]
 
     configs = {"default": RangingConfig()}
+    if args.cuboid:
+        configs["cuboid"] = cuboid_config()
     for name, cfg in configs.items():
         print_rows(f"(a) TRI DGP front camera, YOLOX-nano boxes vs lidar cuboids ({name} "
                    "ranging, single frames)", tri_rows(data, detector, args.cache, cfg))

@@ -21,6 +21,7 @@ from vid2sim.detect.ranging.config import (
     GUESSED_PITCH_STD_DEG,
     RangingConfig,
     VehiclePrior,
+    cuboid_config,
 )
 from vid2sim.detect.ranging.core import range_tracks
 from vid2sim.detect.ranging.horizon import (
@@ -43,6 +44,7 @@ __all__ = [
     "VehiclePrior",
     "choose_horizon",
     "colored_noise_factor",
+    "cuboid_config",
     "fit_boxes",
     "frame_horizon_offsets",
     "horizon_from_vehicles",

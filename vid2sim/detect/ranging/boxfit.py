@@ -7,12 +7,13 @@ is the x of the vehicle's rear, lateral_m the y of its centre.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from vid2sim.camera import Camera
 from vid2sim.detect.ranging.config import RangingConfig
+from vid2sim.outline import OUTLINE_COLUMNS, outline_boxes, shape_matrix_for
 from vid2sim.records import TrackedBox
 
 # Solver settings of :func:`fit_boxes` (numerical choices, not properties of the world).
@@ -37,11 +38,23 @@ CONVERGED_LOG_RANGE = 1e-5
 CONVERGED_LATERAL_M = 1e-4
 # Length spread [m] that holds the length at its prior when no spread is given.
 FIXED_LENGTH_STD_M = 1e-4
+# The ground-contact check takes the width cue's farthest plausible range: the width prior
+# this many sigmas wider than its mean (2: one vehicle in forty is wider).
+GROUND_CHECK_WIDTH_SIGMAS = 2.0
+# Fixed-point steps of that range (the box width's 1/range law converges in 3-4).
+GROUND_CHECK_ITERATIONS = 5
+_WIDEST = OUTLINE_COLUMNS["widest_m"]
+_CONTACT = OUTLINE_COLUMNS["contact_m"]
 
 
 @dataclass
 class BoxArrays:
-    """Boxes as columns (pixels) with the cut flags of each edge."""
+    """Boxes as columns (pixels) with the cut flags of each edge and each box's outline.
+
+    ``outline`` holds one row of :func:`vid2sim.outline.shape_matrix` per box: the shape of
+    its class (where the tyres, the widest section and the mirrors lie; see
+    :mod:`vid2sim.outline`).
+    """
 
     x1: np.ndarray
     y1: np.ndarray
@@ -51,31 +64,44 @@ class BoxArrays:
     cut_right: np.ndarray
     cut_top: np.ndarray
     cut_bottom: np.ndarray
+    outline: np.ndarray
 
     @classmethod
-    def from_boxes(cls, boxes: list[TrackedBox], camera: Camera, margin_px: float) -> BoxArrays:
+    def from_boxes(cls, boxes: list[TrackedBox], camera: Camera, config: RangingConfig
+                   ) -> BoxArrays:
+        """Boxes of the tracker with the edges that the image border cuts.
+
+        An edge counts as cut when it lies within ``config.border_margin_px`` of the border
+        (the tracker's margin: a detector stops the box of a cut vehicle a few pixels short
+        of the border) or within ``config.border_noise_sigmas`` of its own edge noise, so
+        that a near lead's last rows above the border never pass for its ground contact.
+        """
         a = np.array([(b.x1, b.y1, b.x2, b.y2) for b in boxes], dtype=float).reshape(-1, 4)
         w, h = camera.image_width - 1, camera.image_height - 1
-        return cls(a[:, 0], a[:, 1], a[:, 2], a[:, 3], a[:, 0] <= margin_px,
-                   a[:, 2] >= w - margin_px, a[:, 1] <= margin_px, a[:, 3] >= h - margin_px)
+        k = config.border_noise_sigmas
+        mu = np.maximum(config.border_margin_px,
+                        k * (config.edge_noise_px + config.edge_noise_frac * (a[:, 2] - a[:, 0])))
+        mv = np.maximum(config.border_margin_px,
+                        k * (config.edge_noise_px + config.edge_noise_frac * (a[:, 3] - a[:, 1])))
+        shapes = shape_matrix_for([b.category for b in boxes], config.outlines)
+        return cls(a[:, 0], a[:, 1], a[:, 2], a[:, 3], a[:, 0] <= mu, a[:, 2] >= w - mu,
+                   a[:, 1] <= mv, a[:, 3] >= h - mv, shapes)
+
+    def subset(self, index: np.ndarray) -> BoxArrays:
+        """The boxes at ``index`` (integer or boolean)."""
+        return BoxArrays(*(getattr(self, k)[index] for k in self.__dataclass_fields__))
+
+    def shifted(self, rows_px: np.ndarray) -> BoxArrays:
+        """The boxes moved up by ``rows_px`` (a horizon correction, down positive)."""
+        return replace(self, y1=self.y1 - rows_px, y2=self.y2 - rows_px)
 
 
 def predict_edges(camera: Camera, x_m: np.ndarray, y_m: np.ndarray, w_m: np.ndarray,
-                   h_m: np.ndarray, l_m: np.ndarray) -> np.ndarray:
+                  h_m: np.ndarray, l_m: np.ndarray, outline: np.ndarray) -> np.ndarray:
     """(N, 4) pixel box (u1, v1, u2, v2) of vehicles whose rear is at range ``x_m``, centre
-    at lateral ``y_m``, aligned with the ego axis and standing on the road."""
-    sx = np.array([0, 0, 0, 0, 1, 1, 1, 1], dtype=float)
-    sy = np.array([-0.5, 0.5, -0.5, 0.5, -0.5, 0.5, -0.5, 0.5])
-    sz = np.array([0, 0, 1, 1, 0, 0, 1, 1], dtype=float)
-    px = x_m[:, None] + sx[None, :] * l_m[:, None]
-    py = y_m[:, None] + sy[None, :] * w_m[:, None]
-    pz = sz[None, :] * h_m[:, None]
-    pts = np.stack([px, py, pz], axis=-1).reshape(-1, 3)
-    uv, _ = camera.project(pts)
-    uv = uv.reshape(-1, 8, 2)
-    with np.errstate(invalid="ignore"):
-        return np.stack([uv[..., 0].min(1), uv[..., 1].min(1), uv[..., 0].max(1),
-                         uv[..., 1].max(1)], axis=1)
+    at lateral ``y_m``, aligned with the ego axis and standing on the road: the hull of their
+    outlines (``outline``: rows of :func:`vid2sim.outline.shape_matrix`)."""
+    return outline_boxes(camera, x_m, y_m, w_m, h_m, l_m, outline)
 
 
 @dataclass
@@ -173,29 +199,61 @@ def fit_boxes(camera: Camera, ba: BoxArrays, width_m: np.ndarray, width_std_m: n
     jitter_px = camera.fy * math.tan(math.radians(config.horizon_jitter_deg))
     sig_u = config.edge_noise_px + config.edge_noise_frac * bw
     pix_v = config.edge_noise_px + config.edge_noise_frac * bh
-    ground_ok = (~ba.cut_bottom) & (ba.y2 > horizon + config.min_ground_margin_px)
+    width_ok = ~(ba.cut_left | ba.cut_right)
+    outline = ba.outline
+    widest = outline[:, _WIDEST]
+    contact = outline[:, _CONTACT]
+    f = camera.fx
+    rays = camera.pixel_rays_veh(np.column_stack(((ba.x1 + ba.x2) / 2, np.full(n, horizon))))
+    bearing = rays[:, 1] / np.maximum(rays[:, 0], 1e-6)
+    max_fit_range_m = RANGE_BOUND_FACTOR * config.max_range_m
+    # The box's bottom is its ground contact only if the contact can be in the image: where
+    # even the farthest range the width cue allows (the width prior 2 sigma wide) puts the
+    # contact below the image, the bottom rows are the car's body cut by the border, however
+    # many pixels short of the border the detector stopped.
+    bottom_cut = ba.cut_bottom.copy()
+    if width_ok.any():
+        wide = width_m + GROUND_CHECK_WIDTH_SIGMAS * width_std_m
+        long_ = length_m + GROUND_CHECK_WIDTH_SIGMAS * (
+            np.zeros(n) if length_std_m is None else length_std_m)
+        far = np.clip(f * wide / bw - widest, MIN_INITIAL_RANGE_M, max_fit_range_m)
+        for _ in range(GROUND_CHECK_ITERATIONS):
+            # The range at which the outline (with the side a laterally offset vehicle
+            # shows) is as wide as the box: box widths scale about as 1 / range.
+            pred = predict_edges(camera, far, bearing * (far + long_ / 2), wide, prior_h, long_,
+                                 outline)
+            pw = pred[:, 2] - pred[:, 0]
+            far = np.where(np.isfinite(pw) & (pw > 0),
+                           np.clip(far * pw / bw, MIN_INITIAL_RANGE_M, max_fit_range_m), far)
+        row = predict_edges(camera, far, bearing * (far + long_ / 2), wide, prior_h, long_,
+                            outline)[:, 3]
+        bottom_cut |= width_ok & np.isfinite(row) & (
+            row > camera.image_height - 1 - config.border_margin_px)
+    ground_ok = (~bottom_cut) & (ba.y2 > horizon + config.min_ground_margin_px)
     if not use_ground:
         ground_ok = np.zeros(n, dtype=bool)
-    width_ok = ~(ba.cut_left | ba.cut_right)
-    height_ok = (~(ba.cut_top | ba.cut_bottom)) & use_height
+    # The top edge alone (bottom not usable) ranges only a vehicle whose height is known well
+    # against its lever below the camera: its range error is about sigma_H / |H_cam - H|.
+    lever = np.abs(camera.height_m - prior_h)
+    top_alone_ok = prior_h_std < config.top_alone_max_rel_error * lever
+    height_ok = (~ba.cut_top) & use_height & (ground_ok | top_alone_ok)
     obs = np.stack([ba.x1, ba.y1, ba.x2, ba.y2], axis=1)
 
     # Initial guess: ground cue where usable, else width cue; lateral from the centre column.
-    f = camera.fx
-    rng0 = f * width_m / bw
+    # The bottom edge is the tyres' contact and the sides the widest section, each that far
+    # ahead of the rear face.
+    rng0 = f * width_m / bw - widest
     if ground_ok.any():
         pts, ok = camera.pixel_to_ground(np.column_stack(((ba.x1 + ba.x2) / 2, ba.y2)))
         g = ground_ok & ok & np.isfinite(pts[:, 0]) & (pts[:, 0] > MIN_GROUND_POINT_M)
-        rng0 = np.where(g, pts[:, 0], rng0)
-    max_fit_range_m = RANGE_BOUND_FACTOR * config.max_range_m
+        rng0 = np.where(g, pts[:, 0] - contact, rng0)
     rng0 = np.clip(rng0, MIN_INITIAL_RANGE_M, max_fit_range_m)
     # A road dz higher than the plane moves a vehicle's bottom edge by f dz / Z pixels; Z is
     # only known after the fit, so take the first guess (the ground cue's own range where it
     # is usable, not the width cue's: a turned vehicle's wide box would say "near" and so
     # blur the very cue that has to range it).
     road_std = config.road_height_std_m if road_height_std_m is None else road_height_std_m
-    rays = camera.pixel_rays_veh(np.column_stack(((ba.x1 + ba.x2) / 2, np.full(n, horizon))))
-    lat0 = rays[:, 1] / np.maximum(rays[:, 0], 1e-6) * (rng0 + length_m / 2)
+    lat0 = bearing * (rng0 + length_m / 2)
     # Away from the ego's lane the ego's road plane says less about the ground: cross-fall
     # (2-3 % from the crown), gutters, kerbs and parking strips.
     beyond = np.maximum(np.abs(lat0) - config.lane_width_m / 2, 0.0)
@@ -208,10 +266,10 @@ def fit_boxes(camera: Camera, ba: BoxArrays, width_m: np.ndarray, width_std_m: n
     road_px = camera.fy * road_std / rng0
     sig_off = np.hypot(jitter_px, road_px)
     sig = np.stack([sig_u, pix_v, sig_u, pix_v], axis=1)
-    # The top edge is a cue only with the bottom edge beside it (box height against the
-    # vehicle's height): a car's roof sits near the camera's own height, i.e. near the
-    # horizon, so alone it would say little about range.
-    use = np.stack([~ba.cut_left, height_ok & ground_ok, ~ba.cut_right, ground_ok], axis=1)
+    # The top edge against the vehicle's height: with the bottom edge beside it the box height
+    # is a clean cue; alone (a near lead whose bottom is cut) it still ranges a vehicle whose
+    # height its track has learnt, weakly, since a car's roof sits near the camera's height.
+    use = np.stack([~ba.cut_left, height_ok, ~ba.cut_right, ground_ok], axis=1)
     if length_std_m is None:
         length_std_m = np.full(n, FIXED_LENGTH_STD_M)
     # Width: what the box says at the ground cue's range (at least the prior), so that the
@@ -219,8 +277,8 @@ def fit_boxes(camera: Camera, ba: BoxArrays, width_m: np.ndarray, width_std_m: n
     # being pulled by it towards the camera first (a redescending prior needs a fair start).
     w_init = width_m.copy()
     if ground_ok.any():
-        w_init = np.where(g, np.clip(bw * rng0 / f, width_m, MAX_WIDTH_INIT_FACTOR * width_m),
-                          width_m)
+        w_init = np.where(g, np.clip(bw * (rng0 + widest) / f, width_m,
+                                     MAX_WIDTH_INIT_FACTOR * width_m), width_m)
     theta = np.column_stack((np.log(rng0), lat0, w_init, prior_h, length_m, np.zeros(n)))
     prior_mean = np.column_stack((width_m, prior_h, length_m, np.zeros(n)))
     prior_std = np.column_stack((width_std_m, prior_h_std, length_std_m, sig_off))
@@ -242,7 +300,7 @@ def fit_boxes(camera: Camera, ba: BoxArrays, width_m: np.ndarray, width_std_m: n
 
     def residuals(th: np.ndarray, i: np.ndarray) -> np.ndarray:
         pred = predict_edges(camera, np.exp(th[:, 0]), th[:, 1], th[:, 2], th[:, 3],
-                              th[:, 4])
+                             th[:, 4], outline[i])
         pred[:, 1] += th[:, 5]
         pred[:, 3] += th[:, 5]
         r_edges = np.where(use[i], (obs[i] - pred) / sig[i], 0.0)

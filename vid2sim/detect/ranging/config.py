@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from vid2sim.camera import Camera, PitchSource
 from vid2sim.defaults import LANE_WIDTH_M
+from vid2sim.outline import CLASS_SHAPES, CUBOID, OutlineShape
 
 
 @dataclass(frozen=True)
@@ -81,7 +82,18 @@ class RangingConfig:
     lane_horizon_std_px : float
         One-sigma error of a lane-marking horizon estimate from one frame [px].
     border_margin_px : float
-        An edge this close to the image border counts as cut by it.
+        An edge this close to the image border counts as cut by it: the tracker's margin
+        (``TrackerConfig.border_margin_px``, 8 px), since a detector stops the box of a cut
+        vehicle a few pixels short of the border. At 2 px a lead standing still 4 m ahead
+        had its bottom rows taken for its ground contact and read +1.2 to +1.7 m/s (issue 13).
+    border_noise_sigmas : float
+        An edge also counts as cut within this many sigmas of its own edge noise
+        (``edge_noise_px + edge_noise_frac * size``): a big box's edge wanders further.
+    outlines : dict
+        Per-class :class:`vid2sim.outline.OutlineShape`: where a vehicle's tyre contact,
+        widest section and mirrors lie, i.e. what its box hugs (unknown classes take the
+        car's). :data:`vid2sim.outline.CUBOID` for every class ranges boxes that are
+        projected cuboids (KITTI label boxes) instead of detector boxes.
     min_ground_margin_px : float
         The ground cue needs the bottom edge at least this far below the horizon.
     width_learning_max_range_m : float
@@ -178,12 +190,19 @@ class RangingConfig:
     loose_size_std_m : float
         Spread of the size priors [m] of the first, loose fit from which each track learns
         its own width and height: 1 m, wide enough that the cues decide.
+    top_alone_max_rel_error : float
+        The top edge is a cue without the bottom edge (a near lead whose tyres are below the
+        image) only when the vehicle's height is known to better than this share of its
+        lever below (or above) the camera, sigma_H < 0.25 |H_cam - H|: a height learnt on the
+        track, not the class prior (0.12 m against a lever of 0.15 m would be worth nothing
+        and drive the fit to its bounds).
     max_log_range_std : float
         A single-frame fit whose log-range spread exceeds this is unobservable (0.5: the
         range is known to no better than a factor 1.65 either way).
     """
 
     priors: dict[str, VehiclePrior] = field(default_factory=lambda: dict(DEFAULT_PRIORS))
+    outlines: dict[str, OutlineShape] = field(default_factory=lambda: dict(CLASS_SHAPES))
     edge_noise_px: float = 1.0
     edge_noise_frac: float = 0.02
     road_height_std_m: float = 0.10
@@ -192,7 +211,8 @@ class RangingConfig:
     horizon_jitter_deg: float = 0.15
     camera_pitch_std_deg: float | None = None
     lane_horizon_std_px: float = 4.0
-    border_margin_px: float = 2.0
+    border_margin_px: float = 8.0
+    border_noise_sigmas: float = 2.0
     min_ground_margin_px: float = 3.0
     width_learning_max_range_m: float = 40.0
     accel_noise_grid_mps2: tuple[float, ...] = (0.05, 0.15, 0.4, 1.0, 2.5, 6.0)
@@ -224,6 +244,7 @@ class RangingConfig:
     pitch_offset_clip_jitters: float = 5.0
     narrow_width_sigmas: float = 4.0
     loose_size_std_m: float = 1.0
+    top_alone_max_rel_error: float = 0.25
     max_log_range_std: float = 0.5
 
     def prior_for(self, category: str) -> VehiclePrior:
@@ -235,3 +256,10 @@ class RangingConfig:
             return self.camera_pitch_std_deg
         calibrated = camera.pitch_source is PitchSource.CALIBRATION
         return CALIBRATED_PITCH_STD_DEG if calibrated else GUESSED_PITCH_STD_DEG
+
+
+def cuboid_config(config: RangingConfig | None = None) -> RangingConfig:
+    """``config`` (default: the defaults) with every class's outline a cuboid: for boxes that
+    are projections of 3D boxes (KITTI label 2D boxes), the model before issue 13."""
+    cfg = config or RangingConfig()
+    return replace(cfg, outlines={k: CUBOID for k in {*cfg.outlines, *cfg.priors}})

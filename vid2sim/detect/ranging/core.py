@@ -99,7 +99,7 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
     warnings.extend(n for n in notes if n.kind is NoteKind.WARNING)
     pitch = pitch_for_horizon(camera, horizon)
     cam = camera.with_pitch(pitch)
-    ba = BoxArrays.from_boxes(boxes, cam, config.border_margin_px)
+    ba = BoxArrays.from_boxes(boxes, cam, config)
     frame_box = np.array([b.frame for b in boxes])
     t_box = np.array([b.t_s for b in boxes], dtype=float)
     if horizon_hint_frames is not None and horizon_hints_px is not None:
@@ -108,8 +108,7 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
         ok = np.isfinite(hr) & np.isfinite(hf)
         slow_px = lane_horizon_offsets(frame_box, t_box, hf[ok], hr[ok], horizon, config)
         if np.any(slow_px != 0):
-            ba = BoxArrays(ba.x1, ba.y1 - slow_px, ba.x2, ba.y2 - slow_px, ba.cut_left,
-                           ba.cut_right, ba.cut_top, ba.cut_bottom)
+            ba = ba.shifted(slow_px)
             notes.append(Note.estimate(
                 f"per-frame horizon from lane markings within "
                 f"{config.lane_horizon_window_s:g} s: {slow_px.min():+.1f} to "
@@ -172,8 +171,7 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
         frame_offset_px = frame_horizon_offsets(boxes, cam, ba, loose, w_track, h_track, l0,
                                                 config, l0_std)
         if np.any(frame_offset_px != 0):
-            ba = BoxArrays(ba.x1, ba.y1 - frame_offset_px, ba.x2, ba.y2 - frame_offset_px,
-                           ba.cut_left, ba.cut_right, ba.cut_top, ba.cut_bottom)
+            ba = ba.shifted(frame_offset_px)
     # Each track's frame spacing sets how strongly its measurements share the body pitch.
     inflation = np.ones(len(boxes))
     for members in np.split(order, splits):

@@ -51,7 +51,7 @@ def horizon_from_vehicles(boxes: list[TrackedBox], camera: Camera, config: Rangi
     -------
     (horizon_y_px or None, one-sigma [px], number of tracks used)
     """
-    ba = ba or BoxArrays.from_boxes(boxes, camera, config.border_margin_px)
+    ba = ba or BoxArrays.from_boxes(boxes, camera, config)
     cat = np.array([b.category for b in boxes])
     min_h_px, min_w_px = config.horizon_vehicle_min_box_px
     sel = ((cat == "car") & ~(ba.cut_left | ba.cut_right | ba.cut_top | ba.cut_bottom)
@@ -59,14 +59,14 @@ def horizon_from_vehicles(boxes: list[TrackedBox], camera: Camera, config: Rangi
     if sel.sum() == 0:
         return None, math.inf, 0
     idx = np.flatnonzero(sel)
-    sub = BoxArrays(*(getattr(ba, k)[idx] for k in ba.__dataclass_fields__))
+    sub = ba.subset(idx)
     p = config.prior_for("car")
     ones = np.ones(len(idx))
     fit = fit_boxes(camera, sub, p.width_m * ones, p.width_std_m * ones, p.height_m * ones,
                     p.height_std_m * ones, p.length_m * ones, config, use_ground=False,
                     use_height=False, length_std_m=p.length_std_m * ones)
     pred = predict_edges(camera, fit.range_m, fit.lateral_m, fit.width_m, p.height_m * ones,
-                          fit.length_m)
+                         fit.length_m, sub.outline)
     offset = sub.y2 - pred[:, 3]
     # Only vehicles on the ego's road (its lane and the next ones): parked cars and those
     # beyond a kerb stand on ground that is rarely level with the ego's lane (a crowned road
@@ -163,13 +163,13 @@ def frame_horizon_offsets(boxes: list[TrackedBox], camera: Camera, ba: BoxArrays
                          & (loose.range_m < config.pitch_offset_max_range_m))
     if sel.size == 0:
         return out
-    sub = BoxArrays(*(getattr(ba, k)[sel] for k in ba.__dataclass_fields__))
+    sub = ba.subset(sel)
     tiny = np.full(sel.size, FIXED_SIZE_STD_M)
     wfit = fit_boxes(camera, sub, width_m[sel], tiny, height_m[sel], tiny, length_m[sel],
                      config, use_ground=False, use_height=False,
                      length_std_m=None if length_std_m is None else length_std_m[sel])
     pred = predict_edges(camera, wfit.range_m, wfit.lateral_m, width_m[sel], height_m[sel],
-                          wfit.length_m)
+                         wfit.length_m, sub.outline)
     offset = sub.y2 - pred[:, 3]
     # Noise of one offset: the width cue's frame-to-frame range noise seen as rows
     # (d row / d ln Z = -(row - horizon)), plus the bottom edge's own pixel noise.
