@@ -5,7 +5,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 
 from vid2sim.camera import Camera, PitchSource
-from vid2sim.defaults import LANE_WIDTH_M
 from vid2sim.outline import CLASS_SHAPES, CUBOID, OutlineShape
 
 
@@ -113,8 +112,7 @@ class RangingConfig:
     initial_range_rate_std_mps : float
         Prior spread of a new track's range rate [m/s].
     lane_width_m : float
-        Width of a lane [m]; the ego corridor is +-lane_width_m/2 about the camera (the
-        project's one default, :data:`vid2sim.defaults.LANE_WIDTH_M`).
+        Width of a lane [m]; the ego corridor is +-lane_width_m/2 about the camera.
     lane_hysteresis_m : float
         A vehicle changes lane only once its centre is this far past the boundary.
     lead_switch_frames : int
@@ -219,7 +217,7 @@ class RangingConfig:
     accel_noise_margin_loglik: float = 2.0
     lateral_accel_noise_mps2: float = 0.3
     initial_range_rate_std_mps: float = 8.0
-    lane_width_m: float = LANE_WIDTH_M
+    lane_width_m: float = 3.6
     lane_hysteresis_m: float = 0.3
     lead_switch_frames: int = 3
     max_range_m: float = 150.0
