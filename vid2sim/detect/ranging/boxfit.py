@@ -153,7 +153,8 @@ def fit_boxes(camera: Camera, ba: BoxArrays, width_m: np.ndarray, width_std_m: n
               config: RangingConfig, *, use_ground: bool = True, use_height: bool = True,
               length_std_m: np.ndarray | None = None,
               pitch_noise_inflation: np.ndarray | float = 1.0,
-              road_height_std_m: np.ndarray | None = None, iterations: int = 12) -> BoxFit:
+              road_height_std_m: np.ndarray | None = None,
+              ground_allowed: np.ndarray | None = None, iterations: int = 12) -> BoxFit:
     """Fuse the cues of each box into a position by weighted least squares.
 
     The unknowns per box are (log range, lateral, width, height); the residuals are the
@@ -186,6 +187,9 @@ def fit_boxes(camera: Camera, ba: BoxArrays, width_m: np.ndarray, width_std_m: n
         filter that takes it as white (see :func:`colored_noise_factor`).
     road_height_std_m : ndarray, optional
         Per-box spread of the road height under the vehicle [m]; None takes the config's.
+    ground_allowed : ndarray, optional
+        Where the ground cue may be used (e.g. another fit's ``ground_ok``); given, it replaces
+        the check of the contact row against the width cue (which needs a width prior).
 
     Returns
     -------
@@ -212,7 +216,9 @@ def fit_boxes(camera: Camera, ba: BoxArrays, width_m: np.ndarray, width_std_m: n
     # contact below the image, the bottom rows are the car's body cut by the border, however
     # many pixels short of the border the detector stopped.
     bottom_cut = ba.cut_bottom.copy()
-    if width_ok.any():
+    if ground_allowed is not None:
+        bottom_cut |= ~np.asarray(ground_allowed, dtype=bool)
+    elif width_ok.any():
         wide = width_m + GROUND_CHECK_WIDTH_SIGMAS * width_std_m
         long_ = length_m + GROUND_CHECK_WIDTH_SIGMAS * (
             np.zeros(n) if length_std_m is None else length_std_m)

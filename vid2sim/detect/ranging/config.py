@@ -188,6 +188,11 @@ class RangingConfig:
     loose_size_std_m : float
         Spread of the size priors [m] of the first, loose fit from which each track learns
         its own width and height: 1 m, wide enough that the cues decide.
+    filter_max_gap_s : float
+        A track without a usable measurement for longer than this [s] is filtered in
+        separate pieces: across a longer gap its range and rate are unknown, and carrying
+        them over extrapolates a passing car through the camera (a track kept alive by the
+        tracker is bridged for at most about a second).
     top_alone_max_rel_error : float
         The top edge is a cue without the bottom edge (a near lead whose tyres are below the
         image) only when the vehicle's height is known to better than this share of its
@@ -242,6 +247,7 @@ class RangingConfig:
     pitch_offset_clip_jitters: float = 5.0
     narrow_width_sigmas: float = 4.0
     loose_size_std_m: float = 1.0
+    filter_max_gap_s: float = 2.0
     top_alone_max_rel_error: float = 0.25
     max_log_range_std: float = 0.5
 

@@ -22,7 +22,13 @@ import numpy as np
 
 from vid2sim.camera import Camera
 from vid2sim.detect.lead import assign_lanes_and_lead
-from vid2sim.detect.ranging.boxfit import BoxArrays, colored_noise_factor, fit_boxes
+from vid2sim.detect.ranging.boxfit import (
+    BoxArrays,
+    BoxFit,
+    colored_noise_factor,
+    fit_boxes,
+    predict_edges,
+)
 from vid2sim.detect.ranging.config import RangingConfig
 from vid2sim.detect.ranging.horizon import (
     choose_horizon,
@@ -30,8 +36,58 @@ from vid2sim.detect.ranging.horizon import (
     lane_horizon_offsets,
     pitch_for_horizon,
 )
-from vid2sim.detect.ranging.smoother import smooth_track_adaptive
+from vid2sim.detect.ranging.scalefilter import (
+    RangeMeasurements,
+    filter_range_adaptive,
+    log_width_var,
+)
+from vid2sim.detect.ranging.smoother import smooth_track
 from vid2sim.records import Note, NoteKind, RangedBox, RangingResult, TrackedBox
+
+# The absolute-cue fit leaves the width free with this spread [m]: its sides then say where
+# the vehicle is laterally but nothing about its range (that is the filter's scale cue).
+FREE_WIDTH_STD_M = 10.0
+# Relative step of the finite differences of the log-width model.
+LOG_WIDTH_FD_STEP = 1e-3
+
+
+def _log_width_model(camera: Camera, fit: BoxFit, ba: BoxArrays) -> dict[str, np.ndarray]:
+    """Each box's predicted log width about its own fit: ln w = a + b (Z - Z_fit) +
+    e (ln W - ln W_fit), from the outline's projection (finite differences)."""
+    def log_width(x: np.ndarray, w: np.ndarray) -> np.ndarray:
+        e = predict_edges(camera, x, fit.lateral_m, w, fit.height_m, fit.length_m, ba.outline)
+        return np.log(np.maximum(e[:, 2] - e[:, 0], 1e-3))
+
+    step = LOG_WIDTH_FD_STEP
+    a = log_width(fit.range_m, fit.width_m)
+    b = (log_width(fit.range_m * (1 + step), fit.width_m) - a) / (fit.range_m * step)
+    e = (log_width(fit.range_m, fit.width_m * (1 + step)) - a) / math.log1p(step)
+    return {"a": a, "b": b, "e": e, "c": np.log(fit.width_m)}
+
+
+def _track_pieces(t_s: np.ndarray, valid: np.ndarray, max_gap_s: float, index: np.ndarray
+                  ) -> list[np.ndarray]:
+    """Split one time-ordered track (``index`` its boxes) into pieces that the range filter
+    takes on their own: consecutive usable measurements more than ``max_gap_s`` apart start a
+    new piece, each unusable box joins the piece of its nearest usable one in time, and boxes
+    further than ``max_gap_s`` from any usable one form single-box pieces (their own fit)."""
+    if not valid.any():
+        return [index]
+    seen = np.flatnonzero(valid)
+    piece_of_seen = np.concatenate(([0], np.cumsum(np.diff(t_s[seen]) > max_gap_s)))
+    # Nearest usable box in time for every box.
+    pos = np.clip(np.searchsorted(t_s[seen], t_s), 1, seen.size - 1) if seen.size > 1 else (
+        np.zeros(t_s.size, dtype=int))
+    if seen.size > 1:
+        left, right = seen[pos - 1], seen[pos]
+        nearest = np.where(np.abs(t_s - t_s[left]) <= np.abs(t_s[right] - t_s), pos - 1, pos)
+    else:
+        nearest = pos
+    label = piece_of_seen[nearest]
+    far = np.abs(t_s - t_s[seen[nearest]]) > max_gap_s
+    pieces = [index[(label == k) & ~far] for k in range(int(piece_of_seen[-1]) + 1)]
+    pieces += [index[[i]] for i in np.flatnonzero(far)]
+    return [pc for pc in pieces if pc.size]
 
 
 def _size_from_track(values_m: np.ndarray, var_m2: np.ndarray, white_var_m2: np.ndarray,
@@ -187,36 +243,74 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
             f"{int((~fit.valid).sum())} boxes gave no usable range cue (cut by the border on "
             "too many sides); their range comes from the track filter"))
 
-    # 3) Per-track Kalman filter + RTS smoother.
+    # 3) Per-track filter: the absolute cues (a fit with the width left free: ground and top
+    # edge) and the box's scale change (its log width against the outline's, with the
+    # track's width an unknown of the filter); see scalefilter.py.
     n = len(boxes)
+    gfit = fit_boxes(cam, ba, w_track, np.full(n, FREE_WIDTH_STD_M), h_track, h_track_std, l0,
+                     config, length_std_m=l0_std, pitch_noise_inflation=inflation,
+                     road_height_std_m=road_std, ground_allowed=fit.ground_ok)
+    lin = _log_width_model(cam, fit, ba)
+    bw = np.maximum(ba.x2 - ba.x1, 1.0)
+    sig_u = config.edge_noise_px + config.edge_noise_frac * bw
+    log_w = np.where(fit.width_ok, np.log(bw), np.nan)
+    log_w_var = log_width_var(sig_u, sig_u, bw)
+    abs_ok = gfit.valid & np.isfinite(gfit.range_m)
     out_range = np.full(n, np.nan)
     out_rate = np.full(n, np.nan)
     out_lat = np.full(n, np.nan)
     out_lat_rate = np.full(n, np.nan)
     out_std = np.full(n, np.nan)
+    # The scale cue only where the box is as wide as the track's vehicle: a box much wider
+    # (a turning car showing its side) or narrower (partly hidden) changes width for reasons
+    # other than range, which the single-frame fit's robust width prior already discounts.
+    width_dev = np.abs(fit.width_m - w_track) / np.maximum(w0_std, 1e-3)
+    log_w_ok = (fit.valid & np.isfinite(lin["b"]) & (lin["b"] < 0)
+                & (width_dev <= config.width_tail_sigmas))
     for members in np.split(order, splits):
         members = members[np.lexsort((frame_box[members], t_box[members]))]
-        if not fit.valid[members].any():
-            # Nothing but weak cues (e.g. a car alongside, cut at the bottom and a side):
-            # report the single-frame fit with its large spread rather than nothing.
-            out_range[members] = fit.range_m[members]
-            out_lat[members] = fit.lateral_m[members]
-            out_std[members] = np.sqrt(np.maximum(fit.range_var_m2[members], 0))
-            continue
-        z = np.column_stack((fit.range_m[members], fit.lateral_m[members]))
-        r = np.zeros((len(members), 2, 2))
-        # The filter sees only the frame-to-frame noise; the common part (size prior, road
-        # height) is added back to the reported spread.
-        r[:, 0, 0] = fit.range_white_var_m2[members]
-        r[:, 1, 1] = fit.lateral_white_var_m2[members]
-        common = np.maximum(fit.range_var_m2[members] - fit.range_white_var_m2[members], 0)
-        sm = smooth_track_adaptive(t_box[members], z, r, fit.valid[members], config)
-        out_range[members] = sm.range_m
-        out_lat[members] = sm.lateral_m
-        out_std[members] = np.sqrt(sm.range_std_m ** 2 + common)
-        if len(members) > 1:
-            out_rate[members] = sm.range_rate_mps
-            out_lat_rate[members] = sm.lateral_rate_mps
+        for piece in _track_pieces(t_box[members], fit.valid[members], config.filter_max_gap_s,
+                                   members):
+            if not fit.valid[piece].any():
+                # Nothing but weak cues (e.g. a car alongside, cut at the bottom and a side):
+                # report the single-frame fit with its large spread rather than nothing.
+                out_range[piece] = fit.range_m[piece]
+                out_lat[piece] = fit.lateral_m[piece]
+                out_std[piece] = np.sqrt(np.maximum(fit.range_var_m2[piece], 0))
+                continue
+            first = piece[np.argmax(fit.valid[piece])]
+            meas = RangeMeasurements(
+                t_s=t_box[piece],
+                abs_m=np.where(abs_ok[piece], gfit.range_m[piece], np.nan),
+                abs_var_m2=gfit.range_white_var_m2[piece],
+                log_w=np.where(log_w_ok[piece], log_w[piece], np.nan),
+                log_w_var=log_w_var[piece], lin_x_m=fit.range_m[piece],
+                lin_c=lin["c"][piece], lin_a=lin["a"][piece], lin_b=lin["b"][piece],
+                lin_e=lin["e"][piece], start_m=float(fit.range_m[first]),
+                log_width_prior=float(np.log(w_track[first])),
+                log_width_prior_var=float((w_track_std[first] / w_track[first]) ** 2))
+            fr = filter_range_adaptive(meas, config.accel_noise_grid_mps2,
+                                       config.initial_range_rate_std_mps,
+                                       config.accel_noise_margin_loglik,
+                                       inverse=config.inverse_range_update)
+            # The lateral offset: a constant-velocity filter of its own.
+            z = np.column_stack((fit.range_m[piece], fit.lateral_m[piece]))
+            r = np.zeros((len(piece), 2, 2))
+            r[:, 0, 0] = fit.range_white_var_m2[piece]
+            r[:, 1, 1] = fit.lateral_white_var_m2[piece]
+            sm = smooth_track(t_box[piece], z, r, fit.valid[piece],
+                              min(config.accel_noise_grid_mps2),
+                              config.lateral_accel_noise_mps2,
+                              config.initial_range_rate_std_mps)
+            out_range[piece] = fr.range_m
+            out_lat[piece] = sm.lateral_m
+            # The filter sees the frame-to-frame noise; the absolute cues' common part (road
+            # height under the vehicle, horizon) is added back to the reported spread.
+            common = np.maximum(gfit.range_var_m2[piece] - gfit.range_white_var_m2[piece], 0)
+            out_std[piece] = np.sqrt(fr.range_std_m ** 2 + np.where(abs_ok[piece], common, 0))
+            if len(piece) > 1:
+                out_rate[piece] = fr.range_rate_mps
+                out_lat_rate[piece] = sm.lateral_rate_mps
 
     lanes, is_lead = assign_lanes_and_lead(boxes, out_range, out_lat, config)
     ranged = [
