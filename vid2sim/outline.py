@@ -245,6 +245,18 @@ def place_points(points: np.ndarray, range_m: np.ndarray, lateral_m: np.ndarray,
     return out
 
 
+def vehicle_points(center_veh_m: np.ndarray, length_m: float, width_m: float, height_m: float,
+                   yaw_rad: float, shape: OutlineShape) -> np.ndarray:
+    """(P, 3) outline points of one vehicle in the ego vehicle frame [m], its footprint
+    centred at ``center_veh_m`` (x, y[, z]) and yawed ``yaw_rad`` (as
+    :meth:`Camera.box_corners_veh` places a cuboid)."""
+    c = np.asarray(center_veh_m, dtype=float)
+    local = outline_points(np.array([width_m]), np.array([height_m]), np.array([length_m]),
+                           shape_matrix([shape]))
+    return place_points(local, np.array([c[0] - length_m / 2]), np.array([c[1]]),
+                        np.array([length_m]), yaw_rad, c[2] if c.size > 2 else 0.0)[0]
+
+
 def outline_boxes(camera: Camera, range_m: np.ndarray, lateral_m: np.ndarray,
                   width_m: np.ndarray, height_m: np.ndarray, length_m: np.ndarray,
                   shape_rows: np.ndarray, yaw_rad: np.ndarray | float = 0.0

@@ -206,8 +206,8 @@ def write_composite_clip(raw_dir: Path, cutout: CarCutout, truth: LeadTruth, out
     Frames are read, pasted and written one at a time; the video goes to a hidden temporary
     file beside ``out_path`` renamed over it when complete, and ``<out_path>.truth.json``
     (per frame: t_s, range_m, lateral_m, range_rate_mps, rel_accel_mps2, box_px) is written
-    atomically after it. ``box_px`` is the box of the pasted outline: :func:`truth_box` with
-    the cut-out's visible width, in the frame's pitched camera.
+    atomically after it. ``box_px`` is the box of the pasted outline (:func:`truth_box`) in
+    the frame's pitched camera.
 
     Parameters
     ----------
@@ -244,7 +244,7 @@ def write_composite_clip(raw_dir: Path, cutout: CarCutout, truth: LeadTruth, out
                 raise InputError(video, f"video ends at frame {i}, truth has {n_frames}")
             r, y = float(truth.range_m[i]), float(truth.lateral_m[i])
             writer.write(paste_car(frame, cutout, cams[i], r, y))
-            boxes.append(truth_box(cutout, cams[i], r, y, cutout.visible_width_m))
+            boxes.append(truth_box(cutout, cams[i], r, y))
     except BaseException:
         writer.release()
         tmp.unlink(missing_ok=True)
@@ -315,8 +315,7 @@ def score_lead(boxes: list, truth: LeadTruth, truth_boxes: list, min_iou: float 
     truth : LeadTruth
         The composited car's trajectory.
     truth_boxes : list
-        Its pixel box per frame (None where off the image), e.g. :func:`truth_box` with the
-        cut-out's visible width.
+        Its pixel box per frame (None where off the image), e.g. :func:`truth_box`.
     min_iou : float
         A box is on the car from this IoU with the truth box.
     """

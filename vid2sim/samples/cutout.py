@@ -4,15 +4,20 @@ A car seen from behind is cut out of a labelled KITTI tracking frame (its 3D lab
 size and the range of its rear face); :func:`paste_car` composites it into a target frame at a
 chosen range and lateral offset, and :func:`truth_box` is the box it then covers.
 
-Geometry of the paste. The car's rear is a plane facing the camera, so between the source and
-the target camera it maps by a similarity: scale ``s = (f_target / f_source) * (Z_source /
-z_target)`` (``Z_source`` the depth of the rear face in the source camera from the label,
-``z_target`` its depth at the chosen range; horizontally corrected for the few degrees the source
-car is turned, :attr:`CarCutout.face_scale`) and a shift that puts the bottom centre of the rear
-(source: the middle of the car's outline on the row where the label's rear face, through
-KITTI's ``P2``, meets the road; target: :meth:`Camera.project` of the road point below the
-middle of the rear) on top of each other. So the rear lands where the target camera projects
-it. What the similarity cannot reproduce: the strip of roof that shows above the rear window
+Geometry of the paste. A car seen from behind is drawn as a plane facing the camera, mapped
+between the source and the target camera by a similarity. The plane is put where the parts
+that make a detector's box are: the tyres' contact with the road (the box's bottom) and the
+body's widest section over the rear axle (its sides), some way ahead of the rear face. So the
+cut-out keeps the car's real bottom (tyres, the dark road under the car) down to the tyres'
+contact row, read off the source image, whose depth on the label's ground plane is the
+contact's depth ``Z_c`` (:attr:`CarCutout.contact_m` ahead of the label's rear face); the scale
+is ``s = (f_target / f_source) * (Z_c / z_target)`` with ``z_target`` the depth of the road
+point ``contact_m`` ahead of the chosen rear range (horizontally corrected for the few degrees
+the source car is turned, :attr:`CarCutout.face_scale`), and the middle of the contact row lands
+on that road point. The truth box of a frame is the pasted outline's own box
+(:func:`truth_box`): the hull of what the camera sees, bottom at the tyres. The rear face
+itself, 0.2-0.5 m nearer than the plane, is drawn a few per cent small at targets further than
+the source; it makes neither the bottom nor the sides of the box there. What the similarity cannot reproduce: the strip of roof that shows above the rear window
 depends on the height of each camera above the car (a few pixels at 8 m, under one beyond
 20 m), and the side a laterally offset car shows (none within the +-0.4 m of the lead
 trajectories: a side shows only once |lateral| > width / 2). The crop is therefore cut to the
@@ -66,7 +71,8 @@ class CarCutout:
     alpha : ndarray
         (H, W) float32 opacity [0, 1], feathered at the silhouette.
     anchor_px : tuple
-        Bottom centre of the rear face in crop pixels (u, v): the road point below the rear.
+        The point of the crop that lands on the road [crop px] (u, v): the middle of the tyres'
+        contact row (or, with ``contact_m`` 0, of the rear face's bottom).
     rear_box_px : tuple
         The rear face's box (x1, y1, x2, y2) in crop pixels.
     depth_m : float
@@ -79,6 +85,12 @@ class CarCutout:
         Which labelled object this is (sequence/frame/track).
     face_scale : float
         Horizontal correction of the source's perspective (see :func:`cut_out_car`).
+    contact_m : float
+        Depth of the tyres' contact (the plane the cut-out is drawn on) ahead of the rear face
+        [m]; 0 draws the rear face itself (a flat cut-out).
+    outline_box_px : tuple, optional
+        Box of the cut-out's visible outline (alpha >= 0.5) in crop pixels; None: the rear
+        box.
     """
 
     gray: np.ndarray
@@ -92,12 +104,20 @@ class CarCutout:
     length_m: float
     source: str
     face_scale: float = 1.0
+    contact_m: float = 0.0
+    outline_box_px: tuple[float, float, float, float] | None = None
+
+    @property
+    def plane_depth_m(self) -> float:
+        """Depth of the plane the cut-out is drawn on in the source camera [m]."""
+        return self.depth_m + self.contact_m
 
     @property
     def visible_width_m(self) -> float:
-        """Width of the pasted outline [m] (the car's rear, narrower than the 3D box)."""
-        return ((self.rear_box_px[2] - self.rear_box_px[0]) * self.face_scale * self.depth_m
-                / self.focal_px)
+        """Width of the pasted outline at its plane [m] (narrower than the 3D box: the crop
+        keeps the car's rear, not its flank or mirrors)."""
+        return ((self.rear_box_px[2] - self.rear_box_px[0]) * self.face_scale
+                * self.plane_depth_m / self.focal_px)
 
 
 def read_kitti_projection(calib_path: Path, cam: int = 2) -> np.ndarray:
@@ -186,7 +206,7 @@ def _silhouette_prior(shape: tuple[int, int], face: tuple[float, float, float, f
 
 def cut_out_car(image_bgr: np.ndarray, label: KittiLabel, yaw_rad: float, proj: np.ndarray,
                 source: str = "", columns_px: tuple[float, float] | None = None,
-                margin_px: int = 6) -> CarCutout:
+                margin_px: int = 6, contact_row_px: float | None = None) -> CarCutout:
     """Cut a rear-view car out of a KITTI frame.
 
     The crop spans the label's 2D box vertically (roof to the road) and the car's rear
@@ -211,13 +231,18 @@ def cut_out_car(image_bgr: np.ndarray, label: KittiLabel, yaw_rad: float, proj: 
         A name for the cut-out (reports).
     columns_px : tuple, optional
         Left and right image columns of the car's rear outline [px].
+    contact_row_px : float, optional
+        Image row of the rear tyres' contact with the road (the lowest car pixels, read off
+        the image); its depth on the label's ground plane sets the plane the cut-out is
+        drawn on. None: the rear face's bottom row (a flat cut-out at the rear face).
     margin_px : int
         Background kept around the car in the crop (room for the feathered edge).
 
     Returns
     -------
     CarCutout
-        ``anchor_px`` is the middle of the columns on the row of the rear face's bottom;
+        ``anchor_px`` is the middle of the columns on the contact row (else on the row of
+        the rear face's bottom);
         ``face_scale`` corrects the source's slight yaw (a rear face turned by a few degrees
         off a side position looks a few per cent wider than one square to the camera).
     """
@@ -232,7 +257,18 @@ def cut_out_car(image_bgr: np.ndarray, label: KittiLabel, yaw_rad: float, proj: 
     else:
         fx1, fx2 = max(fx1, bx1), min(fx2, bx2)
     top = min(by1, fy1)
-    bottom = max(fy2, by2)
+    contact_m = 0.0
+    if contact_row_px is not None:
+        # Depth of the contact row on the label's ground plane (y = the box's bottom, in the
+        # rectified camera frame): v z = f y + c_y z + P[1, 3].
+        y_ground = float(label.location_m[1])
+        z_contact = (proj[1, 1] * y_ground + proj[1, 3]) / (contact_row_px - proj[1, 2])
+        if not z_contact > depth:
+            raise InputError(None, f"contact row {contact_row_px} px lies nearer than the "
+                             "rear face")
+        contact_m = float(z_contact - depth)
+        fy2 = float(contact_row_px)
+    bottom = max(fy2, by2) if contact_row_px is None else fy2
     hgt, wid = image_bgr.shape[:2]
     cx1 = max(math.floor(fx1) - margin_px, 0)
     cy1 = max(math.floor(top) - margin_px, 0)
@@ -255,7 +291,8 @@ def cut_out_car(image_bgr: np.ndarray, label: KittiLabel, yaw_rad: float, proj: 
     mask = cv2.bitwise_or(mask, body)
     k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))
     mask = cv2.morphologyEx(cv2.morphologyEx(mask, cv2.MORPH_OPEN, k), cv2.MORPH_CLOSE, k)
-    # Nothing outside the rear columns or below the rear face's bottom (the road).
+    # Nothing outside the rear columns or below the bottom (the tyres' contact, or the rear
+    # face's bottom on the road).
     cols = np.arange(wid)[None, :]
     rows = np.arange(hgt)[:, None]
     inside = (cols >= fx1) & (cols <= fx2) & (rows <= fy2)
@@ -266,24 +303,33 @@ def cut_out_car(image_bgr: np.ndarray, label: KittiLabel, yaw_rad: float, proj: 
     sl = (slice(cy1, cy2 + 1), slice(cx1, cx2 + 1))
     # Pixel coordinates as the projection gives them (integer = pixel centre), crop-relative.
     anchor = (0.5 * (fx1 + fx2) - cx1, fy2 - cy1)
+    ys, xs = np.nonzero(alpha[sl] >= 0.5)
+    outline_box = ((float(xs.min()) - 0.5, float(ys.min()) - 0.5, float(xs.max()) + 0.5,
+                    float(ys.max()) + 0.5) if xs.size else None)
     return CarCutout(
         gray=np.ascontiguousarray(gray[sl]), alpha=np.ascontiguousarray(alpha[sl]),
         anchor_px=(float(anchor[0]), float(anchor[1])),
         rear_box_px=(fx1 - cx1, top - cy1, fx2 - cx1, fy2 - cy1),
         depth_m=depth, focal_px=float(proj[0, 0]), width_m=float(w3), height_m=float(h3),
-        length_m=float(l3), source=source, face_scale=float(face_scale))
+        length_m=float(l3), source=source, face_scale=float(face_scale), contact_m=contact_m,
+        outline_box_px=outline_box)
 
 
-# The cars at hand: name -> (sequence, frame, track id, columns of the rear outline or None).
-# "polo" is a small hatchback parked 6.6 m ahead on the right (rear 164 x 156 px), the only
-# labelled car of the frames at hand seen from behind, whole and unoccluded at a useful size.
-# Its columns are read off the image: the label's projected rear face reaches 15 px past the
-# car's right side (a wall there) and starts 8 px inside the left tail light.
+# The cars at hand: name -> (sequence, frame, track id, columns of the rear outline or None,
+# row of the tyres' contact or None). "polo" is a small hatchback (a VW Polo 6N) parked 6.6 m
+# ahead on the right (rear 164 x 156 px), the only labelled car of the frames at hand seen from
+# behind, whole and unoccluded at a useful size. Its columns are read off the image: the
+# label's projected rear face reaches 15 px past the car's right side (a wall there) and starts
+# 8 px inside the left tail light. Its lowest pixels, the left rear tyre on the pavement, end on
+# row 332 (the right one on 324; the bumper's edge is on row 310, the label's rear face meets
+# the ground on rows 335-338). On the label's ground plane that row lies 0.19 m ahead of the
+# label's rear face; the label's box is 3.16 m long where a Polo 6N is 3.74 m, so its rear
+# face may sit up to 0.3 m inside the bumper, and the truth of a composite is the label's.
 # The other candidates fail: 0001/20 object 5 stands behind a post, 0016/2 objects 1 and 2
 # behind a railing, and 0016/2 object 3 (a dark car 35 m ahead, 30 px high) is too small for
 # GrabCut to find its outline and would be upscaled at any nearer range.
-CARS: dict[str, tuple[str, int, int, tuple[float, float] | None]] = {
-    "polo": ("0001", 10, 2, (838.0, 1002.0)),
+CARS: dict[str, tuple[str, int, int, tuple[float, float] | None, float | None]] = {
+    "polo": ("0001", 10, 2, (838.0, 1002.0), 332.0),
 }
 
 
@@ -297,7 +343,7 @@ def load_cutout(tracking_dir: Path, car: str = "polo", require_rear_view: bool =
         If the frame or label is missing, or the car is not a whole rear view and
         ``require_rear_view`` is set.
     """
-    seq, frame, track, columns = CARS[car]
+    seq, frame, track, columns, contact_row = CARS[car]
     tracking_dir = Path(tracking_dir)
     img_path = tracking_dir / "image_02" / seq / f"{frame:06d}.png"
     image = cv2.imread(str(img_path), cv2.IMREAD_COLOR)
@@ -315,7 +361,7 @@ def load_cutout(tracking_dir: Path, car: str = "polo", require_rear_view: bool =
     proj = read_kitti_projection(calib)
     if abs(load_camera(calib).fx - proj[0, 0]) > 1e-6:  # the same calibration, read twice
         raise InputError(calib, "P2 and the camera disagree on the focal length")
-    return cut_out_car(image, label, yaw, proj, columns_px=columns,
+    return cut_out_car(image, label, yaw, proj, columns_px=columns, contact_row_px=contact_row,
                        source=f"kitti_tracking {seq}/{frame:06d} object {track} ({car})")
 
 
@@ -328,15 +374,17 @@ def paste_transform(cutout: CarCutout, camera: Camera, range_m: float, lateral_m
     ``lateral_m``): ``range_m`` is the vehicle-frame x of its rear, ``lateral_m`` the y of its
     centre.
 
-    Scale ``(f_t / f_s) * (Z_s / z_t)`` (horizontally times ``face_scale``), shift so the
-    crop's anchor lands on the projection of the road point below the middle of the rear.
+    Scale ``(f_t / f_s) * (Z_c / z_t)`` (horizontally times ``face_scale``) with ``Z_c`` the
+    source depth of the cut-out's plane (the tyres' contact) and ``z_t`` the target depth of
+    the road point ``contact_m`` ahead of the rear; shift so the crop's anchor lands on that
+    point's projection.
     """
-    ground = np.array([[range_m, lateral_m, 0.0]])
+    ground = np.array([[range_m + cutout.contact_m, lateral_m, 0.0]])
     uv, ok = camera.project(ground)
     if not ok.all():
         raise ValueError(f"a car at range {range_m} m is not in front of the camera")
     depth = float(camera.vehicle_to_camera(ground)[0, 2])
-    sy = (camera.fy / cutout.focal_px) * (cutout.depth_m / depth)
+    sy = (camera.fy / cutout.focal_px) * (cutout.plane_depth_m / depth)
     sx = sy * cutout.face_scale * camera.fx / camera.fy
     return np.array([[sx, 0.0, float(uv[0, 0]) - sx * cutout.anchor_px[0]],
                      [0.0, sy, float(uv[0, 1]) - sy * cutout.anchor_px[1]]])
@@ -382,11 +430,18 @@ def paste_car(frame_bgr: np.ndarray, cutout: CarCutout, camera: Camera, range_m:
     return out
 
 
-def truth_box(cutout: CarCutout, camera: Camera, range_m: float, lateral_m: float,
-              width_m: float | None = None) -> tuple[float, float, float, float] | None:
-    """The pixel box of the car's 3D box at (``range_m``, ``lateral_m``), aligned with the ego
-    (:meth:`Camera.project_box`, clipped to the image); ``width_m`` replaces the label's
-    width (e.g. :attr:`CarCutout.visible_width_m` for the box of the pasted outline)."""
-    centre = np.array([range_m + cutout.length_m / 2.0, lateral_m, 0.0])
-    return camera.project_box(centre, cutout.length_m, width_m or cutout.width_m,
-                              cutout.height_m)
+def truth_box(cutout: CarCutout, camera: Camera, range_m: float, lateral_m: float
+              ) -> tuple[float, float, float, float] | None:
+    """The box of the pasted outline at (``range_m``, ``lateral_m``) [px], clipped to the image:
+    the cut-out's visible outline (alpha >= 0.5) mapped by :func:`paste_transform`. What a
+    camera sees of this car: its bottom the tyres' contact, its sides the body; None where the
+    car lies outside the image."""
+    m = paste_transform(cutout, camera, range_m, lateral_m)
+    x1, y1, x2, y2 = cutout.outline_box_px or cutout.rear_box_px
+    u1, v1 = m[0, 0] * x1 + m[0, 2], m[1, 1] * y1 + m[1, 2]
+    u2, v2 = m[0, 0] * x2 + m[0, 2], m[1, 1] * y2 + m[1, 2]
+    w, h = camera.image_width - 1, camera.image_height - 1
+    if u2 < 0 or v2 < 0 or u1 > w or v1 > h:
+        return None
+    return (float(np.clip(u1, 0, w)), float(np.clip(v1, 0, h)), float(np.clip(u2, 0, w)),
+            float(np.clip(v2, 0, h)))
