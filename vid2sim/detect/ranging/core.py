@@ -282,7 +282,11 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
             meas = RangeMeasurements(
                 t_s=t_box[piece],
                 abs_m=np.where(abs_ok[piece], gfit.range_m[piece], np.nan),
-                abs_var_m2=gfit.range_white_var_m2[piece],
+                # Its whole variance, the part common to the track (road height under the
+                # vehicle, horizon) included: that part does not average out over frames, and
+                # the width's level (the filter's c) is as uncertain. The rate comes from
+                # the scale change.
+                abs_var_m2=gfit.range_var_m2[piece],
                 log_w=np.where(log_w_ok[piece], log_w[piece], np.nan),
                 log_w_var=log_w_var[piece], lin_x_m=fit.range_m[piece],
                 lin_c=lin["c"][piece], lin_a=lin["a"][piece], lin_b=lin["b"][piece],
@@ -304,10 +308,7 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
                               config.initial_range_rate_std_mps)
             out_range[piece] = fr.range_m
             out_lat[piece] = sm.lateral_m
-            # The filter sees the frame-to-frame noise; the absolute cues' common part (road
-            # height under the vehicle, horizon) is added back to the reported spread.
-            common = np.maximum(gfit.range_var_m2[piece] - gfit.range_white_var_m2[piece], 0)
-            out_std[piece] = np.sqrt(fr.range_std_m ** 2 + np.where(abs_ok[piece], common, 0))
+            out_std[piece] = fr.range_std_m
             if len(piece) > 1:
                 out_rate[piece] = fr.range_rate_mps
                 out_lat_rate[piece] = sm.lateral_rate_mps

@@ -9,8 +9,9 @@ c - ln(Z + d) (linearised about the frame's own fit), whose absolute level the f
 from the absolute cues, and whose changes it takes at their pixel noise.
 
 The absolute cues (the bottom edge on the road, the top edge against the track's height: the
-single-frame fit with the width left free) are a second measurement of Z at their
-frame-to-frame noise: they set the range's level, the width's changes its rate. (A constant
+single-frame fit with the width left free) are a second measurement of Z with their whole
+variance (the part common to a track, road height and horizon, included): they set the range's
+level together with the width's prior, the width's changes set its rate. (A constant
 relative bias of the absolute cues as a fourth state was tried and dropped: the level is then
 fixed by priors alone, and on a manoeuvring lead the filter's lag fed the bias state until the
 range read half its truth on synthetic clips.) State (Z, Z-dot, c); white-noise acceleration
