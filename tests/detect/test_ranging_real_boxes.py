@@ -98,9 +98,9 @@ def test_kitti_six_images_against_label_3d_boxes(detections, kitti_tracking_dir)
                                   list(figs.values())))
     print(format_bin_table("... with the cuboid model", list(cub.values())))
     # 20-40 m (23 boxes, parked rows on both sides): measured bias -0.1 % (the cuboid model
-    # +6.3 %), median |error| 14.1 % (9.5 %: the parked cars 13-19 m to the right of 0016 read
+    # +7.9 %), median |error| 14.1 % (9.5 %: the parked cars 13-19 m to the right of 0016 read
     # 20-46 % long with either model, the row on the left of 0001 now reads short). Below
-    # 10 m: +11.6 % (cuboid +23.4 %).
+    # 10 m: +10.6 % (cuboid +22.4 %).
     assert abs(figs["20-40 m"].bias_rel) < 0.04 < cub["20-40 m"].bias_rel
     assert figs["20-40 m"].med_abs_rel < 0.16
     assert figs["< 10 m"].bias_rel < cub["< 10 m"].bias_rel

@@ -188,6 +188,11 @@ class RangingConfig:
     loose_size_std_m : float
         Spread of the size priors [m] of the first, loose fit from which each track learns
         its own width and height: 1 m, wide enough that the cues decide.
+    scale_cue_min_width_share : float
+        The box's scale change is a range cue only where its width is mostly the vehicle's
+        width, d ln(w_px) / d ln(W) >= this: the box of a car well to the side is made by
+        its flank, whose apparent length changes with the bearing as the ego passes, and
+        its scale change then says little about range.
     filter_max_gap_s : float
         A track without a usable measurement for longer than this [s] is filtered in
         separate pieces: across a longer gap its range and rate are unknown, and carrying
@@ -247,6 +252,7 @@ class RangingConfig:
     pitch_offset_clip_jitters: float = 5.0
     narrow_width_sigmas: float = 4.0
     loose_size_std_m: float = 1.0
+    scale_cue_min_width_share: float = 0.7
     filter_max_gap_s: float = 2.0
     top_alone_max_rel_error: float = 0.25
     max_log_range_std: float = 0.5

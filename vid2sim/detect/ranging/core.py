@@ -255,7 +255,6 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
     sig_u = config.edge_noise_px + config.edge_noise_frac * bw
     log_w = np.where(fit.width_ok, np.log(bw), np.nan)
     log_w_var = log_width_var(sig_u, sig_u, bw)
-    abs_ok = gfit.valid & np.isfinite(gfit.range_m)
     out_range = np.full(n, np.nan)
     out_rate = np.full(n, np.nan)
     out_lat = np.full(n, np.nan)
@@ -266,7 +265,15 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
     # other than range, which the single-frame fit's robust width prior already discounts.
     width_dev = np.abs(fit.width_m - w_track) / np.maximum(w0_std, 1e-3)
     log_w_ok = (fit.valid & np.isfinite(lin["b"]) & (lin["b"] < 0)
-                & (width_dev <= config.width_tail_sigmas))
+                & (width_dev <= config.width_tail_sigmas)
+                & (lin["e"] >= config.scale_cue_min_width_share))
+    # The absolute measurement: where the scale cue carries the width, the fit with the width
+    # left free (no cue counted twice); elsewhere (a turned, half-hidden or oblique vehicle)
+    # the single-frame fit of all cues, the learnt width's included, at its frame-to-frame
+    # noise as before the scale cue.
+    abs_m = np.where(log_w_ok, gfit.range_m, fit.range_m)
+    abs_var = np.where(log_w_ok, gfit.range_var_m2, fit.range_white_var_m2)
+    abs_ok = np.where(log_w_ok, gfit.valid, fit.valid) & np.isfinite(abs_m)
     for members in np.split(order, splits):
         members = members[np.lexsort((frame_box[members], t_box[members]))]
         for piece in _track_pieces(t_box[members], fit.valid[members], config.filter_max_gap_s,
@@ -281,12 +288,12 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
             first = piece[np.argmax(fit.valid[piece])]
             meas = RangeMeasurements(
                 t_s=t_box[piece],
-                abs_m=np.where(abs_ok[piece], gfit.range_m[piece], np.nan),
-                # Its whole variance, the part common to the track (road height under the
-                # vehicle, horizon) included: that part does not average out over frames, and
-                # the width's level (the filter's c) is as uncertain. The rate comes from
-                # the scale change.
-                abs_var_m2=gfit.range_var_m2[piece],
+                abs_m=np.where(abs_ok[piece], abs_m[piece], np.nan),
+                # With the scale cue, its whole variance, the part common to the track (road
+                # height under the vehicle, horizon) included: that part does not average out
+                # over frames, and the width's level (the filter's c) is as uncertain; the
+                # rate comes from the scale change.
+                abs_var_m2=abs_var[piece],
                 log_w=np.where(log_w_ok[piece], log_w[piece], np.nan),
                 log_w_var=log_w_var[piece], lin_x_m=fit.range_m[piece],
                 lin_c=lin["c"][piece], lin_a=lin["a"][piece], lin_b=lin["b"][piece],
