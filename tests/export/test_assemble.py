@@ -196,7 +196,8 @@ def _parked_rows(scale: float, track_id: int = 7, ego_speed: float = 10.0, world
 
 def test_parked_car_seen_with_a_range_scale_error_replays_standing_still():
     ego = ego_track()
-    sc, _ = assemble_scenario(ego, [], _parked_rows(0.8), CAMERA, source=Source())
+    sc, _ = assemble_scenario(ego, [], _parked_rows(0.8), CAMERA, source=Source(),
+                              ego_noise_m=0.05)
     tr = sc.actors[0].trajectory
     # Without the hold it would move at (1 - 0.8) x 10 = 2 m/s along the ego.
     assert np.all(tr.speed == 0.0)
@@ -207,14 +208,18 @@ def test_parked_car_seen_with_a_range_scale_error_replays_standing_still():
     assert float(tr.y[0]) == pytest.approx(7.0, abs=1e-6)
 
 
-def test_moving_car_and_slow_ego_are_not_held():
+def test_moving_car_slow_ego_and_noisy_gps_are_not_held():
     ego = ego_track()
     # A car driving at half the ego's speed: its range closes at 5 m/s.
     rows = [box(float(t), 3, 40.0 - 5.0 * t, 3.5) for t in np.arange(0.0, 4.0, 0.1)]
-    sc, _ = assemble_scenario(ego, [], rows, CAMERA, source=Source())
+    sc, _ = assemble_scenario(ego, [], rows, CAMERA, source=Source(), ego_noise_m=0.05)
     assert np.median(sc.actors[0].trajectory.speed) == pytest.approx(5.0, abs=0.1)
     # The ego creeping at 2 m/s: its motion cannot tell a parked car from a creeping one.
     slow = ego_track(speed_mps=2.0)
     sc, _ = assemble_scenario(slow, [], _parked_rows(0.8, ego_speed=2.0), CAMERA,
-                              source=Source())
+                              source=Source(), ego_noise_m=0.05)
     assert np.median(sc.actors[0].trajectory.speed) == pytest.approx(0.4, abs=0.05)
+    # A phone-grade GPS (3 m): the ego's position error would move a held car in the image.
+    sc, _ = assemble_scenario(ego, [], _parked_rows(0.8), CAMERA, source=Source(),
+                              ego_noise_m=3.0)
+    assert np.median(sc.actors[0].trajectory.speed) == pytest.approx(2.0, abs=0.1)
