@@ -3,13 +3,15 @@
     python benchmarks/bench_ranging.py [--clips 6] [--seconds 30] [--kitti] [--kitti-rate]
                                        [--video] [--parked]
 
-1. Synthetic clips with known truth (generated here): a pitched dash-cam whose camera file
+1. Synthetic clips with known truth (generated here; boxes are the hull of each vehicle's
+   outline, tyres, arches and mirrors, not a cuboid): a pitched dash-cam whose camera file
    says "level", body pitch on the suspension and braking nose-dives, a road that is not a
    plane (a grade change ahead, cross-fall), a lead that speeds up and brakes at random,
    traffic in the neighbouring lanes (cars of fleet-spread widths and lengths, trucks), a
    cut-in, box noise and missed detections. Reported: median |relative range error| (lead, all), lead range-rate
    RMSE, share of frames with a true lead where the lead chosen is the right vehicle.
-2. ``--kitti``: single-frame ranging of the labelled boxes of every 10th frame of all KITTI
+2. ``--kitti``: single-frame ranging (with the cuboid outline: a label's 2D box is its projected
+   cuboid) of the labelled boxes of every 10th frame of all KITTI
    tracking sequences in ``../shared/data/kitti_tracking`` (median |rel. error| per range bin).
 3. ``--kitti-rate``: range RATE on real data: the labelled boxes of every frame (10 Hz) of all
    KITTI tracking sequences as tracks, against the rate of the labelled rear distance Z - l/2
@@ -22,21 +24,39 @@
 ``--parked``: range RATE through the real detector on ``kitti_raw_0001/video.mp4``: the parked
 cars' rates against the exact rate of a static object from the OXTS speed and yaw rate, per
 range bin and per track, their ranges against the odometry, with detect_every 1 and 2 (the
-truth lives in tests/detect/parked.py, shared with tests/detect/test_ranging_parked.py).
+truth lives in vid2sim/evaluate/ranging/, shared with tests/detect/test_ranging_parked.py).
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import tempfile
 import time
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
-from vid2sim.camera import Camera
-from vid2sim.detect.ranging import RangingConfig, range_tracks
+from vid2sim.app.commands import run_track
+from vid2sim.app.inputs import Inputs
+from vid2sim.app.settings import DetectorSettings, Settings
+from vid2sim.camera import Camera, fit_camera_to_frames, load_camera
+from vid2sim.detect.detector import load_detector
+from vid2sim.detect.external import read_kitti_tracking_labels
+from vid2sim.detect.pipeline import detect_and_range
+from vid2sim.detect.ranging import RangingConfig, cuboid_config, range_tracks
+from vid2sim.detect.tracker import TrackerConfig
+from vid2sim.detect.video import video_info
+from vid2sim.evaluate.ranging.kitti import (
+    RATE_BINS_M,
+    join_rows,
+    kitti_label_boxes,
+    kitti_rate_figures,
+    kitti_rate_rows,
+)
+from vid2sim.evaluate.ranging.static import ego_motion, evaluate_parked
+from vid2sim.outline import CAR_SHAPE, TRUCK_SHAPE, OutlineShape, project_outline
 from vid2sim.records import TrackedBox
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared"
@@ -61,11 +81,32 @@ def _random_profile(rng, duration_s: float, dt: float, x0: float, lo: float, hi:
 def _car_size(rng) -> tuple[float, float, float]:
     """Width, length and height [m] of a passenger car drawn from the fleet: body widths
     1.60-1.90 m about a 1.75 m mean, lengths 3.6-5.0 m, heights 1.40 m (saloons) to 1.75 m
-    (SUVs) about 1.52 m (see DEFAULT_PRIORS in ranging.py; the draws are independent of the
+    (SUVs) about 1.52 m (see DEFAULT_PRIORS in vid2sim/detect/ranging/config.py; the draws are independent of the
     priors' exact means so that no cue is exact by construction)."""
     return (float(np.clip(rng.normal(1.75, 0.12), 1.55, 2.0)),
             float(np.clip(rng.normal(4.4, 0.45), 3.5, 5.2)),
             float(np.clip(rng.normal(1.52, 0.10), 1.35, 1.85)))
+
+
+def _car_shape(rng) -> OutlineShape:
+    """A passenger car's outline drawn from the fleet about the class shape (see
+    vid2sim/outline.py for the sources): tyre contact 0.6-1.1 m ahead of the rear face (city
+    cars to saloons), the rear face 0.05-0.18 m narrower on each side, mirrors 0.06-0.14 m out,
+    the rear bumper 0.25-0.45 m high. Drawn independently of the class shape's exact values,
+    so that no cue is exact by construction."""
+    contact = float(np.clip(rng.normal(0.85, 0.12), 0.6, 1.1))
+    return replace(CAR_SHAPE, contact_m=contact, widest_m=contact,
+                   rear_inset_m=float(np.clip(rng.normal(0.11, 0.04), 0.05, 0.18)),
+                   mirror_out_m=float(np.clip(rng.normal(0.1, 0.02), 0.06, 0.14)),
+                   rear_clearance_m=float(np.clip(rng.normal(0.35, 0.05), 0.25, 0.45)))
+
+
+def _truck_shape(rng) -> OutlineShape:
+    """A truck seen from behind: square box body, underrun guard 0.4-0.55 m high, last axle
+    1.5-3 m ahead of the rear, mirrors 0.2-0.3 m out."""
+    return replace(TRUCK_SHAPE, contact_m=float(rng.uniform(1.5, 3.0)),
+                   rear_clearance_m=float(rng.uniform(0.4, 0.55)),
+                   mirror_out_m=float(rng.uniform(0.2, 0.3)))
 
 
 def road_height_m(x_m: float, y_m: float, grade_change: float, grade_start_m: float) -> float:
@@ -82,8 +123,14 @@ def synthetic_clip(seed: int, duration_s: float = 30.0, dt: float = 0.1, flat: b
     true mean pitch [deg] and lane-marking horizon hints [px] (emulated).
 
     Unless ``flat``, the road is not a plane: a grade change of N(0, 2 %) begins 15-60 m
-    ahead and the lanes have cross-fall (:func:`road_height_m`)."""
+    ahead and the lanes have cross-fall (:func:`road_height_m`). Boxes are the hull of each
+    vehicle's outline as the camera sees it (:func:`vid2sim.outline.project_outline`: tyre
+    contact, widest section, mirrors; outlines drawn by :func:`_car_shape` and
+    :func:`_truck_shape`), not projected cuboids."""
     rng = np.random.default_rng(seed)
+    # The outlines come from their own stream, so the trajectories and sizes are those of
+    # the cuboid boxes this bench used before issue 13.
+    shape_rng = np.random.default_rng(10_000 + seed)
     hfov = float(rng.uniform(70, 100))
     cam_file = Camera.default_for(1280, 720, hfov_deg=hfov)
     true_pitch = float(rng.uniform(-2.0, 2.0))
@@ -97,9 +144,9 @@ def synthetic_clip(seed: int, duration_s: float = 30.0, dt: float = 0.1, flat: b
         for _ in range(2):
             x, v = _random_profile(rng, duration_s, dt, float(rng.uniform(10, 70)), 6, 90)
             truck = rng.random() < 0.25
-            # Trucks: 2.55 m bodies (smaller ones 2.3 m), up to ~3 m across the mirrors.
-            w_m, l_m, h_m = ((float(rng.uniform(2.3, 3.0)), 10.0, float(rng.uniform(3.0, 4.0)))
-                             if truck else _car_size(rng))
+            # Trucks: 2.55 m bodies (smaller ones 2.3 m; the mirrors are in the outline).
+            w_m, l_m, h_m = ((min(float(rng.uniform(2.3, 3.0)), 2.55), 10.0,
+                              float(rng.uniform(3.0, 4.0))) if truck else _car_size(rng))
             vehicles.append((tid, x, np.full(n, lane_y + rng.normal(0, 0.3)), v, w_m, l_m,
                              h_m, "truck" if truck else "car"))
             tid += 1
@@ -114,6 +161,8 @@ def synthetic_clip(seed: int, duration_s: float = 30.0, dt: float = 0.1, flat: b
     gap_rate = 4.0 * w * np.cos(w * t_all + phase)
     x, v = x_lead - gap, v_lead - gap_rate
     vehicles.append((tid, x, y_cut, v, *_car_size(rng), "car"))
+    shapes = {vid: (_truck_shape(shape_rng) if cat == "truck" else _car_shape(shape_rng))
+              for vid, *_, cat in vehicles}
     grade_change = 0.0 if flat else float(rng.normal(0, 0.02))
     grade_start_m = float(rng.uniform(15, 60))
 
@@ -137,8 +186,8 @@ def synthetic_clip(seed: int, duration_s: float = 30.0, dt: float = 0.1, flat: b
         for vid, xs, ys, vs, w, length, h, cat in vehicles:
             # A vehicle dz above the ego's road plane looks like a camera dz lower.
             dz = 0.0 if flat else road_height_m(xs[k], ys[k], grade_change, grade_start_m)
-            box = replace(cam, height_m=cam.height_m - dz).project_box(
-                np.array([xs[k] + length / 2, ys[k]]), length, w, h)
+            box = project_outline(replace(cam, height_m=cam.height_m - dz), xs[k], ys[k], w,
+                                  h, length, shapes[vid])
             if box is None:
                 continue
             if abs(ys[k]) < 1.8:
@@ -203,18 +252,17 @@ def bench_synthetic(n_clips: int, seconds: float, lane_hints: bool) -> None:
 
 
 def bench_kitti() -> None:
-    from vid2sim.camera import load_camera
-    from vid2sim.detect.external import read_kitti_tracking_labels
-
     data = SHARED / "data" / "kitti_tracking"
     if not data.exists():
         print(f"KITTI tracking labels not found at {data}: skipped")
         return
     cat = {"Car": "car", "Van": "car", "Truck": "truck"}
-    for name, cfg in (("guessed pitch (std 1 deg)", RangingConfig(camera_pitch_std_deg=1.0)),
-                      ("default (a calibration's pitch: std 0.25 deg)", RangingConfig()),
+    # The label boxes are projected cuboids: ranged with the cuboid outline (what they are).
+    for name, cfg in (("guessed pitch (std 1 deg)",
+                       cuboid_config(RangingConfig(camera_pitch_std_deg=1.0))),
+                      ("default (a calibration's pitch: std 0.25 deg)", cuboid_config()),
                       ("calibrated camera (pitch std 0.05 deg)",
-                       RangingConfig(camera_pitch_std_deg=0.05))):
+                       cuboid_config(RangingConfig(camera_pitch_std_deg=0.05)))):
         rows = []
         for lab in sorted((data / "label_02").glob("*.txt")):
             cam = load_camera(data / "calib" / lab.name)
@@ -243,164 +291,18 @@ def bench_kitti() -> None:
 
 # --------------------------------------------------------------------------- KITTI range rate
 
-# What a detector would call each labelled class (COCO has no van: a van is a "car").
-KITTI_CATEGORY = {"Car": "car", "Van": "car", "Truck": "truck"}
-KITTI_DT_S = 0.1  # the tracking benchmark's frame interval (10 Hz)
-# Truth rate: a quadratic fitted over 11 frames (1.1 s) of the labelled rear distance. Raw
-# frame differences of the lidar labels carry ~0.45 m/s of noise; the fit's derivative has
-# ~1 x the labels' own position noise per m/s (sqrt(1/110) / 0.1 s), a few cm/s.
-RATE_TRUTH_WINDOW = 11
-MIN_BOX_PX = 25.0  # boxes lower than this are not scored (as in tests/detect/test_ranging_real)
-LEAD_HALF_LANE_M = 1.8  # labelled ego-lane lead: |X| below this ...
-LEAD_MAX_RANGE_M = 60.0  # ... nearer than this, box >= MIN_BOX_PX high
-RATE_BINS_M = ((0.0, 20.0), (20.0, 40.0), (40.0, math.inf))
-
-
-def kitti_rate_truth(frames: np.ndarray, rear_m: np.ndarray, window: int = RATE_TRUTH_WINDOW,
-                     dt_s: float = KITTI_DT_S) -> tuple[np.ndarray, np.ndarray]:
-    """Truth range rate [m/s] of one track and the fit's residual [m], NaN where unknown.
-
-    ``frames`` and ``rear_m`` are the track's labelled frames and rear distances (any order).
-    On each run of consecutive frames at least ``window`` long, a quadratic is fitted over a
-    sliding window (Savitzky-Golay); its slope at the centre is the truth. The first and last
-    ``window // 2`` frames of a run (where the window would be one-sided) get NaN, as do runs
-    too short: a gap in the labels is no evidence of how the vehicle moved.
-    """
-    from scipy.signal import savgol_filter
-
-    frames = np.asarray(frames)
-    rear_m = np.asarray(rear_m, dtype=float)
-    rate = np.full(len(frames), np.nan)
-    resid = np.full(len(frames), np.nan)
-    order = np.argsort(frames, kind="stable")
-    half = window // 2
-    for run in np.split(order, np.flatnonzero(np.diff(frames[order]) != 1) + 1):
-        if run.size < window:
-            continue
-        r = rear_m[run]
-        inner = run[half:run.size - half]
-        rate[inner] = savgol_filter(r, window, 2, deriv=1, delta=dt_s)[half:run.size - half]
-        resid[inner] = (r - savgol_filter(r, window, 2))[half:run.size - half]
-    return rate, resid
-
-
-def kitti_rate_rows(label_path: Path, calib_path: Path,
-                    config: RangingConfig | None = None) -> dict[str, np.ndarray]:
-    """Range every labelled vehicle of one KITTI tracking sequence at 10 Hz as tracks.
-
-    Returns per labelled box (Car, Van, Truck) arrays: ``frame``, ``track``, ``rear_m`` (truth
-    Z - l/2), ``x_m`` (labelled lateral centre, right positive), ``box_h_px``, ``rate_true``
-    and ``resid_m`` (:func:`kitti_rate_truth`), the estimates ``range_m``, ``rate_m_s`` and
-    ``is_lead``, and ``true_lead`` (the labelled lead of its frame: the nearest vehicle with
-    |X| < 1.8 m and a rear nearer than 60 m, if its box is at least 25 px high).
-    """
-    from vid2sim.camera import load_camera
-    from vid2sim.detect.external import read_kitti_tracking_labels
-
-    labels = read_kitti_tracking_labels(label_path)
-    objs = [o for f in sorted(labels) for o in labels[f] if o.type in KITTI_CATEGORY]
-    boxes = [TrackedBox(o.frame, o.frame * KITTI_DT_S, o.track_id, KITTI_CATEGORY[o.type], 1.0,
-                        *o.box_px) for o in objs]
-    res = range_tracks(boxes, load_camera(calib_path), config=config)
-    rows = {
-        "frame": np.array([o.frame for o in objs], dtype=int),
-        "track": np.array([o.track_id for o in objs], dtype=int),
-        "rear_m": np.array([o.location_m[2] - o.size_hwl_m[2] / 2 for o in objs]),
-        "x_m": np.array([o.location_m[0] for o in objs]),
-        "box_h_px": np.array([o.box_px[3] - o.box_px[1] for o in objs]),
-        "range_m": np.array([b.range_m for b in res.boxes]),
-        "rate_m_s": np.array([b.range_rate_mps for b in res.boxes]),
-        "is_lead": np.array([b.is_lead for b in res.boxes], dtype=bool),
-    }
-    n = len(objs)
-    rows["rate_true"], rows["resid_m"] = np.full(n, np.nan), np.full(n, np.nan)
-    for tid in np.unique(rows["track"]):
-        m = np.flatnonzero(rows["track"] == tid)
-        rows["rate_true"][m], rows["resid_m"][m] = kitti_rate_truth(rows["frame"][m],
-                                                                    rows["rear_m"][m])
-    # The nearest ego-lane vehicle is the lead whatever its size; a frame whose lead is under
-    # 25 px is not scored (taking the nearest of the boxes >= 25 px instead would call a car
-    # 20 m behind a small lead "the lead", and count the right choice as a miss).
-    cand = ((np.abs(rows["x_m"]) < LEAD_HALF_LANE_M) & (rows["rear_m"] > 0)
-            & (rows["rear_m"] < LEAD_MAX_RANGE_M))
-    rows["true_lead"] = np.zeros(n, dtype=bool)
-    for f in np.unique(rows["frame"][cand]):
-        c = np.flatnonzero(cand & (rows["frame"] == f))
-        lead = c[np.argmin(rows["rear_m"][c])]
-        rows["true_lead"][lead] = rows["box_h_px"][lead] >= MIN_BOX_PX
-    return rows
-
-
-def _rms(x: np.ndarray) -> float:
-    return math.sqrt(float(np.mean(np.square(x)))) if x.size else math.nan
-
-
-def _median_abs(x: np.ndarray) -> float:
-    return float(np.median(np.abs(x))) if x.size else math.nan
-
-
-def kitti_rate_figures(rows: dict[str, np.ndarray]) -> dict[str, float]:
-    """Range-rate and lead figures of :func:`kitti_rate_rows` (one sequence or several joined
-    with :func:`join_rows`).
-
-    ``lead_*`` are over the frames with a labelled lead: rate RMSE / median |error| [m/s]
-    where the truth rate is known, median |relative range error|, ``lead_same`` the share of
-    those frames where that vehicle is the one marked ``is_lead``, ``lead_any`` where some
-    vehicle is. ``all_*`` are over all vehicles >= 25 px with a rear nearer than 40 m;
-    ``bin_*`` per range bin; ``all_p90`` the 90th percentile of |error|. ``truth_resid_m``: RMS residual of the truth fit (the labels'
-    own position noise); ``truth_rate_floor``: that noise carried into the truth's slope.
-    """
-    ok = (np.isfinite(rows["rate_true"]) & np.isfinite(rows["rate_m_s"])
-          & (rows["box_h_px"] >= MIN_BOX_PX))
-    err = rows["rate_m_s"] - rows["rate_true"]
-    lead = rows["true_lead"]
-    rear = rows["rear_m"]
-    out: dict[str, float] = {"lead_frames": int(lead.sum()), "lead_n": int((ok & lead).sum())}
-    out["lead_rmse"] = _rms(err[ok & lead])
-    out["lead_med"] = _median_abs(err[ok & lead])
-    out["lead_range_rel"] = _median_abs((rows["range_m"][lead] - rear[lead]) / rear[lead])
-    out["lead_same"] = float(np.mean(rows["is_lead"][lead])) if lead.any() else math.nan
-    lead_frames = set(rows["frame"][lead].tolist()) if "seq" not in rows else set(
-        zip(rows["seq"][lead].tolist(), rows["frame"][lead].tolist(), strict=True))
-    flagged = set(rows["frame"][rows["is_lead"]].tolist()) if "seq" not in rows else set(
-        zip(rows["seq"][rows["is_lead"]].tolist(), rows["frame"][rows["is_lead"]].tolist(),
-            strict=True))
-    out["lead_any"] = len(lead_frames & flagged) / len(lead_frames) if lead_frames else math.nan
-    near = ok & (rear < 40)
-    out["all_n"] = int(near.sum())
-    out["all_rmse"], out["all_med"] = _rms(err[near]), _median_abs(err[near])
-    # The RMSE hangs on a few diverged tracks; the 90th percentile shows the bulk.
-    out["all_p90"] = float(np.percentile(np.abs(err[near]), 90)) if near.any() else math.nan
-    for lo, hi in RATE_BINS_M:
-        m = ok & (rear >= lo) & (rear < hi)
-        key = f"bin_{lo:g}-{hi:g}"
-        out[key + "_n"] = int(m.sum())
-        out[key + "_rmse"], out[key + "_med"] = _rms(err[m]), _median_abs(err[m])
-    # The fit leaves 3 of the window's degrees of freedom unused; white noise of spread s then
-    # gives a slope spread of s sqrt(12 / (w (w^2 - 1))) / dt at the centre.
-    w = RATE_TRUTH_WINDOW
-    res = rows["resid_m"][np.isfinite(rows["resid_m"]) & (rows["box_h_px"] >= MIN_BOX_PX)]
-    s = _rms(res) * math.sqrt(w / (w - 3))
-    out["truth_resid_m"] = _rms(res)
-    out["truth_rate_floor"] = s * math.sqrt(12.0 / (w * (w * w - 1))) / KITTI_DT_S
-    return out
-
-
-def join_rows(per_seq: dict[str, dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
-    """The rows of several sequences as one set (with a ``seq`` column)."""
-    keys = next(iter(per_seq.values())).keys()
-    out = {k: np.concatenate([r[k] for r in per_seq.values()]) for k in keys}
-    out["seq"] = np.concatenate([np.full(len(r["frame"]), int(s)) for s, r in per_seq.items()])
-    return out
-
 
 def bench_kitti_rate() -> None:
     data = SHARED / "data" / "kitti_tracking"
     if not data.exists():
         print(f"KITTI tracking labels not found at {data}: skipped")
         return
-    per_seq = {lab.stem: kitti_rate_rows(lab, data / "calib" / lab.name)
-               for lab in sorted((data / "label_02").glob("*.txt"))}
+    per_seq = {}
+    for lab in sorted((data / "label_02").glob("*.txt")):
+        objs, boxes = kitti_label_boxes(lab)
+        res = range_tracks(boxes, load_camera(data / "calib" / lab.name),
+                           config=cuboid_config())  # label boxes are projected cuboids
+        per_seq[lab.stem] = kitti_rate_rows(objs, res.boxes)
     print("KITTI tracking, labelled boxes of every frame (10 Hz) as tracks, default config; "
           "range rate [m/s] against the labels' rear distance (quadratic over 1.1 s):")
     print("  seq   lead: frames  n  RMSE  med|e|  range|rel|  same  any   all<40: n   RMSE  "
@@ -422,16 +324,10 @@ def bench_kitti_rate() -> None:
 
 
 def bench_video() -> None:
-    from vid2sim.app.commands import run_track
-    from vid2sim.app.inputs import Inputs
-    from vid2sim.app.settings import DetectorSettings, Settings
-
     raw = SHARED / "data" / "kitti_raw_0001"
     if not raw.exists():
         print("KITTI raw 0001 not found: skipped")
         return
-    import tempfile
-
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
         settings = Settings(detector=DetectorSettings(model_dir=SHARED / "models"),
@@ -441,15 +337,23 @@ def bench_video() -> None:
         print(f"vid2sim track on KITTI raw 0001: {time.perf_counter() - t0:.1f} s\n{summary}")
 
 
+def run_pipeline(drive: Path, model_dir: Path, detect_every: int = 1):
+    """The real pipeline on a drive's ``video.mp4`` and ``camera.yaml`` as ``vid2sim track``
+    runs it (YOLOX-nano, the tracker's low score threshold): (RangingResult, camera used)."""
+    video = drive / "video.mp4"
+    info = video_info(video)
+    camera, _ = fit_camera_to_frames(load_camera(drive / "camera.yaml"), info.width,
+                                     info.height)
+    detector = load_detector("yolox-nano", model_dir, score_threshold=TrackerConfig().low_score)
+    result, camera, _ = detect_and_range(video, camera, detector=detector,
+                                         detect_every=detect_every, progress=False)
+    return result, camera
+
+
 def bench_parked() -> None:
     """Range rate of the parked cars of KITTI raw 0001 through the real detector, tracker and
     ranging, against the OXTS ego motion (the truth and the table live in
-    tests/detect/parked.py, shared with tests/detect/test_ranging_parked.py)."""
-    import sys
-
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    from tests.detect.parked import ego_motion, evaluate_parked, run_pipeline
-
+    vid2sim/evaluate/ranging/static.py, shared with tests/detect/test_ranging_parked.py)."""
     raw, models = SHARED / "data" / "kitti_raw_0001", SHARED / "models"
     if not raw.exists() or not models.exists():
         print(f"KITTI raw 0001 or the detector weights not found under {SHARED}: skipped")

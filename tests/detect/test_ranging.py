@@ -1,7 +1,12 @@
 """Monocular ranging: cues, fusion, Kalman/RTS, horizon estimate, lead selection.
 
-Ground truth is generated in code: 3D vehicles at known positions projected with
-``Camera.project_box`` (a pitched "true" camera where the test needs one), pixel noise added.
+Ground truth is generated in code: 3D vehicles at known positions projected as a camera sees
+them, the hull of their outline (tyre contact, widest section, mirrors:
+:func:`vid2sim.outline.project_outline`; a pitched "true" camera where the test needs one),
+pixel noise added. The single-box tests of the fit's formulas project cuboids
+(``Camera.project_box``) and range them with the cuboid model (:func:`cuboid_config`): the
+same maths with the simplest outline; ``test_outline_boxes_are_inverted_exactly`` and the
+clip tests use the outline.
 """
 
 from __future__ import annotations
@@ -23,6 +28,7 @@ from vid2sim.detect.ranging import (
     BoxArrays,
     RangingConfig,
     colored_noise_factor,
+    cuboid_config,
     fit_boxes,
     lane_horizon_offsets,
     pitch_for_horizon,
@@ -31,6 +37,7 @@ from vid2sim.detect.ranging import (
     smooth_track_adaptive,
 )
 from vid2sim.errors import InputError
+from vid2sim.outline import CLASS_SHAPES, project_outline
 from vid2sim.records import TrackedBox
 from vid2sim.tables import read_tracks_csv, write_tracks_csv
 
@@ -67,8 +74,8 @@ def simulate(camera: Camera, vehicles: list[Vehicle], duration_s: float = 10.0,
             if drop and rng.random() < drop:
                 continue
             x, y = veh.x(t), veh.y(t)
-            box = camera.project_box(np.array([x + veh.length_m / 2, y]), veh.length_m,
-                                     veh.width_m, veh.height_m)
+            box = project_outline(camera, x, y, veh.width_m, veh.height_m, veh.length_m,
+                                  CLASS_SHAPES[veh.category])
             if box is None:
                 continue
             b = np.array(box)
@@ -110,9 +117,9 @@ def _braking_profile(x0: float):
 
 
 def _fit_one(camera: Camera, box, width=CAR_W, width_std=0.01, config=None, height_std=0.12):
-    cfg = config or RangingConfig()
+    cfg = config or cuboid_config()
     tb = [TrackedBox(0, 0.0, 1, "car", 1.0, *box)]
-    ba = BoxArrays.from_boxes(tb, camera, cfg.border_margin_px)
+    ba = BoxArrays.from_boxes(tb, camera, cfg)
     one = np.ones(1)
     return fit_boxes(camera, ba, width * one, width_std * one, CAR_H * one, height_std * one,
                      CAR_L * one, cfg), ba
@@ -123,7 +130,8 @@ def test_ground_cue_matches_flat_ground_formula():
     # spread) the fit must reproduce Z = f H / (y_bottom - y_horizon).
     box = CAM.project_box(np.array([20 + CAR_L / 2, 0.0]), CAR_L, CAR_W, CAR_H)
     fit, _ = _fit_one(CAM, box, width_std=50.0,
-                      config=RangingConfig(priors={"car": RangingConfig().priors["car"]}))
+                      config=cuboid_config(RangingConfig(priors={"car": RangingConfig().priors[
+                          "car"]})))
     z_formula = CAM.fy * CAM.height_m / (box[3] - CAM.horizon_y_px())
     assert z_formula == pytest.approx(20.0, rel=1e-6)
     assert fit.range_m[0] == pytest.approx(z_formula, rel=0.01)
@@ -133,7 +141,7 @@ def test_ground_cue_matches_flat_ground_formula():
 def test_ground_range_error_grows_with_square_of_range():
     # One pixel on the bottom edge costs Z^2 / (f H) metres: with only pixel noise (no road
     # height error, no size-proportional edge error, no size cues) the spread must follow.
-    cfg = RangingConfig(road_height_std_m=1e-6, edge_noise_frac=0.0)
+    cfg = cuboid_config(RangingConfig(road_height_std_m=1e-6, edge_noise_frac=0.0))
     stds = []
     for z in (10.0, 40.0):
         box = CAM.project_box(np.array([z + CAR_L / 2, 0.0]), CAR_L, CAR_W, CAR_H)
@@ -177,7 +185,7 @@ def test_turned_car_falls_back_to_the_ground_cue():
     z_near = CAM.fy * CAM.height_m / (box[3] - CAM.horizon_y_px())
     robust, _ = _fit_one(CAM, box, width_std=DEFAULT_PRIORS["car"].width_std_m)
     gauss, _ = _fit_one(CAM, box, width_std=DEFAULT_PRIORS["car"].width_std_m,
-                        config=RangingConfig(width_tail_sigmas=math.inf))
+                        config=cuboid_config(RangingConfig(width_tail_sigmas=math.inf)))
     assert robust.range_m[0] == pytest.approx(z_near, rel=0.08)
     assert abs(gauss.range_m[0] - z_near) > 3 * abs(robust.range_m[0] - z_near)
 
@@ -206,7 +214,7 @@ def test_side_of_offset_car_does_not_shorten_range():
     # A car two lanes right shows its side; a naive f W / w_px would put it much nearer.
     box = CAM.project_box(np.array([12 + CAR_L / 2, -7.0]), CAR_L, CAR_W, CAR_H)
     naive = CAM.fx * CAR_W / (box[2] - box[0])
-    fit, _ = _fit_one(CAM, box, config=RangingConfig(road_height_std_m=5.0))
+    fit, _ = _fit_one(CAM, box, config=cuboid_config(RangingConfig(road_height_std_m=5.0)))
     assert naive < 0.8 * 12
     assert fit.range_m[0] == pytest.approx(12.0, rel=0.02)
 
@@ -220,9 +228,9 @@ def test_noiseless_boxes_are_inverted_exactly(pitch, height, x, y, width):
     box = cam.project_box(np.array([x + CAR_L / 2, y]), CAR_L, width, CAR_H)
     if box is None:
         return
-    cfg = RangingConfig()
+    cfg = cuboid_config()
     tb = [TrackedBox(0, 0.0, 1, "car", 1.0, *box)]
-    ba = BoxArrays.from_boxes(tb, cam, cfg.border_margin_px)
+    ba = BoxArrays.from_boxes(tb, cam, cfg)
     if ba.cut_left[0] or ba.cut_right[0] or ba.cut_bottom[0] or box[3] - cam.horizon_y_px() < 4:
         return
     fit, _ = _fit_one(cam, box, width=width, width_std=0.005)
@@ -416,8 +424,8 @@ def test_drifting_horizon_followed_by_per_frame_lane_hints_keeps_the_range_rate(
     for k in range(100):
         t = k * 0.1
         cam_k = CAM.with_pitch(0.06 * t)  # this frame's true camera
-        box = np.array(cam_k.project_box(np.array([lead.x(t) + CAR_L / 2, 0.0]), CAR_L, 1.62,
-                                         1.45)) + rng.normal(0, 1.0, 4)
+        box = np.array(project_outline(cam_k, lead.x(t), 0.0, 1.62, 1.45, CAR_L)) + rng.normal(
+            0, 1.0, 4)
         boxes.append(TrackedBox(k, round(t, 6), 1, "car", 0.9, *box))
         truth[(k, 1)] = (lead.x(t), 0.0, lead.v(t))
         hints.append(cam_k.horizon_y_px() + rng.normal(0, 2.0))
@@ -482,8 +490,8 @@ def test_lead_does_not_flicker_between_twins():
 def test_missing_frames_and_single_frame_tracks():
     xf, vf = _braking_profile(25.0)
     boxes, truth = simulate(CAM, [Vehicle(1, xf, lambda t: 0.0, vf)], drop=0.3, seed=9)
-    single = [TrackedBox(0, 0.0, 99, "car", 0.8, *CAM.project_box(
-        np.array([22 + CAR_L / 2, 3.5]), CAR_L, CAR_W, CAR_H))]
+    single = [TrackedBox(0, 0.0, 99, "car", 0.8, *project_outline(
+        CAM, 22.0, 3.5, CAR_W, CAR_H, CAR_L))]
     truth[(0, 99)] = (22.0, 3.5, float("nan"))
     res = range_tracks(boxes + single, CAM)
     rel, rate = _errors(res, truth)

@@ -4,7 +4,7 @@ The detector (YOLOX-nano), tracker and ranging run once on the 108 frames; every
 whose median lateral offset lies beyond the neighbouring lane is taken as parked (the tram is
 never detected as a vehicle; the tracks in the ego lane or the next one, cars far ahead
 driving away, are left out and listed). For a static car the range rate is known exactly from the OXTS forward speed
-and yaw rate (derivation in ``tests/detect/parked.py``), and its range must shrink by what the
+and yaw rate (derivation in ``vid2sim/evaluate/ranging/static.py``), and its range must shrink by what the
 ego travels. A third truth, independent of every monocular cue, triangulates each car's outer
 rear corner from its bearings along the odometry path.
 
@@ -38,14 +38,18 @@ import math
 import numpy as np
 import pytest
 
-from tests.detect.parked import (
+from vid2sim.camera import fit_camera_to_frames, load_camera
+from vid2sim.detect.detector import load_detector
+from vid2sim.detect.pipeline import detect_and_range
+from vid2sim.detect.tracker import TrackerConfig
+from vid2sim.detect.video import video_info
+from vid2sim.evaluate.ranging.static import (
     ParkedEvaluation,
     camera_from_imu_m,
     ego_motion,
     evaluate_parked,
     range_consistency,
     rate_errors,
-    run_pipeline,
     static_range_rate,
     triangulation_ratios,
 )
@@ -101,7 +105,12 @@ def test_kitti_oxts_axes_and_lever_arm(kitti_raw_dir):
 @pytest.fixture(scope="module")
 def parked(kitti_raw_dir, model_dir) -> ParkedEvaluation:
     """The pipeline's output on the video (detector run once) and the parked cars' truth."""
-    result, camera = run_pipeline(kitti_raw_dir, model_dir, detect_every=1)
+    video = kitti_raw_dir / "video.mp4"
+    info = video_info(video)
+    camera, _ = fit_camera_to_frames(load_camera(kitti_raw_dir / "camera.yaml"), info.width,
+                                     info.height)
+    detector = load_detector("yolox-nano", model_dir, score_threshold=TrackerConfig().low_score)
+    result, camera, _ = detect_and_range(video, camera, detector=detector, progress=False)
     ev = evaluate_parked(result, camera, ego_motion(kitti_raw_dir))
     print("\n" + ev.report("KITTI raw 0001, detect_every=1"))
     return ev

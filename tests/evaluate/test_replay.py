@@ -18,6 +18,7 @@ from vid2sim.evaluate.replay import (
     replay_boxes,
     run_eval,
 )
+from vid2sim.outline import CAR_SHAPE, outline_points, shape_matrix
 from vid2sim.samples.scenarios import scenario_from_kitti_labels
 from vid2sim.scenario import save
 from vid2sim.videofile import read_frames
@@ -30,14 +31,18 @@ EGO_SPEED = 10.0
 
 def truth_boxes(t_s: float, actors=VISIBLE) -> list[tuple[str, tuple[float, ...]]]:
     """Image boxes computed independently of the replay code: relative motion is known in
-    closed form for parallel constant-speed vehicles (no ENU, no headings)."""
+    closed form for parallel constant-speed vehicles (no ENU, no headings), the pinhole
+    written out."""
     out = []
     for aid, fwd, lat, v, t0, t1 in actors:
         if not t0 - 1e-9 <= t_s <= t1 + 1e-9:
             continue
         x = fwd + (v - EGO_SPEED) * t_s
-        corners = np.array([[x + sx * 4.3 / 2, lat + sy * 1.8 / 2, z]
-                            for sx in (-1, 1) for sy in (-1, 1) for z in (0.0, 1.5)])
+        # The car's outline as a camera sees it (tyres, widest section, mirrors; the truth
+        # was its 3D box's corners before issue 13), placed by its rear face.
+        local = outline_points(np.array([1.8]), np.array([1.5]), np.array([4.3]),
+                               shape_matrix([CAR_SHAPE]))[0]
+        corners = local + [x - 4.3 / 2, lat, 0.0]
         cam = corners - [0, 0, CAMERA.height_m]
         # vehicle (x fwd, y left, z up) -> camera (right, down, forward), level camera
         u = CAMERA.fx * (-cam[:, 1]) / cam[:, 0] + CAMERA.cx
@@ -327,13 +332,15 @@ def test_image_folder_without_fps_assumes_ten_and_says_so(tmp_path, visible_scen
 
 def test_demo_sample_truth_scores_perfectly(tmp_path):
     """The demo generator's true scenario replayed against its own keyframes: conventions of
-    both sides (ego pose, camera, occlusion, what annotators skip) agree."""
+    both sides (ego pose, camera, occlusion, what annotators skip) agree. The demo draws its
+    vehicles as boxes, so they are replayed as 3D boxes (``outlines=None``)."""
     demo = pytest.importorskip("vid2sim.samples.demo_sample")
     sample = demo.generate_demo_sample(tmp_path / "sample", duration_s=4.0, width=480,
                                        height=270)
     sc_path = tmp_path / "truth_scenario.json"
     save(demo.truth_scenario(sample.truth), sc_path)
-    m, _ = run_eval(sc_path, sample.keyframes, video=sample.video, out_dir=tmp_path / "out")
+    m, _ = run_eval(sc_path, sample.keyframes, video=sample.video, out_dir=tmp_path / "out",
+                    outlines=None)
     assert m["keyframes"] == sample.n_keyframes >= 3
     assert m["tp"] >= 4 and m["fp"] == 0 and m["fn"] == 0
     assert m["mean_iou"] > 0.99

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -174,3 +175,50 @@ def test_road_axis_follows_a_curved_centerline():
     road.centerline = left_turn_centerline()
     h = road_axis_heading([road], np.array([40.0, 120.0]), np.array([2.0, 100.0]))
     np.testing.assert_allclose(h, [0.0, math.pi / 2], atol=0.03)
+
+
+# --------------------------------------------------------------------------- static vehicles
+
+
+def _parked_rows(scale: float, track_id: int = 7, ego_speed: float = 10.0, world_x: float = 60.0,
+                 lateral: float = 7.0) -> list[RangedBox]:
+    """A car parked at world x ``world_x`` (rear), ``lateral`` m left of an ego driving east
+    at ``ego_speed``, ranged with a monocular scale error: range read as ``scale`` times the
+    truth (0.8: shrinking at 80 % of the closing speed), its spread growing with range."""
+    rows = []
+    for t in np.arange(0.0, 4.0, 0.1):
+        true = world_x - ego_speed * t
+        rows.append(replace(box(float(t), track_id, scale * true, lateral),
+                            range_std_m=0.02 * true ** 1.5))
+    return rows
+
+
+def test_parked_car_seen_with_a_range_scale_error_replays_standing_still():
+    ego = ego_track()
+    sc, _ = assemble_scenario(ego, [], _parked_rows(0.8), CAMERA, source=Source(),
+                              ego_noise_m=0.05)
+    tr = sc.actors[0].trajectory
+    # Without the hold it would move at (1 - 0.8) x 10 = 2 m/s along the ego.
+    assert np.all(tr.speed == 0.0)
+    assert np.ptp(tr.x) == 0.0 and np.ptp(tr.y) == 0.0
+    # Held at its best-seen (nearest) position: the last rows read 0.8 x 12-20 m.
+    near_world_x = 0.8 * (60.0 - 39.0) + 39.0 + 2.25
+    assert float(tr.x[0]) == pytest.approx(near_world_x, abs=2.0)
+    assert float(tr.y[0]) == pytest.approx(7.0, abs=1e-6)
+
+
+def test_moving_car_slow_ego_and_noisy_gps_are_not_held():
+    ego = ego_track()
+    # A car driving at half the ego's speed: its range closes at 5 m/s.
+    rows = [box(float(t), 3, 40.0 - 5.0 * t, 3.5) for t in np.arange(0.0, 4.0, 0.1)]
+    sc, _ = assemble_scenario(ego, [], rows, CAMERA, source=Source(), ego_noise_m=0.05)
+    assert np.median(sc.actors[0].trajectory.speed) == pytest.approx(5.0, abs=0.1)
+    # The ego creeping at 2 m/s: its motion cannot tell a parked car from a creeping one.
+    slow = ego_track(speed_mps=2.0)
+    sc, _ = assemble_scenario(slow, [], _parked_rows(0.8, ego_speed=2.0), CAMERA,
+                              source=Source(), ego_noise_m=0.05)
+    assert np.median(sc.actors[0].trajectory.speed) == pytest.approx(0.4, abs=0.05)
+    # A phone-grade GPS (3 m): the ego's position error would move a held car in the image.
+    sc, _ = assemble_scenario(ego, [], _parked_rows(0.8), CAMERA, source=Source(),
+                              ego_noise_m=3.0)
+    assert np.median(sc.actors[0].trajectory.speed) == pytest.approx(2.0, abs=0.1)

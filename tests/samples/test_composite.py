@@ -71,8 +71,10 @@ def test_polo_is_a_whole_rear_view_at_its_labelled_range(polo):
     # Label 0001/10 object 2: Z 8.14 m to the box centre, length 3.16 m -> rear at 6.57 m.
     assert polo.depth_m == pytest.approx(8.143 - 3.158 / 2, abs=0.05)
     # The pasted outline is the car's rear (tail lights to tail lights), narrower than the
-    # label's 1.57 m 3D box: 1.45 m.
+    # label's 1.57 m 3D box: 1.49 m at its plane, the tyres' contact row (332), which lies
+    # 0.19 m ahead of the label's rear face on the label's ground.
     assert 1.35 < polo.visible_width_m < polo.width_m
+    assert 0.1 < polo.contact_m < 0.4
     assert polo.alpha.max() > 0.99 and polo.alpha[0].max() < 0.05  # feathered, not a slab
 
 
@@ -80,13 +82,15 @@ def test_polo_is_a_whole_rear_view_at_its_labelled_range(polo):
                          [(8.0, 0.0, 0.0), (15.0, 0.3, 0.4), (30.0, -0.4, -0.5), (45.0, 0.1, 0.0)])
 def test_pasted_car_lands_where_the_camera_projects_it(kitti_raw_dir, polo, range_m,
                                                        lateral_m, pitch_deg):
-    """Left, right and bottom edges of the pasted car within 1.5 px of Camera.project_box of
-    its truth (3D box with the pasted outline's width). The top is lower than the box's top by
-    up to 11 % of the height: the box's top is the far edge of the roof, which a camera 1.65 m
-    high sees above the rear window, while the source camera was level with the roof (and the
-    real roof line sits a few cm under the label's height)."""
+    """Left, right and bottom edges of the pasted car within 1.5 px of its truth box, the
+    outline's (the hull of what the camera sees: the truth was a projected cuboid with the
+    outline's width before issue 13), whose bottom is the road point ``contact_m`` ahead of
+    the rear as the camera projects it. The top is lower than the box's top by up to 11 % of
+    the height (the crop's top margin is feathered away)."""
     cam = load_camera(kitti_raw_dir / "camera.yaml").with_pitch(pitch_deg)
-    truth = cp.truth_box(polo, cam, range_m, lateral_m, width_m=polo.visible_width_m)
+    truth = cp.truth_box(polo, cam, range_m, lateral_m)
+    road = cam.project(np.array([[range_m + polo.contact_m, lateral_m, 0.0]]))[0][0]
+    assert truth[3] == pytest.approx(road[1], abs=1.0)
     got = _pasted_box(polo, cam, range_m, lateral_m)
     for k in (0, 2, 3):
         assert got[k] == pytest.approx(truth[k], abs=1.5), (k, got, truth)
@@ -169,7 +173,7 @@ def test_clip_is_written_whole_with_its_truth(e2e, polo):
     assert doc["frames"][40]["range_m"] == pytest.approx(float(clip.truth.range_m[40]), 1e-5)
     # Its box is the pasted outline's projection in that frame's pitched camera.
     expect = cp.truth_box(polo, clip.cameras[40], float(clip.truth.range_m[40]),
-                          float(clip.truth.lateral_m[40]), polo.visible_width_m)
+                          float(clip.truth.lateral_m[40]))
     np.testing.assert_allclose(doc["frames"][40]["box_px"], expect, atol=0.01)
     assert clip.cameras[40].pitch_deg != clip.cameras[41].pitch_deg  # the body pitch is in
 

@@ -184,11 +184,13 @@ def build(inputs: Inputs, out_dir: Path, settings: Settings | None = None,
 
     # ---- geo: ego trajectory and road
     roads, road_result, trace = [], None, None
+    ego_noise_m = None  # the ego trajectory's position noise: known with a GPS only
     if inputs.gps is not None:
         trace = stages.run("read GPS", load_trace, inputs)
         ego, trace_stats = stages.run("smooth ego trajectory", smooth_trace, trace, inputs,
                                       settings)
         notes.extend(trace_stats.warnings)
+        ego_noise_m = trace_stats.noise_m
         ego, clip_warnings = clip_ego_to_video(ego, video_duration_s)
         notes.extend(clip_warnings)
         road_result = stages.run("road and map matching", match_road, trace, ego, inputs,
@@ -233,7 +235,8 @@ def build(inputs: Inputs, out_dir: Path, settings: Settings | None = None,
                     assumptions=[str(a) for a in assumptions])
     scenario, assemble_warnings = stages.run("assemble scenario", assemble_scenario, ego, roads,
                                              ranging.boxes, camera_used, source=source,
-                                             config=settings.assemble)
+                                             config=settings.assemble,
+                                             ego_noise_m=ego_noise_m)
     warnings.extend(assemble_warnings)
 
     # ---- write into a staging folder, then move into place
@@ -266,7 +269,9 @@ def build(inputs: Inputs, out_dir: Path, settings: Settings | None = None,
                                     extra_warnings=warnings, report_inputs=report_inputs,
                                     # the staging folder's random name would make metrics.json
                                     # differ between identical builds
-                                    scenario_label=str(out_dir / "scenario.json"))
+                                    scenario_label=str(out_dir / "scenario.json"),
+                                    # actors drawn with the outlines the ranging read
+                                    outlines=settings.ranging.outlines)
             files["metrics"] = Path("metrics.json")
         else:
             write_report(staging / "report.html", scenario=scenario, metrics=None,

@@ -7,9 +7,10 @@ footprint. At time t an actor's centre (x, y) and heading go into the ego frame 
     x_fwd  =  cos(h_ego) dx + sin(h_ego) dy
     y_left = -sin(h_ego) dx + cos(h_ego) dy,    yaw = h_actor - h_ego
 
-with (dx, dy) the ENU offset from the ego. Its 3D box (length, width, height, standing on the
-road) is projected through the scenario camera; parts behind the camera are cut at a near
-plane so that vehicles alongside still give the truncated box an annotator would draw.
+with (dx, dy) the ENU offset from the ego. Its outline (:mod:`vid2sim.outline`: tyres, widest
+section, mirrors; the rear face where ranging's ``range_m`` put it) is projected through the
+scenario camera: the box a detector or annotator draws. One reaching behind the camera is its
+3D box cut at a near plane (the truncated box an annotator draws of a car alongside).
 
 Occlusion rule: boxes are taken nearest first; a box whose image area is covered to at least
 ``OCCLUDED_FRACTION`` by the union of the boxes of nearer vehicles is dropped (annotators do
@@ -32,7 +33,6 @@ import logging
 import math
 from dataclasses import replace
 from pathlib import Path
-from typing import NamedTuple
 
 import cv2
 import numpy as np
@@ -43,8 +43,10 @@ from vid2sim.camera import Camera, fit_camera_to_frames
 from vid2sim.defaults import IMAGE_FOLDER_FPS
 from vid2sim.evaluate.annotations import describe, read_keyframes
 from vid2sim.evaluate.metrics import score_keyframes
+from vid2sim.evaluate.projection import NEAR_PLANE_M, BoxView, project_box_clipped  # noqa: F401
 from vid2sim.evaluate.report import write_report
 from vid2sim.fileio import write_bytes_atomic, write_text_atomic
+from vid2sim.outline import CAR_SHAPE, CLASS_SHAPES, OutlineShape
 from vid2sim.records import Keyframe, ProjectedBox
 from vid2sim.scenario import Actor, Scenario, load
 from vid2sim.videofile import image_files, read_frames, video_size_and_fps
@@ -59,94 +61,14 @@ HARD_MIN_HEIGHT_PX = 10.0
 """Box height [px] below which a projected box is "hard"."""
 HARD_MIN_IN_IMAGE = 0.5
 """Share of a projected box's area inside the image below which it is "hard"."""
-NEAR_PLANE_M = 0.1
-"""Depth in front of the camera [m] at which 3D boxes are cut before projection."""
 TIME_TOLERANCE_S = 1e-3
 """Slack when testing whether a keyframe lies within an actor's trajectory [s]."""
-"""Frame rate assumed for an image folder without one [frames/s]: KITTI's camera rate, the
-same default as the video reader of the build."""
 ENV_ID = "vid2sim/Replay-v0"
 
 # Overlay colours (BGR): annotations green, simulated boxes magenta, ignore regions grey.
 _GT_BGR = (60, 200, 60)
 _SIM_BGR = (230, 60, 230)
 _IGNORE_BGR = (150, 150, 150)
-
-
-# --------------------------------------------------------------------------- projection
-
-
-_BOX_EDGES = ((0, 1), (0, 2), (1, 3), (2, 3), (4, 5), (4, 6), (5, 7), (6, 7),
-              (0, 4), (1, 5), (2, 6), (3, 7))
-
-
-class BoxView(NamedTuple):
-    """How a 3D box appears in the image.
-
-    :param box_px: (x1, y1, x2, y2) clipped to the image [px]
-    :param range_m: smallest forward (x) coordinate of the box [m]
-    :param in_image_fraction: share of the unclipped image box inside the image
-    :param behind_camera: part of the box lies behind the near plane (cut there)
-    """
-
-    box_px: tuple[float, float, float, float]
-    range_m: float
-    in_image_fraction: float
-    behind_camera: bool
-
-
-def project_box_clipped(camera: Camera, center_veh_m: np.ndarray, length_m: float,
-                        width_m: float, height_m: float, yaw_rad: float,
-                        near_m: float = NEAR_PLANE_M) -> BoxView | None:
-    """Pixel box of a 3D vehicle box, cut at a near plane in front of the camera.
-
-    Parameters
-    ----------
-    camera : Camera
-        The scenario camera.
-    center_veh_m : array_like
-        Footprint centre (x forward, y left[, z up]) in the vehicle frame [m].
-    length_m, width_m, height_m : float
-        Box size [m].
-    yaw_rad : float
-        Heading relative to the vehicle x axis, counter-clockwise [rad].
-    near_m : float
-        Depth of the cutting plane [m].
-
-    Returns
-    -------
-    BoxView or None
-        None when nothing of the box is in view.
-    """
-    corners = camera.box_corners_veh(center_veh_m, length_m, width_m, height_m, yaw_rad)
-    depth = camera.vehicle_to_camera(corners)[:, 2]
-    front = depth > near_m
-    if not front.any():
-        return None
-    pts = [corners[front]]
-    if not front.all():
-        # Where an edge crosses the near plane, keep the crossing point: the visible part of
-        # the box ends there.
-        for i, j in _BOX_EDGES:
-            if front[i] != front[j]:
-                s = (near_m - depth[i]) / (depth[j] - depth[i])
-                pts.append((corners[i] + s * (corners[j] - corners[i]))[None, :])
-    uv, ok = camera.project(np.vstack(pts))
-    uv = uv[ok]
-    if uv.size == 0:
-        return None
-    x1, y1 = uv.min(axis=0)
-    x2, y2 = uv.max(axis=0)
-    w, h = camera.image_width - 1, camera.image_height - 1
-    if x2 <= 0 or y2 <= 0 or x1 >= w or y1 >= h:
-        return None
-    full_area = max((x2 - x1) * (y2 - y1), 1e-9)
-    x1, x2 = float(np.clip(x1, 0, w)), float(np.clip(x2, 0, w))
-    y1, y2 = float(np.clip(y1, 0, h)), float(np.clip(y2, 0, h))
-    if x2 - x1 < 1.0 or y2 - y1 < 1.0:
-        return None
-    return BoxView((x1, y1, x2, y2), float(corners[:, 0].min()),
-                   float((x2 - x1) * (y2 - y1) / full_area), bool(not front.all()))
 
 
 def _drop_occluded(boxes: list[ProjectedBox]) -> list[ProjectedBox]:
@@ -254,7 +176,8 @@ def _poses_from_env(scenario: Scenario, times_s: list[float]
 
 
 def boxes_at(scenario: Scenario, camera: Camera, ego: tuple[float, float, float],
-             actors: dict[str, tuple[float, float, float]]) -> list[ProjectedBox]:
+             actors: dict[str, tuple[float, float, float]],
+             outlines: dict[str, OutlineShape] | None = CLASS_SHAPES) -> list[ProjectedBox]:
     """Project actors given in ENU (x, y, heading) seen from the ego pose (x, y, heading).
 
     Returns the visible, not occluded boxes in scenario actor order.
@@ -268,7 +191,8 @@ def boxes_at(scenario: Scenario, camera: Camera, ego: tuple[float, float, float]
         ax, ay, ah = actors[a.id]
         dx, dy = ax - ex, ay - ey
         center = np.array([c * dx + s * dy, -s * dx + c * dy, 0.0])
-        view = project_box_clipped(camera, center, a.length_m, a.width_m, a.height_m, ah - eh)
+        view = project_box_clipped(camera, center, a.length_m, a.width_m, a.height_m, ah - eh,
+                                   outline=outlines and outlines.get(a.category, CAR_SHAPE))
         if view is not None:
             hard = (view.box_px[3] - view.box_px[1] < HARD_MIN_HEIGHT_PX
                     or view.in_image_fraction < HARD_MIN_IN_IMAGE or view.behind_camera)
@@ -278,7 +202,9 @@ def boxes_at(scenario: Scenario, camera: Camera, ego: tuple[float, float, float]
 
 
 def replay_boxes(scenario: Scenario, times_s: list[float], *, use_env: bool = True,
-                 camera: Camera | None = None) -> dict[float, list[ProjectedBox]]:
+                 camera: Camera | None = None,
+                 outlines: dict[str, OutlineShape] | None = CLASS_SHAPES
+                 ) -> dict[float, list[ProjectedBox]]:
     """Simulated vehicles' image boxes at each requested time.
 
     Parameters
@@ -293,6 +219,9 @@ def replay_boxes(scenario: Scenario, times_s: list[float], *, use_env: bool = Tr
         environment replays the same trajectories) and a warning is logged.
     camera : Camera, optional
         Camera to project through; default the scenario's.
+    outlines : dict, optional
+        Per-category outline (:mod:`vid2sim.outline`); None projects 3D boxes (the boxes of
+        a world drawn as cuboids, such as the demo sample's).
 
     Returns
     -------
@@ -307,7 +236,7 @@ def replay_boxes(scenario: Scenario, times_s: list[float], *, use_env: bool = Tr
         if use_env:
             log.warning("%s is not available: poses interpolated from the trajectories", ENV_ID)
         poses = {t: _poses_from_trajectories(scenario, t) for t in times}
-    return {t: boxes_at(scenario, cam, *poses[t]) for t in times}
+    return {t: boxes_at(scenario, cam, *poses[t], outlines) for t in times}
 
 
 # --------------------------------------------------------------------------- video frames
@@ -372,8 +301,8 @@ def run_eval(scenario_path: str | Path, keyframes_path: str | Path, *, video: Pa
              out_dir: Path, fps: float | None = None, use_env: bool = True,
              extra_figures: list[tuple[str, bytes | Path]] | None = None,
              extra_warnings: list[str] | None = None, report_inputs: dict | None = None,
-             scenario_label: str | None = None
-             ) -> tuple[dict, str]:
+             scenario_label: str | None = None,
+             outlines: dict[str, OutlineShape] | None = CLASS_SHAPES) -> tuple[dict, str]:
     """Replay a scenario at its annotated keyframes and score it.
 
     Writes ``out_dir/metrics.json``, ``out_dir/keyframes/*.png`` (overlays) and
@@ -402,6 +331,8 @@ def run_eval(scenario_path: str | Path, keyframes_path: str | Path, *, video: Pa
     scenario_label : str, optional
         How metrics.json names the scenario (a build evaluates a staged copy and gives the
         final path here), default ``scenario_path``.
+    outlines : dict, optional
+        Per-category vehicle outlines to project (see :func:`replay_boxes`); None: 3D boxes.
 
     Returns
     -------
@@ -444,7 +375,7 @@ def run_eval(scenario_path: str | Path, keyframes_path: str | Path, *, video: Pa
         warnings.append(f"{ENV_ID} not available: vehicle poses interpolated from the "
                         "scenario trajectories")
     times = [k.t_s for k in keyframes]
-    boxes = replay_boxes(scenario, times, use_env=env_used, camera=camera)
+    boxes = replay_boxes(scenario, times, use_env=env_used, camera=camera, outlines=outlines)
     metrics = score_keyframes(keyframes, boxes)
     metrics["replay"] = "gymnasium " + ENV_ID if env_used else "trajectory interpolation"
     metrics["inputs"] = {"scenario": scenario_label or str(scenario_path),

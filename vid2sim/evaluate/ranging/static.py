@@ -1,7 +1,7 @@
 """Range-rate and range truth for STATIC vehicles from the ego motion of a KITTI raw drive.
 
-Shared by ``tests/detect/test_ranging_parked.py`` and ``benchmarks/bench_ranging.py --parked``
-(one definition of the truth; it is test tooling, not part of the package).
+Used by ``tests/detect/test_ranging_parked.py`` and ``benchmarks/bench_ranging.py --parked``
+(one definition of the truth for both).
 
 Derivation. Take a body frame x forward, y left, z up, moving in the road plane with
 velocity (vf, vl) and yaw rate wz (positive turning left, counter-clockwise seen from above:
@@ -42,7 +42,7 @@ from vid2sim.geo.readers import (
     read_kitti_oxts_table,
     read_kitti_stamps,
 )
-from vid2sim.records import RangedBox
+from vid2sim.records import RangedBox, RangingResult
 
 RANGE_BINS_M = ((0.0, 20.0), (20.0, 40.0), (40.0, math.inf))
 
@@ -328,27 +328,10 @@ def format_report(rows: list[ParkedRow], excluded: dict[int, str], label: str,
     return "\n".join(lines)
 
 
-def run_pipeline(drive: Path, model_dir: Path, detect_every: int = 1):
-    """The real pipeline on a drive's ``video.mp4`` and ``camera.yaml`` as ``vid2sim track``
-    runs it (YOLOX-nano, the tracker's low score threshold): (RangingResult, camera used)."""
-    from vid2sim.camera import fit_camera_to_frames, load_camera
-    from vid2sim.detect.detector import load_detector
-    from vid2sim.detect.pipeline import detect_and_range
-    from vid2sim.detect.tracker import TrackerConfig
-    from vid2sim.detect.video import video_info
-
-    video = drive / "video.mp4"
-    info = video_info(video)
-    camera, _ = fit_camera_to_frames(load_camera(drive / "camera.yaml"), info.width,
-                                     info.height)
-    detector = load_detector("yolox-nano", model_dir, score_threshold=TrackerConfig().low_score)
-    result, camera, _ = detect_and_range(video, camera, detector=detector,
-                                         detect_every=detect_every, progress=False)
-    return result, camera
-
-
 @dataclass
 class ParkedEvaluation:
+    """The parked cars of a ranging result with their truths (see :func:`evaluate_parked`)."""
+
     keep: list[int]
     excluded: dict[int, str]
     rows: list[ParkedRow]
@@ -358,8 +341,72 @@ class ParkedEvaluation:
         return format_report(self.rows, self.excluded, label, self.tri)
 
 
-def evaluate_parked(result, camera: Camera, motion: EgoMotion) -> ParkedEvaluation:
+def evaluate_parked(result: RangingResult, camera: Camera, motion: EgoMotion
+                    ) -> ParkedEvaluation:
     """Select the parked cars of a ranging result and attach all three truths."""
     keep, excluded = select_static(result.boxes)
     return ParkedEvaluation(keep, excluded, static_truth(result.boxes, motion, keep),
                             triangulate_outer_corner(result.boxes, motion, camera, keep))
+
+
+# --------------------------------------------------------------------------- replayed scenario
+
+#: The parked cars of KITTI raw 0001 scored in a built scenario: their centres 5-11 m to the
+#: left of the ego (the row at the kerb, not the car park behind the hedge) and at most 45 m
+#: ahead (issue 13's acceptance).
+PARKED_LEFT_M = (5.0, 11.0)
+PARKED_MAX_AHEAD_M = 45.0
+
+
+@dataclass(frozen=True)
+class ReplayedStatic:
+    """World speeds of a scenario's actors while they stand where parked cars stand.
+
+    ``speed_mps``: every sample's speed [m/s]; ``along_mps``: its velocity along the ego's
+    heading (positive: moving with the ego) [m/s], whose median is the bias (a monocular range
+    that shrinks slower than the ego closes in makes parked cars drive along with it);
+    ``per_actor``: actor id -> (samples, median speed, median along-ego velocity).
+    """
+
+    speed_mps: np.ndarray
+    along_mps: np.ndarray
+    per_actor: dict[str, tuple[int, float, float]]
+
+    @property
+    def median_speed_mps(self) -> float:
+        return float(np.median(self.speed_mps)) if self.speed_mps.size else math.nan
+
+    @property
+    def bias_mps(self) -> float:
+        return float(np.median(self.along_mps)) if self.along_mps.size else math.nan
+
+
+def replayed_static_speeds(scenario, left_m: tuple[float, float] = PARKED_LEFT_M,
+                           max_ahead_m: float = PARKED_MAX_AHEAD_M) -> ReplayedStatic:
+    """Speeds of ``scenario``'s car actors at the samples where their centre lies ``left_m``
+    to the left of the ego's position and 0 to ``max_ahead_m`` ahead of it, in the ego's
+    heading at that time (the zone where a drive's parked cars stand).
+
+    ``scenario`` is a :class:`vid2sim.scenario.Scenario` (scenario.json as loaded).
+    """
+    ego = scenario.ego.trajectory
+    speeds, along, per_actor = [], [], {}
+    for actor in scenario.actors:
+        if actor.category != "car":
+            continue
+        tr = actor.trajectory
+        pose = ego.state_at(tr.t)
+        h = np.asarray(pose["heading"], dtype=float)
+        dx, dy = tr.x - pose["x"], tr.y - pose["y"]
+        ahead = np.cos(h) * dx + np.sin(h) * dy
+        left = -np.sin(h) * dx + np.cos(h) * dy
+        zone = (left >= left_m[0]) & (left <= left_m[1]) & (ahead >= 0) & (ahead <= max_ahead_m)
+        if not zone.any():
+            continue
+        v_along = tr.speed * np.cos(tr.heading - h)
+        speeds.append(tr.speed[zone])
+        along.append(v_along[zone])
+        per_actor[actor.id] = (int(zone.sum()), float(np.median(tr.speed[zone])),
+                               float(np.median(v_along[zone])))
+    cat = np.concatenate(speeds) if speeds else np.zeros(0)
+    return ReplayedStatic(cat, np.concatenate(along) if along else np.zeros(0), per_actor)

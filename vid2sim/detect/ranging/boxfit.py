@@ -1,0 +1,378 @@
+"""Single-frame box fit: the cues of each box (ground, width, height) fused into a position.
+
+Frames: vehicle frame x forward, y left, z up, origin on the road below the camera; range_m
+is the x of the vehicle's rear, lateral_m the y of its centre.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from vid2sim.camera import Camera
+from vid2sim.detect.ranging.config import RangingConfig
+from vid2sim.outline import OUTLINE_COLUMNS, outline_boxes, shape_matrix_for
+from vid2sim.records import TrackedBox
+
+# Solver settings of :func:`fit_boxes` (numerical choices, not properties of the world).
+# A ground point nearer than this [m] is a bottom edge at or below the camera's own bumper:
+# no starting range from it.
+MIN_GROUND_POINT_M = 0.5
+# Starting ranges are clipped to [1 m, RANGE_BOUND_FACTOR * max_range_m]; the fit itself runs
+# between 1 m (log range 0) and that far end, and a fit on a bound is not valid.
+MIN_INITIAL_RANGE_M = 1.0
+RANGE_BOUND_FACTOR = 3.0
+# A starting width is at most this many times the prior (a box far wider is a turned car).
+MAX_WIDTH_INIT_FACTOR = 3.0
+# Finite-difference step of the Jacobian, in the parameters' units (log range, metres, px).
+FD_STEP = 1e-3
+# Largest Gauss-Newton step in log range (a factor 1.65): keeps a far start from jumping past
+# the camera.
+MAX_LOG_RANGE_STEP = 0.5
+# Sizes stay above this [m] (a width or height of zero would make the edges degenerate).
+MIN_SIZE_M = 0.2
+# A box has converged when its step is below these (log range: 10 ppm; lateral: 0.1 mm).
+CONVERGED_LOG_RANGE = 1e-5
+CONVERGED_LATERAL_M = 1e-4
+# Length spread [m] that holds the length at its prior when no spread is given.
+FIXED_LENGTH_STD_M = 1e-4
+# The ground-contact check takes the width cue's farthest plausible range: the width prior
+# this many sigmas wider than its mean (2: one vehicle in forty is wider).
+GROUND_CHECK_WIDTH_SIGMAS = 2.0
+# Fixed-point steps of that range (the box width's 1/range law converges in 3-4).
+GROUND_CHECK_ITERATIONS = 5
+_WIDEST = OUTLINE_COLUMNS["widest_m"]
+_CONTACT = OUTLINE_COLUMNS["contact_m"]
+
+
+@dataclass
+class BoxArrays:
+    """Boxes as columns (pixels) with the cut flags of each edge and each box's outline.
+
+    ``outline`` holds one row of :func:`vid2sim.outline.shape_matrix` per box: the shape of
+    its class (where the tyres, the widest section and the mirrors lie; see
+    :mod:`vid2sim.outline`).
+    """
+
+    x1: np.ndarray
+    y1: np.ndarray
+    x2: np.ndarray
+    y2: np.ndarray
+    cut_left: np.ndarray
+    cut_right: np.ndarray
+    cut_top: np.ndarray
+    cut_bottom: np.ndarray
+    outline: np.ndarray
+
+    @classmethod
+    def from_boxes(cls, boxes: list[TrackedBox], camera: Camera, config: RangingConfig
+                   ) -> BoxArrays:
+        """Boxes of the tracker with the edges that the image border cuts.
+
+        An edge counts as cut when it lies within ``config.border_margin_px`` of the border
+        (the tracker's margin: a detector stops the box of a cut vehicle a few pixels short
+        of the border) or within ``config.border_noise_sigmas`` of its own edge noise, so
+        that a near lead's last rows above the border never pass for its ground contact.
+        """
+        a = np.array([(b.x1, b.y1, b.x2, b.y2) for b in boxes], dtype=float).reshape(-1, 4)
+        w, h = camera.image_width - 1, camera.image_height - 1
+        k = config.border_noise_sigmas
+        mu = np.maximum(config.border_margin_px,
+                        k * (config.edge_noise_px + config.edge_noise_frac * (a[:, 2] - a[:, 0])))
+        mv = np.maximum(config.border_margin_px,
+                        k * (config.edge_noise_px + config.edge_noise_frac * (a[:, 3] - a[:, 1])))
+        shapes = shape_matrix_for([b.category for b in boxes], config.outlines)
+        return cls(a[:, 0], a[:, 1], a[:, 2], a[:, 3], a[:, 0] <= mu, a[:, 2] >= w - mu,
+                   a[:, 1] <= mv, a[:, 3] >= h - mv, shapes)
+
+    def subset(self, index: np.ndarray) -> BoxArrays:
+        """The boxes at ``index`` (integer or boolean)."""
+        return BoxArrays(*(getattr(self, k)[index] for k in self.__dataclass_fields__))
+
+    def shifted(self, rows_px: np.ndarray) -> BoxArrays:
+        """The boxes moved up by ``rows_px`` (a horizon correction, down positive)."""
+        return replace(self, y1=self.y1 - rows_px, y2=self.y2 - rows_px)
+
+
+def predict_edges(camera: Camera, x_m: np.ndarray, y_m: np.ndarray, w_m: np.ndarray,
+                  h_m: np.ndarray, l_m: np.ndarray, outline: np.ndarray) -> np.ndarray:
+    """(N, 4) pixel box (u1, v1, u2, v2) of vehicles whose rear is at range ``x_m``, centre
+    at lateral ``y_m``, aligned with the ego axis and standing on the road: the hull of their
+    outlines (``outline``: rows of :func:`vid2sim.outline.shape_matrix`)."""
+    return outline_boxes(camera, x_m, y_m, w_m, h_m, l_m, outline)
+
+
+@dataclass
+class BoxFit:
+    """Single-frame position of each box: estimates and their covariance."""
+
+    range_m: np.ndarray
+    lateral_m: np.ndarray
+    width_m: np.ndarray
+    cov: np.ndarray  # (N, 6, 6) over (log range, lateral, width, height, length, row offset)
+    cov_white: np.ndarray  # the part of ``cov`` that is independent from frame to frame
+    ground_ok: np.ndarray
+    width_ok: np.ndarray
+    valid: np.ndarray
+    length_m: np.ndarray
+    height_m: np.ndarray
+
+    @property
+    def range_var_m2(self) -> np.ndarray:
+        return self.cov[:, 0, 0] * self.range_m ** 2
+
+    @property
+    def lateral_var_m2(self) -> np.ndarray:
+        return self.cov[:, 1, 1]
+
+    @property
+    def width_var_m2(self) -> np.ndarray:
+        return self.cov[:, 2, 2]
+
+    @property
+    def height_var_m2(self) -> np.ndarray:
+        return self.cov[:, 3, 3]
+
+    @property
+    def range_lateral_cov_m2(self) -> np.ndarray:
+        return self.cov[:, 0, 1] * self.range_m
+
+    @property
+    def range_white_var_m2(self) -> np.ndarray:
+        return self.cov_white[:, 0, 0] * self.range_m ** 2
+
+    @property
+    def lateral_white_var_m2(self) -> np.ndarray:
+        return self.cov_white[:, 1, 1]
+
+
+def fit_boxes(camera: Camera, ba: BoxArrays, width_m: np.ndarray, width_std_m: np.ndarray,
+              prior_h: np.ndarray, prior_h_std: np.ndarray, length_m: np.ndarray,
+              config: RangingConfig, *, use_ground: bool = True, use_height: bool = True,
+              length_std_m: np.ndarray | None = None,
+              pitch_noise_inflation: np.ndarray | float = 1.0,
+              road_height_std_m: np.ndarray | None = None,
+              ground_allowed: np.ndarray | None = None, iterations: int = 12) -> BoxFit:
+    """Fuse the cues of each box into a position by weighted least squares.
+
+    The unknowns per box are (log range, lateral, width, height); the residuals are the
+    observed minus the predicted box edges, each divided by its pixel noise, plus the size
+    priors. Minimising them is the inverse-variance fusion of the ground cue (bottom edge vs
+    horizon: Z = f H / (y_bottom - y_horizon) for a level camera), the width cue
+    (Z = f W / w_px) and the height cue, with the noise of each propagated from pixels to
+    metres by the Jacobian, so the ground cue's range error grows as Z^2 / (f H) per pixel
+    (Hartley & Zisserman, Multiple View Geometry, 2nd ed., ch. 5 on first-order error
+    propagation). Log range keeps the range positive and the model nearly linear (edges scale
+    as 1/Z).
+
+    Parameters
+    ----------
+    camera : Camera
+        The camera with the pitch to use.
+    ba : BoxArrays
+        Boxes and their cut flags.
+    width_m, width_std_m, prior_h, prior_h_std, length_m : ndarray
+        Size prior of each box's vehicle [m].
+    config : RangingConfig
+        Noise settings.
+    use_ground, use_height : bool
+        Switch the ground and height cues off (for the horizon estimate from widths).
+    length_std_m : ndarray, optional
+        Spread of the length prior [m]; the length is then a fifth unknown (it sets how much
+        of a laterally offset vehicle's side shows). None keeps ``length_m`` fixed.
+    pitch_noise_inflation : ndarray or float
+        Factor on the body-pitch share of the frame-to-frame variance (``cov_white``) for a
+        filter that takes it as white (see :func:`colored_noise_factor`).
+    road_height_std_m : ndarray, optional
+        Per-box spread of the road height under the vehicle [m]; None takes the config's.
+    ground_allowed : ndarray, optional
+        Where the ground cue may be used (e.g. another fit's ``ground_ok``); given, it replaces
+        the check of the contact row against the width cue (which needs a width prior).
+
+    Returns
+    -------
+    BoxFit
+        ``valid`` is False where the cues left the range unobservable.
+    """
+    n = len(ba.x1)
+    bw = np.maximum(ba.x2 - ba.x1, 1.0)
+    bh = np.maximum(ba.y2 - ba.y1, 1.0)
+    horizon = camera.horizon_y_px()
+    jitter_px = camera.fy * math.tan(math.radians(config.horizon_jitter_deg))
+    sig_u = config.edge_noise_px + config.edge_noise_frac * bw
+    pix_v = config.edge_noise_px + config.edge_noise_frac * bh
+    width_ok = ~(ba.cut_left | ba.cut_right)
+    outline = ba.outline
+    widest = outline[:, _WIDEST]
+    contact = outline[:, _CONTACT]
+    f = camera.fx
+    rays = camera.pixel_rays_veh(np.column_stack(((ba.x1 + ba.x2) / 2, np.full(n, horizon))))
+    bearing = rays[:, 1] / np.maximum(rays[:, 0], 1e-6)
+    max_fit_range_m = RANGE_BOUND_FACTOR * config.max_range_m
+    # The box's bottom is its ground contact only if the contact can be in the image: where
+    # even the farthest range the width cue allows (the width prior 2 sigma wide) puts the
+    # contact below the image, the bottom rows are the car's body cut by the border, however
+    # many pixels short of the border the detector stopped.
+    bottom_cut = ba.cut_bottom.copy()
+    if ground_allowed is not None:
+        bottom_cut |= ~np.asarray(ground_allowed, dtype=bool)
+    elif width_ok.any():
+        wide = width_m + GROUND_CHECK_WIDTH_SIGMAS * width_std_m
+        long_ = length_m + GROUND_CHECK_WIDTH_SIGMAS * (
+            np.zeros(n) if length_std_m is None else length_std_m)
+        far = np.clip(f * wide / bw - widest, MIN_INITIAL_RANGE_M, max_fit_range_m)
+        for _ in range(GROUND_CHECK_ITERATIONS):
+            # The range at which the outline (with the side a laterally offset vehicle
+            # shows) is as wide as the box: box widths scale about as 1 / range.
+            pred = predict_edges(camera, far, bearing * (far + long_ / 2), wide, prior_h, long_,
+                                 outline)
+            pw = pred[:, 2] - pred[:, 0]
+            far = np.where(np.isfinite(pw) & (pw > 0),
+                           np.clip(far * pw / bw, MIN_INITIAL_RANGE_M, max_fit_range_m), far)
+        row = predict_edges(camera, far, bearing * (far + long_ / 2), wide, prior_h, long_,
+                            outline)[:, 3]
+        bottom_cut |= width_ok & np.isfinite(row) & (
+            row > camera.image_height - 1 - config.border_margin_px)
+    ground_ok = (~bottom_cut) & (ba.y2 > horizon + config.min_ground_margin_px)
+    if not use_ground:
+        ground_ok = np.zeros(n, dtype=bool)
+    # The top edge alone (bottom not usable) ranges only a vehicle whose height is known well
+    # against its lever below the camera: its range error is about sigma_H / |H_cam - H|.
+    lever = np.abs(camera.height_m - prior_h)
+    top_alone_ok = prior_h_std < config.top_alone_max_rel_error * lever
+    height_ok = (~ba.cut_top) & use_height & (ground_ok | top_alone_ok)
+    obs = np.stack([ba.x1, ba.y1, ba.x2, ba.y2], axis=1)
+
+    # Initial guess: ground cue where usable, else width cue; lateral from the centre column.
+    # The bottom edge is the tyres' contact and the sides the widest section, each that far
+    # ahead of the rear face.
+    rng0 = f * width_m / bw - widest
+    if ground_ok.any():
+        pts, ok = camera.pixel_to_ground(np.column_stack(((ba.x1 + ba.x2) / 2, ba.y2)))
+        g = ground_ok & ok & np.isfinite(pts[:, 0]) & (pts[:, 0] > MIN_GROUND_POINT_M)
+        rng0 = np.where(g, pts[:, 0] - contact, rng0)
+    rng0 = np.clip(rng0, MIN_INITIAL_RANGE_M, max_fit_range_m)
+    # A road dz higher than the plane moves a vehicle's bottom edge by f dz / Z pixels; Z is
+    # only known after the fit, so take the first guess (the ground cue's own range where it
+    # is usable, not the width cue's: a turned vehicle's wide box would say "near" and so
+    # blur the very cue that has to range it).
+    road_std = config.road_height_std_m if road_height_std_m is None else road_height_std_m
+    lat0 = bearing * (rng0 + length_m / 2)
+    # Away from the ego's lane the ego's road plane says less about the ground: cross-fall
+    # (2-3 % from the crown), gutters, kerbs and parking strips.
+    beyond = np.maximum(np.abs(lat0) - config.lane_width_m / 2, 0.0)
+    road_std = np.hypot(road_std, config.road_height_std_per_lateral_m * beyond)
+    # The body's pitch jitter and the road's height under the vehicle move the top and the
+    # bottom edge together: one vertical offset per box [px], a sixth unknown with that
+    # prior, and each edge keeps only its own pixel noise. The box height (top to bottom)
+    # is then a clean cue against the vehicle's height, the bottom edge against the horizon
+    # is as blurred by the offset as before (Z = f H / (y_bottom - y_horizon)).
+    road_px = camera.fy * road_std / rng0
+    sig_off = np.hypot(jitter_px, road_px)
+    sig = np.stack([sig_u, pix_v, sig_u, pix_v], axis=1)
+    # The top edge against the vehicle's height: with the bottom edge beside it the box height
+    # is a clean cue; alone (a near lead whose bottom is cut) it still ranges a vehicle whose
+    # height its track has learnt, weakly, since a car's roof sits near the camera's height.
+    use = np.stack([~ba.cut_left, height_ok, ~ba.cut_right, ground_ok], axis=1)
+    if length_std_m is None:
+        length_std_m = np.full(n, FIXED_LENGTH_STD_M)
+    # Width: what the box says at the ground cue's range (at least the prior), so that the
+    # reweighting below sees a turned vehicle's wide box from the first step on rather than
+    # being pulled by it towards the camera first (a redescending prior needs a fair start).
+    w_init = width_m.copy()
+    if ground_ok.any():
+        w_init = np.where(g, np.clip(bw * (rng0 + widest) / f, width_m,
+                                     MAX_WIDTH_INIT_FACTOR * width_m), width_m)
+    theta = np.column_stack((np.log(rng0), lat0, w_init, prior_h, length_m, np.zeros(n)))
+    prior_mean = np.column_stack((width_m, prior_h, length_m, np.zeros(n)))
+    prior_std = np.column_stack((width_std_m, prior_h_std, length_std_m, sig_off))
+    n_par = 6
+    steps = np.full(n_par, FD_STEP)
+
+    # Apparent width is heavy-tailed upwards: a vehicle turned away from the ego axis (at a
+    # junction, parked across or at an angle, changing lanes) shows part of its side, and its
+    # box is W cos(yaw) + L sin(yaw) wide, never narrower than its rear. So a width far above
+    # the class prior is more likely a turned vehicle than a wide one: its width prior is
+    # Cauchy beyond ``config.width_tail_sigmas`` (iteratively reweighted), and the range
+    # then rests on the ground cue instead of a box width inflated by the vehicle's side.
+    w_prior_weight = np.ones(n)
+    c_tail = config.width_tail_sigmas
+
+    def update_weights(th: np.ndarray, i: np.ndarray) -> None:
+        s = (th[:, 2] - prior_mean[i, 0]) / prior_std[i, 0]
+        w_prior_weight[i] = np.where(s > 0, 1.0 / (1.0 + (s / c_tail) ** 2), 1.0)
+
+    def residuals(th: np.ndarray, i: np.ndarray) -> np.ndarray:
+        pred = predict_edges(camera, np.exp(th[:, 0]), th[:, 1], th[:, 2], th[:, 3],
+                             th[:, 4], outline[i])
+        pred[:, 1] += th[:, 5]
+        pred[:, 3] += th[:, 5]
+        r_edges = np.where(use[i], (obs[i] - pred) / sig[i], 0.0)
+        r_prior = (prior_mean[i] - th[:, 2:6]) / prior_std[i]
+        r_prior[:, 0] *= np.sqrt(w_prior_weight[i])
+        return np.nan_to_num(np.concatenate([r_edges, r_prior], axis=1), nan=0.0)
+
+    def jacobian(th: np.ndarray, i: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        r0 = residuals(th, i)
+        jac = np.zeros((len(i), 4 + 4, n_par))
+        for k in range(n_par):
+            th_k = th.copy()
+            th_k[:, k] += steps[k]
+            jac[:, :, k] = -(residuals(th_k, i) - r0) / steps[k]
+        return r0, jac
+
+    # Gauss-Newton; boxes leave the active set once converged (most need 3-5 steps).
+    active = np.arange(n)
+    for _ in range(iterations):
+        if active.size == 0:
+            break
+        if math.isfinite(c_tail):
+            update_weights(theta[active], active)
+        r0, jac = jacobian(theta[active], active)
+        jtj = np.einsum("nik,nil->nkl", jac, jac) + 1e-9 * np.eye(n_par)
+        jtr = np.einsum("nik,ni->nk", jac, r0)
+        delta = np.linalg.solve(jtj, jtr[..., None])[..., 0]
+        delta[:, 0] = np.clip(delta[:, 0], -MAX_LOG_RANGE_STEP, MAX_LOG_RANGE_STEP)
+        th = theta[active] + delta
+        th[:, 0] = np.clip(th[:, 0], 0.0, math.log(max_fit_range_m))
+        th[:, 2:5] = np.maximum(th[:, 2:5], MIN_SIZE_M)
+        theta[active] = th
+        active = active[(np.abs(delta[:, 0]) > CONVERGED_LOG_RANGE)
+                        | (np.abs(delta[:, 1]) > CONVERGED_LATERAL_M)]
+    _, jac = jacobian(theta, np.arange(n))
+    jtj = np.einsum("nik,nil->nkl", jac, jac) + 1e-9 * np.eye(n_par)
+    cov = np.linalg.inv(jtj)
+    # Frame-to-frame (white) part: pixel noise and body pitch jitter only. The vehicle's size
+    # and the road height under it change slowly, so their errors are common to all frames
+    # of a track: they scale the range but do not disturb its rate, and a filter that took
+    # them for white noise would trust the measurements too little and lag behind braking.
+    # Sandwich form: the same estimate, its covariance under the white noise alone,
+    # cov (J^T D J) cov with D the white share of each (scaled) residual's variance.
+    # The body pitch is not white: it lasts about half a second, so it enters with the
+    # inflation factor that gives its slow part the right weight in the filter.
+    d = np.ones((n, 4 + 4))
+    d[:, 4:7] = 0.0  # size priors: common to the track
+    d[:, 7] = pitch_noise_inflation * jitter_px ** 2 / sig_off ** 2  # road height: common
+    cov_white = cov @ np.einsum("nik,ni,nil->nkl", jac, d, jac) @ cov
+    rng = np.exp(theta[:, 0])
+    # Unobservable range: the log-range spread stays near what the priors alone allow, or
+    # the fit ran onto its range bounds (weak cues that disagree have no interior optimum).
+    on_bound = (theta[:, 0] <= 1e-6) | (theta[:, 0] >= math.log(max_fit_range_m) - 1e-6)
+    valid = ((np.sqrt(np.maximum(cov[:, 0, 0], 0)) < config.max_log_range_std)
+             & np.isfinite(rng) & ~on_bound)
+    return BoxFit(rng, theta[:, 1], theta[:, 2], cov, cov_white, ground_ok, width_ok, valid,
+                  theta[:, 4], theta[:, 3])
+
+
+def colored_noise_factor(dt_s: float, correlation_s: float) -> float:
+    """Factor on the variance of a first-order Markov noise (correlation time
+    ``correlation_s``) sampled every ``dt_s``, such that white noise of that variance has the
+    same low-frequency power: (1 + rho) / (1 - rho) with rho = exp(-dt / tau). A smoother that
+    averages over many frames sees correlated errors average out that much more slowly
+    (Bar-Shalom et al. 2001, sec. 8.2 on coloured measurement noise)."""
+    if not (dt_s > 0 and correlation_s > 0):
+        return 1.0
+    rho = math.exp(-dt_s / correlation_s)
+    return (1.0 + rho) / (1.0 - rho)
