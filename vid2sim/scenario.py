@@ -153,16 +153,20 @@ class Actor:
 
 @dataclass(slots=True)
 class Source:
-    """Provenance: which inputs, which tool version and options, which assumptions."""
+    """Provenance: which inputs, which tool version and options, which assumptions, and the
+    warnings of the run that made the scenario (what a user of the scenario should know:
+    GPS gaps, corrupt frames skipped, a guessed camera)."""
 
     inputs: list[dict[str, str]] = field(default_factory=list)
     tool_version: str = ""
     options: dict[str, Any] = field(default_factory=dict)
     assumptions: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
 
     def to_json(self) -> dict[str, Any]:
         return {"inputs": self.inputs, "tool_version": self.tool_version,
-                "options": self.options, "assumptions": self.assumptions}
+                "options": self.options, "assumptions": self.assumptions,
+                "warnings": self.warnings}
 
 
 @dataclass(slots=True)
@@ -341,7 +345,8 @@ def from_json(data: dict[str, Any], path: str | Path | None = None) -> Scenario:
         camera=dict(data["camera"]),
         source=Source(inputs=list(src.get("inputs", [])), tool_version=str(src.get("tool_version", "")),
                       options=dict(src.get("options", {})),
-                      assumptions=list(src.get("assumptions", []))),
+                      assumptions=list(src.get("assumptions", [])),
+                      warnings=list(src.get("warnings", []))),
     )
 
 

@@ -18,13 +18,14 @@ from vid2sim.detect.tracker import Tracker, TrackerConfig
 from vid2sim.detect.video import iter_frames, video_info
 from vid2sim.errors import InputError
 from vid2sim.records import Detection, Frame, Note, RangingResult, TrackedBox
+from vid2sim.videofile import skipped_frames_note
 
 
 def run_detect(source: Path, *, detector: Detector | None,
                detections: dict[int, list[Detection]] | None = None, detect_every: int = 1,
                progress: bool = True, on_frame: Callable[[Frame], None] | None = None,
                tracker_config: TrackerConfig | None = None, fps: float | None = None,
-               ) -> list[TrackedBox]:
+               skipped_frames: list[int] | None = None) -> list[TrackedBox]:
     """Detect and track vehicles through a video, one frame in memory at a time.
 
     Parameters
@@ -51,6 +52,9 @@ def run_detect(source: Path, *, detector: Detector | None,
         Tracker thresholds.
     fps : float, optional
         Frame rate for image folders [frames/s] (default 10).
+    skipped_frames : list of int, optional
+        Receives the indices of corrupt or missing frames, skipped (the tracker predicts
+        across them).
 
     Returns
     -------
@@ -71,7 +75,8 @@ def run_detect(source: Path, *, detector: Detector | None,
     decode_every = detect_every if (detector is not None or on_frame is not None) else 0
     with tqdm(total=info.n_frames or None, unit="frame", desc="detect",
               disable=not progress) as bar:
-        for frame in iter_frames(source, every=decode_every or 1_000_000_000, fps=fps):
+        for frame in iter_frames(source, every=decode_every or 1_000_000_000, fps=fps,
+                                 skipped=skipped_frames):
             if frame.image_bgr is not None and on_frame is not None:
                 on_frame(frame)
             is_detect_frame = frame.index % detect_every == 0
@@ -137,11 +142,14 @@ def detect_and_range(video: Path, camera: Camera, *, detector, detections=None,
     # Every decoded frame: about 6 ms at 640 px wide, and the per-frame rows follow the
     # horizon's drift (see lane_horizon_offsets).
     horizon_est = HorizonEstimator(camera, every=1)
+    skipped: list[int] = []
     boxes = run_detect(video, detector=detector, detections=detections,
                        detect_every=detect_every, progress=progress, fps=fps,
-                       tracker_config=tracker_config,
+                       tracker_config=tracker_config, skipped_frames=skipped,
                        on_frame=lambda frame: horizon_est.add_frame(frame.image_bgr,
                                                                     frame.index))
+    if skipped:
+        notes.append(Note.warning(f"{Path(video).name}: {skipped_frames_note(skipped)}"))
     # Lane markings also say where straight ahead is: correct the camera's yaw so the ego
     # corridor runs along the lane rather than along a slightly turned camera axis.
     column, n_col = horizon_est.estimate_column()
