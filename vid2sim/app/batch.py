@@ -216,11 +216,17 @@ def read_manifest(path: str | Path) -> list[BatchRow]:
         if row_problems:
             problems.append((line, "; ".join(row_problems)))
             continue
-        rows.append(BatchRow(line=line, name=name, video=paths["video"], gps=paths["gps"],
-                             map_path=paths["map"], camera_path=paths["camera"],
-                             detections=paths["detections"], keyframes=paths["keyframes"],
-                             fps=numbers["fps"], gps_offset_s=numbers["gps_offset_s"],
-                             ego_speed_mps=numbers["ego_speed_mps"] or 0.0))
+        row = BatchRow(line=line, name=name, video=paths["video"], gps=paths["gps"],
+                       map_path=paths["map"], camera_path=paths["camera"],
+                       detections=paths["detections"], keyframes=paths["keyframes"],
+                       fps=numbers["fps"], gps_offset_s=numbers["gps_offset_s"],
+                       ego_speed_mps=numbers["ego_speed_mps"] or 0.0)
+        try:
+            row.inputs().check()  # a single build's checks (finite, physical), before any build
+        except InputError as exc:
+            problems.append((line, exc.problem))
+            continue
+        rows.append(row)
     if problems:
         shown = "; ".join(f"line {line}: {msg}" for line, msg in problems[:MAX_ROWS_IN_ERROR])
         more = (f"; and {len(problems) - MAX_ROWS_IN_ERROR} more"
