@@ -489,14 +489,15 @@ def _run(argv: list[str] | None, verbose: bool) -> int:
     except click.ClickException as exc:
         exc.show()
         return 2
-    except click.exceptions.Abort:
-        click.echo("aborted", err=True)
-        return 130
-    except Terminated as exc:
-        click.echo(f"terminated by signal {exc.signum}; outputs left as they were", err=True)
-        return 128 + exc.signum
-    except KeyboardInterrupt:
-        click.echo("interrupted", err=True)
+    except (click.exceptions.Abort, KeyboardInterrupt) as exc:
+        # click turns Ctrl-C (and our SIGTERM, a KeyboardInterrupt) into Abort.
+        cause = exc if isinstance(exc, KeyboardInterrupt) else (exc.__cause__ or exc.__context__)
+        if isinstance(cause, Terminated):
+            click.echo(f"terminated by signal {cause.signum}; outputs left as they were",
+                       err=True)
+            return 128 + cause.signum
+        click.echo("interrupted; outputs left as they were" if cause is not None else "aborted",
+                   err=True)
         return 130
     except BrokenPipeError:
         return 0

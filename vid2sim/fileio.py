@@ -263,7 +263,18 @@ def staged_folder(out_dir: str | Path, owned: Iterable[str] = ()) -> Iterator[Pa
             raise output_error(out_dir, exc) from exc
         raise
     try:
-        yield staging
+        try:
+            yield staging
+        except InputError as exc:
+            # Name the output the user asked for, not the staging folder's random name.
+            if exc.path is not None and exc.path.startswith(str(staging)):
+                final = out_dir / os.path.relpath(exc.path, staging)
+                raise _renamed(exc, final) from exc
+            raise
+        except OSError as exc:
+            if exc.errno in OUTPUT_ERRNOS:
+                raise output_error(out_dir, exc) from exc
+            raise
         # The moves take milliseconds; an interrupt in their middle would leave half the old
         # and half the new outputs, so SIGINT/SIGTERM wait until they are done.
         with deferred_interrupts():
@@ -275,6 +286,15 @@ def staged_folder(out_dir: str | Path, owned: Iterable[str] = ()) -> Iterator[Pa
                 raise
     finally:
         shutil.rmtree(staging, ignore_errors=True)
+
+
+def _renamed(exc: InputError, path: Path) -> InputError:
+    """The same error naming ``path`` (keeps the subclass and its fields, e.g. ScenarioError)."""
+    renamed = type(exc).__new__(type(exc))
+    renamed.__dict__.update(exc.__dict__)
+    renamed.path = str(path)
+    renamed.args = (str(renamed),)
+    return renamed
 
 
 @contextlib.contextmanager
