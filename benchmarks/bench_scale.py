@@ -54,7 +54,7 @@ def raw_detections(raw: Path, work: Path, model_dir: Path | None) -> Path:
     if model_dir is None:
         raise SystemExit("no detector weights: pass --detections FILE or set VID2SIM_MODEL_DIR")
     settings = Settings(detector=DetectorSettings(model_dir=model_dir), progress=False)
-    print(run_detect_command(Inputs(video=raw / "video.mp4"), out, settings))
+    print(run_detect_command(Inputs(video=raw / "video.mp4"), out, settings), flush=True)
     return out
 
 
@@ -210,9 +210,9 @@ def main() -> None:
         stages = ", ".join(f"{k} {v:.1f} s / {best['stage_peak_mib'].get(k, float('nan')):.0f} "
                            "MiB" for k, v in best["stages_s"].items())
         print(f"{n} frames ({best['duration_s']:.0f} s, {best['actors']} actors): "
-              f"{best['wall_s']:.1f} s wall, peak RSS {best['peak_rss_mib']:.0f} MiB")
-        print(f"    stages: {stages}")
-        print("    " + json.dumps(best))
+              f"{best['wall_s']:.1f} s wall, peak RSS {best['peak_rss_mib']:.0f} MiB", flush=True)
+        print(f"    stages: {stages}", flush=True)
+        print("    " + json.dumps(best), flush=True)
     ns = sorted(rows)
     if len(ns) > 1:
         a, b = rows[ns[0]], rows[ns[-1]]
@@ -221,9 +221,9 @@ def main() -> None:
               f"{b['wall_s'] / a['wall_s']:.2f}, peak memory x"
               f"{b['peak_rss_mib'] / a['peak_rss_mib']:.2f}; per stage time x "
               + ", ".join(f"{k} {b['stages_s'][k] / max(a['stages_s'][k], 1e-9):.1f}"
-                          for k in b["stages_s"] if k in a["stages_s"]))
+                          for k in b["stages_s"] if k in a["stages_s"]), flush=True)
         print(f"an hour of 10 fps video at this rate: {b['wall_s'] * hours / 60:.1f} min, "
-              f"peak {b['peak_rss_mib']:.0f} MiB")
+              f"peak {b['peak_rss_mib']:.0f} MiB", flush=True)
 
 
 if __name__ == "__main__":

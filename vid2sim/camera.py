@@ -390,7 +390,7 @@ def fit_camera_to_frames(camera: Camera, width_px: int, height_px: int,
 def load_camera(path: str | Path) -> Camera:
     """Read a camera YAML file (the project's format) or a KITTI calibration file."""
     path = Path(path)
-    text = read_input_text(path)
+    text = read_input_text(path, max_bytes=MAX_CAMERA_FILE_BYTES)
     if re.search(r"^(P_rect_0\d|P\d)\s*:", text, flags=re.MULTILINE):
         return _kitti_camera(text, path)
     try:
@@ -401,6 +401,10 @@ def load_camera(path: str | Path) -> Camera:
         raise InputError(path, "YAML nested too deeply to read") from None
     return Camera.from_dict(data, path)
 
+
+#: Largest camera file [bytes]: a camera record is a few hundred bytes, a KITTI calibration
+#: a few kB.
+MAX_CAMERA_FILE_BYTES = 1024 * 1024
 
 # KITTI's camera rig: cameras are 1.65 m above the road (Geiger et al., IJRR 2013).
 KITTI_CAMERA_HEIGHT_M = 1.65

@@ -83,9 +83,12 @@ def video_info(path: Path, fps: float | None = None) -> VideoInfo:
         if rate <= 0:
             raise InputError(path, "video declares no frame rate", "pass the frame rate explicitly")
         count = cap.get(cv2.CAP_PROP_FRAME_COUNT)
-        return VideoInfo(width=int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)),
-                         height=int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT)),
-                         fps=rate, n_frames=int(count) if math.isfinite(count) and count > 0 else 0)
+        width, height = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
+        if not (0 < width <= MAX_FRAME_SIDE_PX and 0 < height <= MAX_FRAME_SIDE_PX):
+            raise InputError(path, f"frames of {width}x{height} px are not a video's "
+                             f"(at most {MAX_FRAME_SIDE_PX} px a side)")
+        return VideoInfo(width=width, height=height, fps=rate,
+                         n_frames=int(count) if math.isfinite(count) and count > 0 else 0)
     finally:
         cap.release()
 

@@ -150,6 +150,19 @@ class _Stages:
 # --------------------------------------------------------------------------- build
 
 
+def _write_tables(staging: Path, scenario, ranging, road_result) -> dict[str, Path]:
+    """scenario.json, tracks.csv and (with GPS) road.json into ``staging``; their names."""
+    files = {"scenario": Path("scenario.json"), "tracks": Path("tracks.csv")}
+    scenario_io.save(scenario, staging / "scenario.json")
+    write_tracks_csv(ranging.boxes, staging / "tracks.csv")
+    if road_result is not None:
+        # The road stage's own output, as `vid2sim road` writes it (matches per fix).
+        write_text_atomic(staging / "road.json",
+                          dumps_canonical(geo_roads.road_json(road_result)))
+        files["road"] = Path("road.json")
+    return files
+
+
 #: Every output `vid2sim build` may write into its folder. A build owns them: a rebuild
 #: removes those it does not write again (a rebuild without keyframes leaves no old
 #: metrics.json or keyframes/), and the highway-env export of an earlier scenario.json
@@ -252,21 +265,14 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
     scenario.source.warnings = [str(w) for w in warnings]
 
     # ---- write into the staging folder (moved into place by the caller)
-    files: dict[str, Path] = {}
-    scenario_io.save(scenario, staging / "scenario.json")
-    files["scenario"] = Path("scenario.json")
-    write_tracks_csv(ranging.boxes, staging / "tracks.csv")
-    files["tracks"] = Path("tracks.csv")
-    if road_result is not None:
-        # The road stage's own output, as `vid2sim road` writes it (matches per fix).
-        write_text_atomic(staging / "road.json",
-                          dumps_canonical(geo_roads.road_json(road_result)))
-        files["road"] = Path("road.json")
+    files = stages.run("write scenario and tables", _write_tables, staging, scenario, ranging,
+                       road_result)
     xosc, xodr = stages.run("export OpenSCENARIO/OpenDRIVE", write_openscenario, scenario,
                             staging)
     files["openscenario"] = Path(xosc.name)
     files["opendrive"] = Path(xodr.name)
-    figures = stage_figures(staging / "figures", road_result, trace, ego, ranging.boxes)
+    figures = stages.run("figures", stage_figures, staging / "figures", road_result, trace, ego,
+                         ranging.boxes)
     report_inputs = {**inputs.labelled_paths(), "output folder": str(out_dir)}
     metrics = None
     if inputs.keyframes is not None:
@@ -281,8 +287,8 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
                                 scenario_label=str(out_dir / "scenario.json"))
         files["metrics"] = Path("metrics.json")
     else:
-        write_report(staging / "report.html", scenario=scenario, metrics=None,
-                     extra_figures=figures, warnings=warnings, inputs=report_inputs)
+        stages.run("report", write_report, staging / "report.html", scenario=scenario,
+                   metrics=None, extra_figures=figures, warnings=warnings, inputs=report_inputs)
     files["report"] = Path("report.html")
 
     lead = lead_summary(ranging, info.n_frames)

@@ -33,7 +33,7 @@ from pathlib import Path
 from typing import Any
 
 from vid2sim.errors import InputError
-from vid2sim.fileio import parse_json
+from vid2sim.fileio import check_input_size, parse_json
 from vid2sim.records import AnnotatedBox, Keyframe
 
 log = logging.getLogger(__name__)
@@ -103,6 +103,7 @@ def read_keyframes(path: str | Path, *, fps: float | None = None,
     if fps is not None and not (math.isfinite(fps) and fps > 0):
         raise InputError(path, f"fps {fps} must be a positive number")
     try:
+        check_input_size(path, what="annotation")
         text = path.read_text(encoding="utf-8-sig")
     except FileNotFoundError:
         raise InputError(path, "no such annotation file") from None
