@@ -477,7 +477,11 @@ def load(path: str | Path) -> Scenario:
 
 
 def save(scenario: Scenario, path: str | Path) -> None:
-    """Validate and write canonical JSON atomically."""
-    data = json.loads(dumps_canonical(scenario.to_json()))
+    """Validate and write canonical JSON atomically.
+
+    The canonical (rounded) record is validated as it will be read back, and serialised
+    once (no text round trip: a long scenario's text is tens of MB).
+    """
+    data = _canonical(scenario.to_json())
     validate(data, path)
-    write_text_atomic(path, dumps_canonical(data))
+    write_text_atomic(path, json.dumps(data, sort_keys=True, indent=1, ensure_ascii=False) + "\n")
