@@ -217,3 +217,54 @@ def test_camera_for_cropped_resized_and_foreign_frames():
     assert same is cam and note is None
     with pytest.raises(InputError, match="cam.yaml: camera is for 1242x375"):
         fit_camera_to_frames(cam, 1280, 720, "cam.yaml")
+
+
+# --------------------------------------------------------------------------- damaged files
+
+
+def _damage_strategies():
+    from .damage import damaged
+
+    yaml_text = CONTRACT_YAML.encode()
+    kitti = (b"P_rect_02: 7.215377e+02 0.000000e+00 6.095593e+02 4.485728e+01 0.000000e+00 "
+             b"7.215377e+02 1.728540e+02 2.163791e-01 0.000000e+00 0.000000e+00 1.000000e+00 "
+             b"2.745884e-03\nS_rect_02: 1.242000e+03 3.750000e+02\n")
+    return st.one_of(damaged(yaml_text), damaged(kitti))
+
+
+def test_camera_file_damage_gives_input_error_only(tmp_path):
+    from .damage import FUZZ, input_error_or_result
+
+    @FUZZ
+    @given(data=_damage_strategies())
+    def check(data):
+        f = tmp_path / "cam.yaml"
+        f.write_bytes(data)
+        cam = input_error_or_result(load_camera, f)
+        if isinstance(cam, Camera):  # a camera that loads is a usable one
+            assert np.isfinite(cam.horizon_y_px())
+
+    check()
+
+
+@pytest.mark.parametrize("line,match", [
+    ("fx: .nan", "fx is nan"), ("cx: .inf", "cx is inf"), ("pitch_deg: 1e6", "pitch_deg"),
+    ("fx: 0.5", "field of view"), ("fy: 100000", "field of view"), ("cx: 5000", "principal point"),
+    ("image_width: 1242.5", "whole number"), ("dist: [1e9, 0, 0, 0, 0]", "distortion"),
+    ("roll_deg: 90", "roll_deg"), ("height_m: .nan", "height_m is nan"),
+])
+def test_every_camera_number_is_checked_finite_and_physical(tmp_path, line, match):
+    key = line.split(":")[0]
+    text = "\n".join(line if row.startswith(key + ":") else row
+                     for row in CONTRACT_YAML.splitlines())
+    f = tmp_path / "cam.yaml"
+    f.write_text(text)
+    with pytest.raises(InputError, match=match):
+        load_camera(f)
+
+
+def test_kitti_calibration_with_nan_is_an_input_error(tmp_path):
+    f = tmp_path / "calib.txt"
+    f.write_text("P2: nan 0 609.5 0 0 721.5 172.8 0 0 0 1 0\n")
+    with pytest.raises(InputError, match="not a finite number"):
+        load_camera(f)

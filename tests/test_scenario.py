@@ -173,3 +173,108 @@ def test_trajectory_round_trip_property(xs):
     back = sc.Trajectory.from_json(json.loads(sc.dumps_canonical({"p": tr.to_json()}))["p"])
     assert back.x == pytest.approx(np.round(xs, 4), abs=1e-9)
     assert np.array_equal(back.t, t)
+
+
+# --------------------------------------------------------------------------- damage, limits
+
+JUNK_VALUES = [None, True, "x", "", [], {}, [[]], -1, 0, 1e308, -1e308, 10**400, 1e9, -1e-9,
+               [1e308, 0.0], [[0.0, 0.0], [0.0, 0.0]], {"t": 1}]
+
+
+def _paths(obj, prefix=()):
+    """Every (path, value) of a parsed JSON tree."""
+    yield prefix, obj
+    if isinstance(obj, dict):
+        for k, v in obj.items():
+            yield from _paths(v, (*prefix, k))
+    elif isinstance(obj, list):
+        for i, v in enumerate(obj):
+            yield from _paths(v, (*prefix, i))
+
+
+def _check_loaded(scenario: sc.Scenario) -> None:
+    # A scenario that loads can be used: every number finite, roads usable by the exporters.
+    from vid2sim.export.highway import lane_centerlines_enu
+
+    for traj in [scenario.ego.trajectory, *(a.trajectory for a in scenario.actors)]:
+        for arr in (traj.t, traj.x, traj.y, traj.heading, traj.speed):
+            assert np.all(np.isfinite(arr))
+    for road in scenario.roads:
+        for lane in lane_centerlines_enu(road):
+            assert np.all(np.isfinite(lane))
+
+
+def test_scenario_field_damage_gives_scenario_error_only():
+    from .damage import FUZZ
+
+    @FUZZ
+    @given(data=st.data())
+    def check(data):
+        d = valid_dict()
+        paths = [p for p, _ in _paths(d) if p]
+        for _ in range(data.draw(st.integers(1, 3))):
+            path = data.draw(st.sampled_from(paths))
+            parent = d
+            for key in path[:-1]:
+                parent = parent[key]
+            parent[path[-1]] = copy.deepcopy(data.draw(st.sampled_from(JUNK_VALUES)))
+            paths = [p for p, _ in _paths(d) if p]
+        try:
+            loaded = sc.from_json(d, "s.json")
+        except ScenarioError:
+            return
+        _check_loaded(loaded)
+
+    check()
+
+
+def test_scenario_file_damage_gives_input_error_only(tmp_path):
+    from .damage import FUZZ, damaged, input_error_or_result
+
+    valid = sc.dumps_canonical(make_scenario().to_json()).encode()
+
+    @FUZZ
+    @given(data=damaged(valid))
+    def check(data):
+        f = tmp_path / "s.json"
+        f.write_bytes(data)
+        loaded = input_error_or_result(sc.load, f)
+        if isinstance(loaded, sc.Scenario):
+            _check_loaded(loaded)
+
+    check()
+
+
+@pytest.mark.parametrize("mutate,match", [
+    (lambda d: d["roads"][0].update(lanes=10**9), "must be 1-16"),
+    (lambda d: d["roads"][0].update(lane_width_m=1e-6), "outside"),
+    (lambda d: d["roads"][0].update(centerline=[[5.0, 5.0], [5.0, 5.0]]), "coincide"),
+    (lambda d: d["roads"][0].update(centerline=[[0.0, 0.0], [50.0, 0.0], [0.0, 0.0]]),
+     "turns back"),
+    (lambda d: d["roads"][0].update(centerline=[[0.0, 0.0], [1e9, 0.0]]), "1000 km"),
+    (lambda d: d["ego"]["trajectory"][2].update(speed=1e6), "speed"),
+    (lambda d: d["actors"][0].update(length_m=1e6), "length_m"),
+    (lambda d: d["ego"]["trajectory"][-1].update(t=2e5), "lasts"),
+    (lambda d: d["source"].update(inputs=5), "source.inputs"),
+])
+def test_physical_ranges_and_road_geometry(mutate, match):
+    d = valid_dict()
+    mutate(d)
+    with pytest.raises(ScenarioError, match=match):
+        sc.validate(d, "s.json")
+
+
+def test_size_limits_fail_fast(tmp_path, monkeypatch):
+    # Past the documented limits a scenario is refused before any exporter loops over it.
+    big = tmp_path / "big.json"
+    with open(big, "wb") as fh:
+        fh.truncate(sc.MAX_SCENARIO_BYTES + 1)
+    with pytest.raises(InputError, match="limit"):
+        sc.load(big)
+    monkeypatch.setattr(sc, "MAX_TRAJECTORY_POINTS", 15)
+    with pytest.raises(ScenarioError, match="trajectory points"):
+        sc.validate(valid_dict())  # 11 ego + 11 actor points
+    deep = tmp_path / "deep.json"
+    deep.write_text("[" * 100_000 + "]" * 100_000)
+    with pytest.raises(InputError, match="nested too deeply"):
+        sc.load(deep)

@@ -39,6 +39,35 @@ DEFAULT_HEIGHT_M = 1.3
 
 _REQUIRED = ("image_width", "image_height", "fx", "fy", "cx", "cy")
 
+# Physical ranges of a camera record (Camera.check):
+#: largest image side [px]: 8K video is 7680 px wide.
+MAX_IMAGE_SIDE_PX = 16384
+#: field of view of a real lens over the image width or height [deg]: 1 deg is a long
+#: telephoto, 170 deg a fisheye's rectified limit.
+FOV_RANGE_DEG = (1.0, 170.0)
+#: largest |coefficient| of an OpenCV distortion model: radial terms of real lenses stay
+#: below ~10, the rational model's denominators below a few hundred.
+MAX_DISTORTION = 1000.0
+#: largest |pitch|, |yaw|, |roll| of a forward camera's mounting [deg]; dash-cams sit within a
+#: few degrees of level and straight ahead.
+MAX_MOUNT_ANGLE_DEG = 45.0
+
+
+def _real(value: Any) -> float:
+    """A YAML/JSON value as a float. Text that spells a number is one (PyYAML reads ``1e6``,
+    without a sign in the exponent, as text); booleans and other types are not."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, str)):
+        raise TypeError(f"{value!r} is not a number")
+    return float(value)
+
+
+def _pixels(value: Any, name: str) -> int:
+    """A whole number of pixels (1242 or 1242.0, not 1242.5)."""
+    v = _real(value)
+    if not math.isfinite(v) or v != int(v):
+        raise ValueError(f"{name} {value!r} is not a whole number of pixels")
+    return int(v)
+
 
 def _rot_x(a: float) -> np.ndarray:
     c, s = math.cos(a), math.sin(a)
@@ -103,6 +132,14 @@ class Camera:
 
     @classmethod
     def from_dict(cls, d: dict[str, Any], path: str | Path | None = None) -> Camera:
+        """A camera from its record (camera YAML, a scenario's ``camera``), checked.
+
+        Raises
+        ------
+        InputError
+            A missing field, a value that is not a number, or any number outside its
+            physical range (:meth:`check`).
+        """
         if not isinstance(d, dict):
             raise InputError(path, "camera description must be a mapping of keys to values")
         missing = [k for k in _REQUIRED if k not in d]
@@ -110,23 +147,71 @@ class Camera:
             raise InputError(path, f"camera description lacks {', '.join(missing)}",
                              "see README 'Camera file'")
         try:
-            dist = tuple(float(v) for v in d.get("dist", [0.0] * 5))
+            raw_dist = d.get("dist", [0.0] * 5)
+            if not isinstance(raw_dist, (list, tuple)):
+                raise TypeError(f"dist must be a list, got {raw_dist!r}")
+            dist = tuple(_real(v) for v in raw_dist)
             cam = cls(
-                image_width=int(d["image_width"]), image_height=int(d["image_height"]),
-                fx=float(d["fx"]), fy=float(d["fy"]), cx=float(d["cx"]), cy=float(d["cy"]),
-                dist=dist, height_m=float(d.get("height_m", DEFAULT_HEIGHT_M)),
-                pitch_deg=float(d.get("pitch_deg", 0.0)), yaw_deg=float(d.get("yaw_deg", 0.0)),
-                roll_deg=float(d.get("roll_deg", 0.0)),
+                image_width=_pixels(d["image_width"], "image_width"),
+                image_height=_pixels(d["image_height"], "image_height"),
+                fx=_real(d["fx"]), fy=_real(d["fy"]), cx=_real(d["cx"]), cy=_real(d["cy"]),
+                dist=dist, height_m=_real(d.get("height_m", DEFAULT_HEIGHT_M)),
+                pitch_deg=_real(d.get("pitch_deg", 0.0)), yaw_deg=_real(d.get("yaw_deg", 0.0)),
+                roll_deg=_real(d.get("roll_deg", 0.0)),
             )
-        except (TypeError, ValueError) as exc:
+        except (TypeError, ValueError, OverflowError) as exc:
             raise InputError(path, f"camera value is not a number: {exc}") from None
         if len(dist) not in (4, 5, 8, 12, 14):
             raise InputError(path, f"dist has {len(dist)} values; OpenCV takes 4, 5, 8, 12 or 14")
-        if cam.image_width <= 0 or cam.image_height <= 0 or cam.fx <= 0 or cam.fy <= 0:
-            raise InputError(path, "image size and focal lengths must be positive")
-        if not 0 < cam.height_m < 10:
-            raise InputError(path, f"height_m {cam.height_m} is not a camera height above a road")
+        cam.check(path)
         return cam
+
+    def check(self, path: str | Path | None = None) -> None:
+        """Raise :class:`InputError` (naming ``path``) for any value outside its physical range.
+
+        Every number finite; image size 1-:data:`MAX_IMAGE_SIDE_PX`; focal lengths giving a
+        field of view of :data:`FOV_RANGE_DEG` and near-square pixels; the principal point
+        inside the image; distortion coefficients of a real lens; the mounting of a forward
+        camera (:data:`MAX_MOUNT_ANGLE_DEG`) 0-10 m above the road. A NaN focal length or a
+        pitch of 1e6 deg would otherwise give NaN ranges or a 600 km standard deviation.
+        """
+        w, h = self.image_width, self.image_height
+        if not (0 < w <= MAX_IMAGE_SIDE_PX and 0 < h <= MAX_IMAGE_SIDE_PX):
+            raise InputError(path, f"image size {w}x{h} must be positive and at most "
+                             f"{MAX_IMAGE_SIDE_PX} px a side")
+        values = {"fx": self.fx, "fy": self.fy, "cx": self.cx, "cy": self.cy,
+                  "height_m": self.height_m, "pitch_deg": self.pitch_deg,
+                  "yaw_deg": self.yaw_deg, "roll_deg": self.roll_deg}
+        values.update({f"dist[{i}]": v for i, v in enumerate(self.dist)})
+        for name, v in values.items():
+            if not math.isfinite(v):
+                raise InputError(path, f"camera {name} is {v}, not a finite number")
+        if self.fx <= 0 or self.fy <= 0:
+            raise InputError(path, "image size and focal lengths must be positive")
+        lo, hi = FOV_RANGE_DEG
+        for name, f, side in (("fx", self.fx, w), ("fy", self.fy, h)):
+            fov = math.degrees(2.0 * math.atan(side / (2.0 * f)))
+            if not lo <= fov <= hi:
+                raise InputError(path, f"{name} {f:g} px gives a {fov:.2f} deg field of view over "
+                                 f"{side} px; a camera's is {lo:g}-{hi:g} deg",
+                                 "is the focal length in pixels, for this image size?")
+        if not 0.5 <= self.fy / self.fx <= 2.0:
+            raise InputError(path, f"fy / fx = {self.fy / self.fx:.3g}: pixels are not that "
+                             "far from square", "check fx and fy")
+        if not (0 <= self.cx <= w and 0 <= self.cy <= h):
+            raise InputError(path, f"principal point ({self.cx:g}, {self.cy:g}) px lies outside "
+                             f"the {w}x{h} image", "cx, cy are pixel coordinates of the image "
+                             "centre, roughly")
+        if any(abs(v) > MAX_DISTORTION for v in self.dist):
+            raise InputError(path, f"distortion coefficients {list(self.dist)} are not a lens's "
+                             f"(|k| <= {MAX_DISTORTION:g})")
+        if not 0 < self.height_m < 10:
+            raise InputError(path, f"height_m {self.height_m} is not a camera height above a road")
+        for name in ("pitch_deg", "yaw_deg", "roll_deg"):
+            v = getattr(self, name)
+            if abs(v) > MAX_MOUNT_ANGLE_DEG:
+                raise InputError(path, f"{name} {v:g} is not the mounting of a forward camera "
+                                 f"(at most {MAX_MOUNT_ANGLE_DEG:g} deg)", "the unit is degrees")
 
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)
@@ -305,15 +390,21 @@ def fit_camera_to_frames(camera: Camera, width_px: int, height_px: int,
 def load_camera(path: str | Path) -> Camera:
     """Read a camera YAML file (the project's format) or a KITTI calibration file."""
     path = Path(path)
-    text = read_input_text(path)
+    text = read_input_text(path, max_bytes=MAX_CAMERA_FILE_BYTES)
     if re.search(r"^(P_rect_0\d|P\d)\s*:", text, flags=re.MULTILINE):
         return _kitti_camera(text, path)
     try:
         data = yaml.safe_load(text)
     except yaml.YAMLError as exc:
-        raise InputError(path, f"not valid YAML: {str(exc).splitlines()[0]}") from None
+        raise InputError(path, f"not valid YAML: {(str(exc).splitlines() or ['?'])[0]}") from None
+    except RecursionError:
+        raise InputError(path, "YAML nested too deeply to read") from None
     return Camera.from_dict(data, path)
 
+
+#: Largest camera file [bytes]: a camera record is a few hundred bytes, a KITTI calibration
+#: a few kB.
+MAX_CAMERA_FILE_BYTES = 1024 * 1024
 
 # KITTI's camera rig: cameras are 1.65 m above the road (Geiger et al., IJRR 2013).
 KITTI_CAMERA_HEIGHT_M = 1.65
@@ -345,11 +436,19 @@ def _kitti_camera(text: str, path: Path, cam: int = 2) -> Camera:
     if proj is None or proj.size != 12:
         raise InputError(path, f"KITTI calibration lacks a 3x4 projection for camera {cam}")
     size = values.get(f"S_rect_{cam:02d}")
-    width, height = (int(size[0]), int(size[1])) if size is not None else (1242, 375)
+    if size is not None and size.size != 2:
+        raise InputError(path, f"S_rect_{cam:02d} must be two numbers (width height)")
+    try:
+        width, height = ((_pixels(float(size[0]), "width"), _pixels(float(size[1]), "height"))
+                         if size is not None else (1242, 375))
+    except (ValueError, OverflowError) as exc:
+        raise InputError(path, f"S_rect_{cam:02d}: {exc}") from None
     p = proj.reshape(3, 4)
     assumptions = [f"KITTI calibration: camera {cam} rectified, {KITTI_CAMERA_HEIGHT_M} m high"]
     if size is None:
         assumptions.append("image size not in the calibration: assumed 1242x375")
-    return Camera(image_width=width, image_height=height, fx=float(p[0, 0]), fy=float(p[1, 1]),
-                  cx=float(p[0, 2]), cy=float(p[1, 2]), height_m=KITTI_CAMERA_HEIGHT_M,
-                  assumptions=tuple(assumptions), pitch_source=PitchSource.CALIBRATION)
+    camera = Camera(image_width=width, image_height=height, fx=float(p[0, 0]), fy=float(p[1, 1]),
+                    cx=float(p[0, 2]), cy=float(p[1, 2]), height_m=KITTI_CAMERA_HEIGHT_M,
+                    assumptions=tuple(assumptions), pitch_source=PitchSource.CALIBRATION)
+    camera.check(path)
+    return camera

@@ -6,8 +6,10 @@ no traceback unless ``-v``), 1 internal error.
 
 from __future__ import annotations
 
+import errno
 import logging
 import os
+import signal
 import sys
 import traceback
 from pathlib import Path
@@ -20,7 +22,8 @@ from vid2sim.app.settings import DetectorSettings, Settings
 from vid2sim.defaults import EGO_RATE_HZ, IMAGE_FOLDER_FPS
 from vid2sim.detect.models import DEFAULT_DETECTOR
 from vid2sim.detect.windows import REFINE_MAX_BOXES
-from vid2sim.errors import InputError
+from vid2sim.errors import InputError, Terminated
+from vid2sim.fileio import OUTPUT_ERRNOS
 
 log = logging.getLogger("vid2sim")
 
@@ -300,12 +303,11 @@ def models_pull(name: str, dest_dir: Path | None) -> None:
 def eval_(scenario_file: Path, keyframes_path: Path, video: Path | None, fps: float | None,
           no_env: bool, out_dir: Path) -> None:
     """Replay SCENARIO_FILE at annotated keyframes and score its vehicles by IoU."""
-    from vid2sim.evaluate.replay import run_eval
+    from vid2sim.app.commands import run_eval_command
 
     check_out_dir(out_dir)
-    _, summary = run_eval(scenario_file, keyframes_path, video=video, out_dir=out_dir, fps=fps,
-                          use_env=not no_env)
-    echo(summary)
+    echo(run_eval_command(scenario_file, keyframes_path, out_dir, video=video, fps=fps,
+                          use_env=not no_env))
 
 
 # --------------------------------------------------------------------------- export
@@ -319,7 +321,7 @@ def eval_(scenario_file: Path, keyframes_path: Path, video: Path | None, fps: fl
 @click.option("--out", "out_dir", type=EXISTING_PATH, required=True, help="Output folder.")
 def export(scenario_file: Path, fmt: str, out_dir: Path) -> None:
     """Export SCENARIO_FILE for a simulator (OpenSCENARIO 1.2 / OpenDRIVE 1.8, highway-env)."""
-    from vid2sim.export import run_export
+    from vid2sim.app.commands import run_export
 
     check_out_dir(out_dir)
     echo(run_export(scenario_file, fmt, out_dir))
@@ -501,14 +503,66 @@ def batch_report(batch_dir: str, out_path: str | None) -> None:
 # --------------------------------------------------------------------------- entry point
 
 
+def _on_termination(signum: int, _frame) -> None:
+    # Once only: a second signal must not cut the cleanup that the first one starts short.
+    signal.signal(signum, signal.SIG_IGN)
+    raise Terminated(signum)
+
+
+def _termination_signals() -> list[int]:
+    """SIGTERM (kill, batch schedulers, systemd) and SIGHUP (terminal closed): handled as
+    Ctrl-C is, so no staging folder or temporary file stays behind."""
+    return [s for s in (getattr(signal, "SIGTERM", None), getattr(signal, "SIGHUP", None))
+            if s is not None]
+
+
+#: errno values that say an input is unreadable for a reason the user must fix.
+_INPUT_ERRNOS = frozenset({errno.ENOENT, errno.EISDIR, errno.ENOTDIR, errno.ELOOP,
+                           errno.ENAMETOOLONG})
+
+
+def _os_error_line(exc: OSError) -> str | None:
+    """One line for an OSError that is the user's to fix (a read-only or full output, an
+    unreadable input); None for any other (an internal error)."""
+    name = exc.filename if exc.filename is not None else None
+    what = exc.strerror or str(exc)
+    if exc.errno in OUTPUT_ERRNOS:
+        hint = ("free some space or write elsewhere" if exc.errno in
+                (errno.ENOSPC, errno.EDQUOT, errno.EFBIG) else "check the permissions")
+    elif exc.errno in _INPUT_ERRNOS:
+        hint = "check the path"
+    else:
+        return None
+    return f"error: {name + ': ' if name else ''}{what} ({hint})"
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Console entry point: maps errors to exit codes."""
+    """Console entry point: maps errors to exit codes.
+
+    0 success; 2 bad input, usage, or an output location the user must fix (read-only,
+    full); 130 / 143 interrupted by SIGINT / SIGTERM (outputs as before the run); 1 an
+    internal error.
+    """
     verbose = any(a in ("-v", "--verbose") or (a.startswith("-v") and set(a[1:]) == {"v"})
                   for a in (argv if argv is not None else sys.argv[1:]))
     if not verbose:
         # FFmpeg inside OpenCV prints its own lines for a broken video ("moov atom not
         # found"); our one-line error says the same with the file name. -v shows them.
         os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
+    previous = {}
+    try:
+        for s in _termination_signals():
+            previous[s] = signal.signal(s, _on_termination)
+    except ValueError:  # not the main thread (an embedding application): its own business
+        previous = {}
+    try:
+        return _run(argv, verbose)
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+
+
+def _run(argv: list[str] | None, verbose: bool) -> int:
     try:
         # A command that calls ctx.exit(code) (batch: 1 when a row failed) comes back
         # here as click's return value in non-standalone mode.
@@ -523,21 +577,49 @@ def main(argv: list[str] | None = None) -> int:
     except click.ClickException as exc:
         exc.show()
         return 2
-    except click.exceptions.Abort:
-        click.echo("aborted", err=True)
-        return 130
-    except KeyboardInterrupt:
-        click.echo("interrupted", err=True)
+    except (click.exceptions.Abort, KeyboardInterrupt) as exc:
+        # click turns Ctrl-C (and our SIGTERM, a KeyboardInterrupt) into Abort.
+        cause = exc if isinstance(exc, KeyboardInterrupt) else (exc.__cause__ or exc.__context__)
+        if isinstance(cause, Terminated):
+            click.echo(f"terminated by signal {cause.signum}; outputs left as they were",
+                       err=True)
+            return 128 + cause.signum
+        click.echo("interrupted; outputs left as they were" if cause is not None else "aborted",
+                   err=True)
         return 130
     except BrokenPipeError:
         return 0
-    except Exception as exc:  # noqa: BLE001 - the last line of defence for internal errors
-        click.echo(f"internal error: {type(exc).__name__}: {exc} (run with -v for the traceback; "
-                   "please report it)", err=True)
+    except RecursionError:
+        # json, yaml and XML parsers recurse per nesting level; readers turn this into an
+        # error naming their file, this is the last line for one that does not.
+        click.echo("error: an input is nested too deeply to read (run with -v to see where)",
+                   err=True)
         if verbose:
             traceback.print_exc()
-        return 1
+        return 2
+    except MemoryError:
+        click.echo("error: out of memory: an input is too large for this machine (see README "
+                   "'Limits')", err=True)
+        return 2
+    except OSError as exc:
+        line = _os_error_line(exc)
+        if line is None:
+            return _internal_error(exc, verbose)
+        click.echo(line, err=True)
+        if verbose:
+            traceback.print_exc()
+        return 2
+    except Exception as exc:  # noqa: BLE001 - the last line of defence for internal errors
+        return _internal_error(exc, verbose)
     return rv if isinstance(rv, int) else 0
+
+
+def _internal_error(exc: BaseException, verbose: bool) -> int:
+    click.echo(f"internal error: {type(exc).__name__}: {exc} (run with -v for the traceback; "
+               "please report it)", err=True)
+    if verbose:
+        traceback.print_exc()
+    return 1
 
 
 if __name__ == "__main__":  # pragma: no cover

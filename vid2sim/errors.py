@@ -30,3 +30,13 @@ class ScenarioError(InputError):
     def __init__(self, path: str | Path | None, field: str, problem: str):
         self.field = field
         super().__init__(path, f"field '{field}': {problem}")
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM or SIGHUP, raised in the main thread like Ctrl-C's ``KeyboardInterrupt``, so
+    that the same cleanup runs (staging folders and temporary files removed, old outputs
+    kept). ``signum`` is the signal's number; the CLI exits with 128 + signum."""
+
+    def __init__(self, signum: int):
+        self.signum = signum
+        super().__init__(f"signal {signum}")

@@ -150,6 +150,8 @@ class TraceStats:
     :param t0_utc_s: GPS-clock time of scenario t 0 (the video's first frame) [s since epoch]
     :param first_fix_t_s: scenario time of the first fix [s]
     :param noise_m: one-sigma position noise the smoother used (estimated or reported) [m]
+    :param assumptions: what the trajectory assumes where the fixes say nothing (inside long
+        gaps), for the scenario's ``source.assumptions``
     """
 
     format: str
@@ -169,6 +171,7 @@ class TraceStats:
     noise_m: float
     rate_hz: float
     n_samples: int
+    assumptions: list[str] = field(default_factory=list)
 
 
 # --------------------------------------------------------------------------- detection

@@ -11,7 +11,10 @@ Every exporter and evaluator reads this file; the field names are a contract:
 - trajectories: ``[{t, x, y, heading, speed}]`` with ``t`` seconds from the video's first
   frame, ``x``/``y`` ENU metres, ``heading`` radians counter-clockwise from east, ``speed`` m/s
 - ``camera``: the camera record (see :mod:`vid2sim.camera`)
-- ``source``: input names and sha256, tool version, options, assumptions
+- ``source``: input names and sha256, tool version, options, assumptions, warnings
+
+Validation (:func:`validate`, on load and on save) also enforces physical ranges and the
+size limits (``MAX_*`` below, README "Limits").
 
 Output is canonical: sorted keys, floats rounded to fixed decimals, so the same inputs give
 byte-identical files.
@@ -27,8 +30,8 @@ from typing import Any
 
 import numpy as np
 
-from vid2sim.errors import InputError, ScenarioError
-from vid2sim.fileio import read_input_text, write_text_atomic
+from vid2sim.errors import ScenarioError
+from vid2sim.fileio import parse_json, read_input_text, write_text_atomic
 from vid2sim.records import Origin
 
 SCHEMA = "vid2sim.scenario"
@@ -153,16 +156,20 @@ class Actor:
 
 @dataclass(slots=True)
 class Source:
-    """Provenance: which inputs, which tool version and options, which assumptions."""
+    """Provenance: which inputs, which tool version and options, which assumptions, and the
+    warnings of the run that made the scenario (what a user of the scenario should know:
+    GPS gaps, corrupt frames skipped, a guessed camera)."""
 
     inputs: list[dict[str, str]] = field(default_factory=list)
     tool_version: str = ""
     options: dict[str, Any] = field(default_factory=dict)
     assumptions: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
 
     def to_json(self) -> dict[str, Any]:
         return {"inputs": self.inputs, "tool_version": self.tool_version,
-                "options": self.options, "assumptions": self.assumptions}
+                "options": self.options, "assumptions": self.assumptions,
+                "warnings": self.warnings}
 
 
 @dataclass(slots=True)
@@ -224,6 +231,41 @@ def dumps_canonical(data: dict[str, Any]) -> str:
 
 # --------------------------------------------------------------------------- validation
 
+# Limits of a scenario (README "Limits"). A scenario past them is refused on load and on save,
+# before any exporter loops over it: `lanes: 1e9` made the highway-env export hang, and a
+# 140 MB file of 2 million points took 3.4 GB to export.
+
+#: Largest scenario.json [bytes]; an hour-long build writes 5-15 MB.
+MAX_SCENARIO_BYTES = 64 * 1024 * 1024
+#: Most trajectory points of all vehicles together: an hour of ego at 10 Hz is 36,000; a busy
+#: hour adds a few hundred thousand actor points.
+MAX_TRAJECTORY_POINTS = 1_000_000
+#: Most centerline points of all roads together: 500 km at the road stage's 1 m spacing.
+MAX_CENTERLINE_POINTS = 500_000
+#: Most actors in one scenario.
+MAX_ACTORS = 20_000
+#: Most lanes of one carriageway: the widest roads in OpenStreetMap have about 13 lanes
+#: across one carriageway; more is a tag or unit error.
+MAX_LANES = 16
+#: Range of a lane's width [m]: 2.0 m is an old-town lane, 7 m a wide single-lane road;
+#: outside it the number is not a lane width.
+LANE_WIDTH_RANGE_M = (1.5, 8.0)
+#: Largest |x|, |y| of any ENU point [m]: 1,000 km, beyond which a flat local frame is
+#: useless (and larger numbers are a unit error: degrees, millimetres).
+MAX_COORDINATE_M = 1.0e6
+#: Longest scenario [s]: a day.
+MAX_DURATION_S = 86_400.0
+#: Largest |t| of any trajectory point [s] (seconds from the first video frame).
+MAX_TIME_S = 1.0e6
+#: Fastest vehicle speed [m/s]: 720 km/h, twice the fastest road vehicle; more is a unit or
+#: data error.
+MAX_SPEED_MPS = 200.0
+#: Largest vehicle length, width and height [m] (a road train is 53.5 m long).
+MAX_BOX_M = {"length_m": 60.0, "width_m": 6.0, "height_m": 6.0}
+#: Two consecutive centerline segments turning back by more than this [deg] make a spike
+#: (the lane normals cancel): a digitising error, not a road.
+MAX_TURN_DEG = 179.0
+
 
 def _require(d: Any, key: str, kind: type | tuple[type, ...], where: str, path) -> Any:
     if not isinstance(d, dict) or key not in d:
@@ -239,37 +281,102 @@ def _require(d: Any, key: str, kind: type | tuple[type, ...], where: str, path) 
     return value
 
 
+def _number(d: Any, key: str, where: str, path, lo: float = -math.inf, hi: float = math.inf,
+            lo_open: bool = False) -> float:
+    """A finite number in [lo, hi] (or (lo, hi]), else a ScenarioError naming the field."""
+    v = _require(d, key, float, where, path)
+    try:
+        ok = math.isfinite(v)
+    except OverflowError:  # an integer beyond any float
+        ok = False
+    if not ok:
+        raise ScenarioError(path, f"{where}{key}", "not a finite number")
+    if (v <= lo if lo_open else v < lo) or v > hi:
+        left = "(" if lo_open else "["
+        raise ScenarioError(path, f"{where}{key}", f"{v:g} outside {left}{lo:g}, {hi:g}]")
+    return float(v)
+
+
 def _kind_name(kind) -> str:
     if isinstance(kind, tuple):
         return "number" if set(kind) == {int, float} else "/".join(k.__name__ for k in kind)
     return kind.__name__
 
 
-def _validate_trajectory(points: Any, where: str, path) -> None:
+def _validate_trajectory(points: Any, where: str, path) -> int:
+    """Check one trajectory; return its number of points."""
     if not isinstance(points, list) or not points:
         raise ScenarioError(path, where, "expected a non-empty list of points")
     last_t = -math.inf
     for i, p in enumerate(points):
-        for k in ("t", "x", "y", "heading", "speed"):
-            v = _require(p, k, float, f"{where}[{i}].", path)
-            if not math.isfinite(v):
-                raise ScenarioError(path, f"{where}[{i}].{k}", "not a finite number")
-        if p["t"] <= last_t:
-            raise ScenarioError(path, f"{where}[{i}].t", "times must increase strictly")
-        if p["speed"] < 0:
-            raise ScenarioError(path, f"{where}[{i}].speed", "must be >= 0")
-        last_t = p["t"]
+        w = f"{where}[{i}]."
+        t = _number(p, "t", w, path, -MAX_TIME_S, MAX_TIME_S)
+        _number(p, "x", w, path, -MAX_COORDINATE_M, MAX_COORDINATE_M)
+        _number(p, "y", w, path, -MAX_COORDINATE_M, MAX_COORDINATE_M)
+        _number(p, "heading", w, path)
+        speed = _require(p, "speed", float, w, path)
+        if isinstance(speed, (int, float)) and speed < 0:
+            raise ScenarioError(path, f"{w}speed", "must be >= 0")
+        _number(p, "speed", w, path, 0.0, MAX_SPEED_MPS)
+        if t <= last_t:
+            raise ScenarioError(path, f"{w}t", "times must increase strictly")
+        last_t = t
+    if last_t - points[0]["t"] > MAX_DURATION_S:
+        raise ScenarioError(path, where, f"lasts {last_t - points[0]['t']:.0f} s, more than the "
+                            f"{MAX_DURATION_S:.0f} s limit")
+    return len(points)
 
 
 def _validate_box(d: dict, where: str, path) -> None:
-    for k in ("length_m", "width_m", "height_m"):
+    for k, hi in MAX_BOX_M.items():
         v = _require(d, k, float, where, path)
-        if not v > 0:
+        if isinstance(v, (int, float)) and not v > 0:
             raise ScenarioError(path, f"{where}{k}", "must be > 0")
+        _number(d, k, where, path, 0.0, hi, lo_open=True)
+
+
+def _validate_centerline(line: Any, where: str, path) -> int:
+    """Check a road centerline's geometry: [x, y] pairs of finite numbers within the frame,
+    at least two distinct points, no spike; return its number of points."""
+    if len(line) < 2 or not all(
+        isinstance(p, list) and len(p) == 2
+        and all(isinstance(c, (int, float)) and not isinstance(c, bool) for c in p)
+        for p in line
+    ):
+        raise ScenarioError(path, where, "expected at least two [x, y] points")
+    try:
+        xy = np.asarray(line, dtype=float)
+    except OverflowError:
+        raise ScenarioError(path, where, "a coordinate is not a finite number") from None
+    bad = ~np.isfinite(xy).all(axis=1)
+    if bad.any():
+        raise ScenarioError(path, f"{where}[{int(np.argmax(bad))}]", "not a finite number")
+    far = (np.abs(xy) > MAX_COORDINATE_M).any(axis=1)
+    if far.any():
+        raise ScenarioError(path, f"{where}[{int(np.argmax(far))}]",
+                            f"more than {MAX_COORDINATE_M / 1000:.0f} km from the origin")
+    seg = np.diff(xy, axis=0)
+    length = np.hypot(seg[:, 0], seg[:, 1])
+    seg = seg[length > 1e-6]
+    if len(seg) == 0:
+        raise ScenarioError(path, where, "all points coincide: a road needs two distinct points")
+    if len(seg) > 1:
+        u = seg / np.hypot(seg[:, 0], seg[:, 1])[:, None]
+        cos_turn = np.einsum("ij,ij->i", u[:-1], u[1:])
+        back = cos_turn < math.cos(math.radians(MAX_TURN_DEG))
+        if back.any():
+            raise ScenarioError(path, where, f"turns back on itself (segment {int(np.argmax(back))}"
+                                f" -> {int(np.argmax(back)) + 1}, more than {MAX_TURN_DEG:g} deg)")
+    return len(line)
 
 
 def validate(data: Any, path: str | Path | None = None) -> None:
-    """Check a parsed scenario.json; raise :class:`ScenarioError` naming the offending field."""
+    """Check a parsed scenario.json; raise :class:`ScenarioError` naming the offending field.
+
+    Beyond the schema: every number finite and in its physical range (coordinates, times,
+    speeds, vehicle sizes, lane widths and counts), road geometry a road can have (two
+    distinct points, no spike) and the size limits above.
+    """
     if not isinstance(data, dict):
         raise ScenarioError(path, "<root>", "expected a JSON object")
     if data.get("schema") != SCHEMA:
@@ -279,10 +386,9 @@ def validate(data: Any, path: str | Path | None = None) -> None:
         raise ScenarioError(path, "version", f"unsupported version {version} (this tool reads {VERSION})")
     origin = _require(data, "origin", dict, "", path)
     for k, lo, hi in (("lat", -90, 90), ("lon", -180, 180), ("alt", -1e4, 1e5)):
-        v = _require(origin, k, float, "origin.", path)
-        if not lo <= v <= hi:
-            raise ScenarioError(path, f"origin.{k}", f"{v} outside [{lo}, {hi}]")
+        _number(origin, k, "origin.", path, lo, hi)
     roads = _require(data, "roads", list, "", path)
+    n_line = 0
     for i, road in enumerate(roads):
         w = f"roads[{i}]."
         _require(road, "id", (str, int), w, path)
@@ -292,20 +398,26 @@ def validate(data: Any, path: str | Path | None = None) -> None:
         ways = _require(road, "osm_way_ids", list, w, path)
         if not all(isinstance(x, int) and not isinstance(x, bool) for x in ways):
             raise ScenarioError(path, f"{w}osm_way_ids", "expected a list of integers")
-        if _require(road, "lanes", int, w, path) < 1:
-            raise ScenarioError(path, f"{w}lanes", "must be >= 1")
-        if not _require(road, "lane_width_m", float, w, path) > 0:
+        lanes = _require(road, "lanes", int, w, path)
+        if not 1 <= lanes <= MAX_LANES:
+            raise ScenarioError(path, f"{w}lanes", f"must be 1-{MAX_LANES}, got {lanes}")
+        width = _require(road, "lane_width_m", float, w, path)
+        if isinstance(width, (int, float)) and not width > 0:
             raise ScenarioError(path, f"{w}lane_width_m", "must be > 0")
-        line = _require(road, "centerline", list, w, path)
-        if len(line) < 2 or not all(
-            isinstance(p, list) and len(p) == 2 and all(isinstance(c, (int, float)) for c in p)
-            for p in line
-        ):
-            raise ScenarioError(path, f"{w}centerline", "expected at least two [x, y] points")
+        _number(road, "lane_width_m", w, path, *LANE_WIDTH_RANGE_M)
+        n_line += _validate_centerline(_require(road, "centerline", list, w, path),
+                                       f"{w}centerline", path)
+        if n_line > MAX_CENTERLINE_POINTS:
+            raise ScenarioError(path, f"{w}centerline", f"the roads have more than "
+                                f"{MAX_CENTERLINE_POINTS:,} centerline points (the limit)")
     ego = _require(data, "ego", dict, "", path)
     _validate_box(ego, "ego.", path)
-    _validate_trajectory(_require(ego, "trajectory", list, "ego.", path), "ego.trajectory", path)
+    n_points = _validate_trajectory(_require(ego, "trajectory", list, "ego.", path),
+                                    "ego.trajectory", path)
     actors = _require(data, "actors", list, "", path)
+    if len(actors) > MAX_ACTORS:
+        raise ScenarioError(path, "actors", f"{len(actors):,} actors, more than the "
+                            f"{MAX_ACTORS:,} limit")
     seen: set[str] = set()
     for i, actor in enumerate(actors):
         w = f"actors[{i}]."
@@ -315,9 +427,17 @@ def validate(data: Any, path: str | Path | None = None) -> None:
         seen.add(actor_id)
         _require(actor, "category", str, w, path)
         _validate_box(actor, w, path)
-        _validate_trajectory(_require(actor, "trajectory", list, w, path), f"{w}trajectory", path)
+        traj = _require(actor, "trajectory", list, w, path)
+        if n_points + len(traj) > MAX_TRAJECTORY_POINTS:
+            raise ScenarioError(path, f"{w}trajectory", f"the vehicles have more than "
+                                f"{MAX_TRAJECTORY_POINTS:,} trajectory points (the limit)")
+        n_points += _validate_trajectory(traj, f"{w}trajectory", path)
     _require(data, "camera", dict, "", path)
-    _require(data, "source", dict, "", path)
+    src = _require(data, "source", dict, "", path)
+    for key, kind in (("inputs", list), ("tool_version", str), ("options", dict),
+                      ("assumptions", list), ("warnings", list)):
+        if key in src:
+            _require(src, key, kind, "source.", path)
 
 
 # --------------------------------------------------------------------------- load / save
@@ -341,23 +461,27 @@ def from_json(data: dict[str, Any], path: str | Path | None = None) -> Scenario:
         camera=dict(data["camera"]),
         source=Source(inputs=list(src.get("inputs", [])), tool_version=str(src.get("tool_version", "")),
                       options=dict(src.get("options", {})),
-                      assumptions=list(src.get("assumptions", []))),
+                      assumptions=list(src.get("assumptions", [])),
+                      warnings=list(src.get("warnings", []))),
     )
 
 
 def load(path: str | Path) -> Scenario:
-    """Read and validate a scenario.json; errors name the file and the field."""
+    """Read and validate a scenario.json; errors name the file and the field.
+
+    Files above :data:`MAX_SCENARIO_BYTES` are refused before they are read.
+    """
     path = Path(path)
-    text = read_input_text(path)
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise InputError(path, f"not valid JSON: {exc.msg} at line {exc.lineno}") from None
-    return from_json(data, path)
+    text = read_input_text(path, max_bytes=MAX_SCENARIO_BYTES)
+    return from_json(parse_json(text, path), path)
 
 
 def save(scenario: Scenario, path: str | Path) -> None:
-    """Validate and write canonical JSON atomically."""
-    data = json.loads(dumps_canonical(scenario.to_json()))
+    """Validate and write canonical JSON atomically.
+
+    The canonical (rounded) record is validated as it will be read back, and serialised
+    once (no text round trip: a long scenario's text is tens of MB).
+    """
+    data = _canonical(scenario.to_json())
     validate(data, path)
-    write_text_atomic(path, dumps_canonical(data))
+    write_text_atomic(path, json.dumps(data, sort_keys=True, indent=1, ensure_ascii=False) + "\n")

@@ -3,19 +3,31 @@
 One frame numbering for every stage: a folder's images in name order (``.png``, ``.jpg``,
 ``.jpeg``), a video's frames in decoding order. :mod:`vid2sim.detect.video` streams frames
 with this numbering; evaluation reads single keyframes with it.
+
+Damaged input: the images of a folder must share one size (an input error naming the first
+that does not); a video whose decoder stops before the frames its container declares is
+resumed past the damage (:func:`resume_after`), and the frames lost are counted and
+reported by the caller (:func:`skipped_frames_note`). Damage the decoder conceals (a smeared
+block in an otherwise decodable frame) is invisible through OpenCV and goes unreported.
 """
 
 from __future__ import annotations
 
+import functools
 import math
+from collections import Counter
 from pathlib import Path
 
 import cv2
 import numpy as np
+from PIL import Image, UnidentifiedImageError
 
 from vid2sim.defaults import IMAGE_FOLDER_FPS
 from vid2sim.errors import InputError
 from vid2sim.records import VideoInfo
+
+#: Largest frame side [px]: 8K video is 7680 px wide; a larger "frame" is not a video's.
+MAX_FRAME_SIDE_PX = 16384
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
 
@@ -61,22 +73,117 @@ def video_info(path: Path, fps: float | None = None) -> VideoInfo:
     path = Path(path)
     if path.is_dir():
         files = image_files(path)
-        first = cv2.imread(str(files[0]), cv2.IMREAD_COLOR)
-        if first is None:
-            raise InputError(files[0], "cannot read this image")
-        return VideoInfo(width=first.shape[1], height=first.shape[0],
-                         fps=float(fps or IMAGE_FOLDER_FPS), n_frames=len(files))
+        width, height = folder_frame_size(path)
+        return VideoInfo(width=width, height=height, fps=float(fps or IMAGE_FOLDER_FPS),
+                         n_frames=len(files))
     cap = open_capture(path)
     try:
         rate = cap.get(cv2.CAP_PROP_FPS)
         rate = float(fps) if fps else (rate if rate and np.isfinite(rate) and rate > 0 else 0.0)
         if rate <= 0:
             raise InputError(path, "video declares no frame rate", "pass the frame rate explicitly")
-        return VideoInfo(width=int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)),
-                         height=int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT)),
-                         fps=rate, n_frames=int(cap.get(cv2.CAP_PROP_FRAME_COUNT)))
+        count = cap.get(cv2.CAP_PROP_FRAME_COUNT)
+        width, height = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
+        if not (0 < width <= MAX_FRAME_SIDE_PX and 0 < height <= MAX_FRAME_SIDE_PX):
+            raise InputError(path, f"frames of {width}x{height} px are not a video's "
+                             f"(at most {MAX_FRAME_SIDE_PX} px a side)")
+        return VideoInfo(width=width, height=height, fps=rate,
+                         n_frames=int(count) if math.isfinite(count) and count > 0 else 0)
     finally:
         cap.release()
+
+
+def folder_frame_size(folder: Path) -> tuple[int, int]:
+    """(width, height) [px] shared by every image of a folder used as a video.
+
+    Read from the image headers (no decoding), so a folder of thousands of frames is checked
+    in a second, before any detection. Images whose header cannot be read are left to the
+    frame reader, which counts them as corrupt frames.
+
+    Raises
+    ------
+    InputError
+        If the images differ in size (naming the first that differs from the most common
+        size), none can be read, or the size is not a video frame's.
+    """
+    folder = Path(folder)
+    try:
+        stamp = folder.stat().st_mtime_ns
+    except OSError as exc:
+        raise InputError(folder, f"cannot read: {exc.strerror or exc}") from None
+    return _folder_frame_size(str(folder.resolve()), stamp)
+
+
+@functools.lru_cache(maxsize=8)
+def _folder_frame_size(folder: str, _mtime_ns: int) -> tuple[int, int]:
+    # Cached per folder and modification time: every stage asks for the video's facts.
+    sizes: dict[Path, tuple[int, int]] = {}
+    for f in image_files(Path(folder)):
+        try:
+            with Image.open(f) as img:
+                sizes[f] = (int(img.width), int(img.height))
+        except Image.DecompressionBombError:
+            raise InputError(f, "image far larger than a video frame") from None
+        except (OSError, UnidentifiedImageError, ValueError):
+            continue
+    if not sizes:
+        raise InputError(folder, "none of the folder's images can be read",
+                         "are the files complete images?")
+    common, _ = Counter(sizes.values()).most_common(1)[0]
+    odd = [(f, wh) for f, wh in sizes.items() if wh != common]
+    if odd:
+        f, (w, h) = odd[0]
+        raise InputError(f, f"frame is {w}x{h} px but {len(sizes) - len(odd)} of the folder's "
+                         f"{len(sizes)} frames are {common[0]}x{common[1]} "
+                         f"({len(odd)} frame(s) of another size)",
+                         "the frames of one video share one size; resize or remove the others")
+    if not (0 < common[0] <= MAX_FRAME_SIDE_PX and 0 < common[1] <= MAX_FRAME_SIDE_PX):
+        raise InputError(folder, f"frames of {common[0]}x{common[1]} px are not a video's "
+                         f"(at most {MAX_FRAME_SIDE_PX} px a side)")
+    return common
+
+
+def resume_after(cap: cv2.VideoCapture, failed: int, n_declared: int) -> int | None:
+    """Resume decoding after the decoder failed to give frame ``failed``.
+
+    A video with damaged bytes stops decoding at the damage although its container declares
+    ``n_declared`` frames (a mp4 with 400 kB overwritten mid-file: 57 of 108 frames, silently).
+    Seeking past the damage recovers the rest: the first later frame that decodes is found by
+    doubling the step, then bisecting back (a few seeks, each a keyframe decode).
+
+    Returns
+    -------
+    int or None
+        The index of the first decodable frame after ``failed`` (the capture has grabbed it,
+        ready for ``retrieve``), or None if none of the declared frames after it decodes.
+    """
+    def grab_at(i: int) -> bool:
+        return bool(cap.set(cv2.CAP_PROP_POS_FRAMES, i)) and cap.grab()
+
+    bad, step = failed, 1
+    while True:
+        good = bad + step
+        if good >= n_declared:
+            good = n_declared - 1
+            if good <= bad or not grab_at(good):
+                return None
+            break
+        if grab_at(good):
+            break
+        bad, step = good, step * 2
+    while good - bad > 1:
+        mid = (bad + good) // 2
+        if grab_at(mid):
+            good = mid
+        else:
+            bad = mid
+    return good if grab_at(good) else None
+
+
+def skipped_frames_note(frames: list[int]) -> str:
+    """The warning for frames that a video could not give (corrupt or missing)."""
+    return (f"{len(frames)} corrupt or missing video frame(s) skipped (first {frames[0]}, "
+            f"last {frames[-1]}); boxes there are the tracker's predictions")
 
 
 

@@ -154,3 +154,68 @@ def test_own_detections_csv_reads_back(tmp_path):
     assert got == {0: [Detection((1.0, 2.0, 30.0, 40.0), 0.9, "car"),
                        Detection((50.0, 2.0, 90.0, 40.0), 0.5, "bus")],
                    4: [Detection((5.0, 2.0, 35.0, 40.0), 0.8, "car")]}
+
+
+# --------------------------------------------------------------------------- damaged files
+
+
+def _samples() -> dict[str, bytes]:
+    own = ("frame,t_s,track_id,category,score,x1,y1,x2,y2\n"
+           "0,0.0,1,car,0.9,10.0,20.0,50.0,60.0\n1,0.1,1,car,0.8,12.0,20.0,52.0,60.0\n"
+           "1,0.1,2,truck,0.7,100.0,20.0,180.0,90.0\n")
+    mot = "1,1,10,20,30,40,0.9,car\n2,1,12,20,30,40,0.8,car\n2,2,100,20,80,70,0.7,truck\n"
+    scalabel = json.dumps([{"name": f"f{i}.jpg", "frameIndex": i, "labels": [
+        {"category": "car", "score": 0.9,
+         "box2d": {"x1": 10.0 + i, "y1": 20.0, "x2": 50.0 + i, "y2": 60.0}}]} for i in range(3)])
+    return {"detections.csv": own.encode(), "det.txt": mot.encode(),
+            "labels.json": scalabel.encode()}
+
+
+@pytest.mark.parametrize("name", ["detections.csv", "det.txt", "labels.json"])
+def test_detection_file_damage_gives_input_error_only(tmp_path, name):
+    import math
+
+    from ..damage import FUZZ, damaged, input_error_or_result
+
+    @FUZZ
+    @given(data=damaged(_samples()[name]))
+    def check(data):
+        path = tmp_path / name
+        path.write_bytes(data)
+        got = input_error_or_result(read_detections, path)
+        if isinstance(got, dict):  # what reads is usable: finite boxes with an area
+            for frame, dets in got.items():
+                assert frame >= 0
+                for d in dets:
+                    x1, y1, x2, y2 = d.box_px
+                    assert all(math.isfinite(v) for v in d.box_px) and x2 > x1 and y2 > y1
+                    assert 0.0 <= d.score <= 1.0
+
+    check()
+
+
+@pytest.mark.parametrize("content,suffix,match", [
+    ("1,1,nan,20,30,40,0.9,car\n", ".txt", "not a finite number"),
+    ("1,1,10,20,inf,40,0.9,car\n", ".txt", "not a finite number"),
+    ("1,1,10,20,0,40,0.9,car\n", ".txt", "no area"),
+    ("1,1,10,20,30,-4,0.9,car\n", ".txt", "no area"),
+    ("1e300,1,10,20,30,40,0.9,car\n", ".txt", "frame"),
+    ("frame,t_s,track_id,category,score,x1,y1,x2,y2\n0,0,1,car,nan,1,2,3,4\n", ".csv",
+     "not a finite number"),
+    (('[{"frameIndex": 0, "labels": [{"category": "car", "box2d": '
+     '{"x1": 5, "y1": 5, "x2": 5, "y2": 9}}]}]'), ".json", "no area"),
+    ('[{"frameIndex": "x", "labels": []}]', ".json", "whole number"),
+    ("[" * 100_000 + "]" * 100_000, ".json", "nested too deeply"),
+])
+def test_non_finite_and_degenerate_boxes_are_input_errors(tmp_path, content, suffix, match):
+    path = tmp_path / f"bad{suffix}"
+    path.write_text(content)
+    with pytest.raises(InputError, match=match):
+        read_detections(path)
+
+
+def test_binary_detections_are_an_input_error(tmp_path):
+    path = tmp_path / "det.csv"
+    path.write_bytes(bytes(range(256)) * 8)
+    with pytest.raises(InputError, match="binary|UTF-8"):
+        read_detections(path)

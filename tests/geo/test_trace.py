@@ -337,3 +337,74 @@ def test_kitti_speed_1hz_with_3m_noise(kitti_raw_dir):
           f"mean {np.mean(rmses):.3f} median {np.median(rmses):.3f}")
     assert np.mean(rmses) <= 1.0
     assert np.median(rmses) <= 1.0
+
+
+# --------------------------------------------------------------------------- one drive, gaps
+
+
+def test_fixes_alternating_between_two_cities_are_an_input_error():
+    # Half the fixes 1,820 km away: no car drives that; the error names the first jump.
+    fixes = sample_fixes(simulate([Segment(60.0)], v0_mps=10.0), rate_hz=1.0, noise_m=2.0,
+                         seed=4)
+    far = [dataclasses.replace(f, lat_deg=51.5, lon_deg=-0.12) if i % 2 else f
+           for i, f in enumerate(fixes)]
+    with pytest.raises(InputError, match=r"fix 2 \(in time order\) is 18\d\d\.\d km from fix 1"):
+        run(far)
+
+
+def test_two_drives_in_one_file_are_an_input_error():
+    a = sample_fixes(simulate([Segment(60.0)], v0_mps=10.0), rate_hz=1.0, noise_m=2.0, seed=5)
+    b = [dataclasses.replace(f, t_utc_s=f.t_utc_s + 61.0, lat_deg=f.lat_deg - 8.0)
+         for f in a[:20]]
+    with pytest.raises(InputError, match="fix 62 .* beyond any car"):
+        run(a + b)
+
+
+def test_a_few_wild_fixes_far_away_are_outliers_not_an_error():
+    fixes = sample_fixes(simulate([Segment(300.0)], v0_mps=10.0), rate_hz=1.0, noise_m=2.0,
+                         seed=6)
+    fixes[100] = dataclasses.replace(fixes[100], lat_deg=0.0, lon_deg=0.0)  # "null island"
+    fixes[200] = dataclasses.replace(fixes[200], lat_deg=fixes[200].lat_deg + 1.0)
+    ego, stats = run(fixes)
+    assert stats.n_rejected == 2
+    assert np.all(np.abs(ego.y_m) < 50.0)  # the drive is due east: nothing pulled away
+
+
+@pytest.mark.parametrize("bias_m", [0.0, 30.0])
+def test_a_long_gap_while_parked_invents_no_motion(bias_m):
+    # A 10-minute gap in the middle of a 15-minute stop, fixes wandering as a parked phone's
+    # do (30 m Gauss-Markov bias): the old smoother drove 560 m back and forth through it.
+    truth = simulate([Segment(10.0, 1.0), Segment(290.0), Segment(10.0, -1.0), Segment(900.0),
+                      Segment(10.0, 1.0), Segment(290.0)], dt=0.05)
+    fixes = sample_fixes(truth, rate_hz=1.0, noise_m=3.0, bias_m=bias_m, seed=3)
+    t = np.array([f.t_utc_s for f in fixes]) - fixes[0].t_utc_s
+    fixes = [f for f, ti in zip(fixes, t, strict=True) if not 500.0 < ti < 1100.0]
+    ego, stats = run(fixes)
+    inside = (ego.t_s > 500.0) & (ego.t_s < 1100.0)
+    x, y = ego.x_m[inside], ego.y_m[inside]
+    chord = math.hypot(x[-1] - x[0], y[-1] - y[0])
+    # straight from one end to the other, never back: the path is the chord
+    assert np.hypot(np.diff(x), np.diff(y)).sum() == pytest.approx(chord, abs=0.5)
+    assert np.ptp(np.unwrap(ego.heading_rad[inside])) < 1e-9  # no heading flips
+    assert ego.speed_mps[inside].max() < 0.2
+    assert any("GPS gap of 600 s at t=500.0 s" in w for w in stats.warnings)
+    assert any("GPS gap of 600 s" in a for a in stats.assumptions)
+    assert "GPS gap of 600 s" in "\n".join(format_summary_lines(stats))
+
+
+def format_summary_lines(stats):
+    from vid2sim.geo.trace import format_summary
+
+    return format_summary(stats).splitlines()
+
+
+def test_a_tunnel_gap_is_crossed_at_constant_speed():
+    truth = simulate([Segment(200.0)], v0_mps=15.0, heading0_rad=0.3)
+    fixes = sample_fixes(truth, rate_hz=1.0, noise_m=2.0, seed=7)
+    fixes = fixes[:80] + fixes[140:]  # 61 s between fixes
+    ego, stats = run(fixes)
+    inside = (ego.t_s > 80.0) & (ego.t_s < 139.0)
+    assert np.all(np.abs(ego.speed_mps[inside] - 15.0) < 0.5)
+    tr = truth.at(ego.t_s[inside])
+    assert np.hypot(ego.x_m[inside] - tr["x_m"], ego.y_m[inside] - tr["y_m"]).max() < 5.0
+    assert stats.gaps == [(79.0, 61.0)]  # fixes 79 and 140 bracket it

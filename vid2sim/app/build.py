@@ -9,16 +9,14 @@ function of a domain package that takes records and returns records; this module
 inputs (through :mod:`vid2sim.app.loaders`), passes records along, sorts the stages' notes
 into warnings and assumptions, and writes the outputs.
 
-All outputs are written into a staging folder beside the output folder and moved in only when
-every stage has succeeded, so a failed build leaves no half-written files and does not clobber
-an earlier build's files.
+All outputs are written into a staging folder (:func:`vid2sim.fileio.staged_folder`, created
+before the first stage, on the output's filesystem) and moved in only when every stage has
+succeeded, so a failed or interrupted build leaves no half-written files and does not clobber
+an earlier build's files; a successful one replaces all of an earlier build's outputs.
 """
 
 from __future__ import annotations
 
-import os
-import shutil
-import tempfile
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -34,12 +32,14 @@ from vid2sim.app.inputs import Inputs
 from vid2sim.app.loaders import (
     load_boxes,
     load_camera_for,
+    load_keyframes_for,
     load_trace,
     load_video_info,
     need_video,
     smooth_trace,
 )
 from vid2sim.app.settings import Settings
+from vid2sim.camera import Camera
 from vid2sim.detect.lane_track import lane_track
 from vid2sim.detect.pipeline import detect_and_range
 from vid2sim.errors import InputError
@@ -47,10 +47,10 @@ from vid2sim.evaluate.replay import run_eval
 from vid2sim.evaluate.report import write_report
 from vid2sim.export.assemble import assemble_scenario
 from vid2sim.export.openscenario import write_openscenario
-from vid2sim.fileio import write_text_atomic
+from vid2sim.fileio import staged_folder, write_text_atomic
 from vid2sim.geo import roads as geo_roads
 from vid2sim.geo.lateral import fuse_lateral
-from vid2sim.records import EgoLateral, EgoTrack, Note, NoteKind, Origin, notes_of
+from vid2sim.records import EgoLateral, EgoTrack, Note, NoteKind, Origin, VideoInfo, notes_of
 from vid2sim.scenario import Source, dumps_canonical
 from vid2sim.tables import write_tracks_csv
 
@@ -154,6 +154,28 @@ class _Stages:
 # --------------------------------------------------------------------------- build
 
 
+def _write_tables(staging: Path, scenario, ranging, road_result) -> dict[str, Path]:
+    """scenario.json, tracks.csv and (with GPS) road.json into ``staging``; their names."""
+    files = {"scenario": Path("scenario.json"), "tracks": Path("tracks.csv")}
+    scenario_io.save(scenario, staging / "scenario.json")
+    write_tracks_csv(ranging.boxes, staging / "tracks.csv")
+    if road_result is not None:
+        # The road stage's own output, as `vid2sim road` writes it (matches per fix).
+        write_text_atomic(staging / "road.json",
+                          dumps_canonical(geo_roads.road_json(road_result)))
+        files["road"] = Path("road.json")
+    return files
+
+
+#: Every output `vid2sim build` may write into its folder. A build owns them: a rebuild
+#: removes those it does not write again (a rebuild without keyframes leaves no old
+#: metrics.json or keyframes/), and the highway-env export of an earlier scenario.json
+#: (replay.py, preview.png), which would otherwise describe a scenario no longer there.
+BUILD_OUTPUTS: tuple[str, ...] = (
+    "scenario.json", "scenario.xosc", "road.xodr", "tracks.csv", "road.json", "report.html",
+    "figures", "metrics.json", "keyframes", "replay.py", "preview.png")
+
+
 def build(inputs: Inputs, out_dir: Path, settings: Settings | None = None,
           report: Callable[[str], None] | None = None) -> BuildResult:
     """Run the whole pipeline for one video and write its outputs into ``out_dir``.
@@ -163,24 +185,39 @@ def build(inputs: Inputs, out_dir: Path, settings: Settings | None = None,
     inputs : Inputs
         The video and what comes with it (GPS, map, camera, boxes, keyframes, time base).
     out_dir : Path
-        Output folder (its vid2sim outputs are replaced only when the build succeeds).
+        Output folder. Its vid2sim outputs (:data:`BUILD_OUTPUTS`) are replaced only when the
+        build succeeds; other files in it are left alone.
     settings : Settings, optional
         Detector, tracker, ranging, smoothing and assembly settings (defaults otherwise).
     report : callable, optional
         Receives one line per stage as it starts (progress).
     """
     settings = settings or Settings()
-    stages = _Stages(report)
     out_dir = Path(out_dir)
     # Every input before any long work, so a typo fails in a second, not a minute.
     settings.check()
     inputs.check()
     video = need_video(inputs)
     info = load_video_info(inputs)
-    video_duration_s = (info.n_frames - 1) / info.fps if info.n_frames > 1 else 0.0
     camera, notes = load_camera_for(inputs, info)
+    if inputs.keyframes is not None:
+        load_keyframes_for(inputs.keyframes, video, info, inputs.fps)
     # The detector (or imported boxes) before any long work: missing weights fail fast.
     detector, imported, boxes_label = load_boxes(inputs, settings)
+    # The output folder last of the checks, first of the work: a read-only or full disk
+    # fails now, and everything is written into a staging folder moved into place at the
+    # end (removed on an error, Ctrl-C or SIGTERM).
+    with staged_folder(out_dir, BUILD_OUTPUTS) as staging:
+        return _build_into(staging, out_dir, inputs, settings, info, camera, notes, detector,
+                           imported, boxes_label, _Stages(report))
+
+
+def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings,
+                info: VideoInfo, camera: Camera, notes: list, detector, imported,
+                boxes_label: str, stages: _Stages) -> BuildResult:
+    """The stages of :func:`build`, writing into ``staging`` (``out_dir`` once moved)."""
+    video = need_video(inputs)
+    video_duration_s = (info.n_frames - 1) / info.fps if info.n_frames > 1 else 0.0
 
     # ---- geo: ego trajectory and road
     roads, road_result, trace = [], None, None
@@ -191,6 +228,7 @@ def build(inputs: Inputs, out_dir: Path, settings: Settings | None = None,
                                       settings)
         notes.extend(trace_stats.warnings)
         ego_noise_m = trace_stats.noise_m
+        notes.extend(Note.assumption(a) for a in trace_stats.assumptions)
         ego, clip_warnings = clip_ego_to_video(ego, video_duration_s)
         notes.extend(clip_warnings)
         road_result = stages.run("road and map matching", match_road, trace, ego, inputs,
@@ -238,61 +276,36 @@ def build(inputs: Inputs, out_dir: Path, settings: Settings | None = None,
                                              config=settings.assemble,
                                              ego_noise_m=ego_noise_m)
     warnings.extend(assemble_warnings)
+    scenario.source.warnings = [str(w) for w in warnings]
 
-    # ---- write into a staging folder, then move into place
-    out_dir.parent.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", dir=out_dir.parent))
-    try:
-        files: dict[str, Path] = {}
-        scenario_io.save(scenario, staging / "scenario.json")
-        files["scenario"] = Path("scenario.json")
-        write_tracks_csv(ranging.boxes, staging / "tracks.csv")
-        files["tracks"] = Path("tracks.csv")
-        if road_result is not None:
-            # The road stage's own output, as `vid2sim road` writes it (matches per fix).
-            write_text_atomic(staging / "road.json",
-                              dumps_canonical(geo_roads.road_json(road_result)))
-            files["road"] = Path("road.json")
-        xosc, xodr = stages.run("export OpenSCENARIO/OpenDRIVE", write_openscenario, scenario,
-                                staging)
-        files["openscenario"] = Path(xosc.name)
-        files["opendrive"] = Path(xodr.name)
-        figures = stage_figures(staging / "figures", road_result, trace, ego, ranging.boxes)
-        report_inputs = {**inputs.labelled_paths(), "output folder": str(out_dir)}
-        metrics = None
-        if inputs.keyframes is not None:
-            # run_eval writes metrics.json, the keyframe overlays and the one report.html,
-            # with this build's figures, warnings and inputs added.
-            metrics, _ = stages.run("replay evaluation", run_eval, staging / "scenario.json",
-                                    inputs.keyframes, video=video, out_dir=staging,
-                                    fps=inputs.fps, extra_figures=figures,
-                                    extra_warnings=warnings, report_inputs=report_inputs,
-                                    # the staging folder's random name would make metrics.json
-                                    # differ between identical builds
-                                    scenario_label=str(out_dir / "scenario.json"),
-                                    # actors drawn with the outlines the ranging read
-                                    outlines=settings.ranging.outlines)
-            files["metrics"] = Path("metrics.json")
-        else:
-            write_report(staging / "report.html", scenario=scenario, metrics=None,
-                         extra_figures=figures, warnings=warnings, inputs=report_inputs)
-        files["report"] = Path("report.html")
-        if not out_dir.exists():
-            # A new output folder appears whole, in one rename: a process killed at any
-            # moment leaves no folder or a complete one (vid2sim batch relies on it).
-            # mkdtemp made the staging folder 0700; the user's own folders are 0777 - umask.
-            mask = os.umask(0)
-            os.umask(mask)
-            staging.chmod(0o777 & ~mask)
-            staging.rename(out_dir)
-        else:
-            for child in staging.iterdir():
-                target = out_dir / child.name
-                if target.is_dir() and not target.is_symlink():
-                    shutil.rmtree(target)
-                child.replace(target)
-    finally:
-        shutil.rmtree(staging, ignore_errors=True)
+    # ---- write into the staging folder (moved into place by the caller)
+    files = stages.run("write scenario and tables", _write_tables, staging, scenario, ranging,
+                       road_result)
+    xosc, xodr = stages.run("export OpenSCENARIO/OpenDRIVE", write_openscenario, scenario,
+                            staging)
+    files["openscenario"] = Path(xosc.name)
+    files["opendrive"] = Path(xodr.name)
+    figures = stages.run("figures", stage_figures, staging / "figures", road_result, trace, ego,
+                         ranging.boxes)
+    report_inputs = {**inputs.labelled_paths(), "output folder": str(out_dir)}
+    metrics = None
+    if inputs.keyframes is not None:
+        # run_eval writes metrics.json, the keyframe overlays and the one report.html,
+        # with this build's figures, warnings and inputs added.
+        metrics, _ = stages.run("replay evaluation", run_eval, staging / "scenario.json",
+                                inputs.keyframes, video=video, out_dir=staging,
+                                fps=inputs.fps, extra_figures=figures,
+                                extra_warnings=warnings, report_inputs=report_inputs,
+                                # the staging folder's random name would make metrics.json
+                                # differ between identical builds
+                                scenario_label=str(out_dir / "scenario.json"),
+                                # actors drawn with the outlines the ranging read
+                                outlines=settings.ranging.outlines)
+        files["metrics"] = Path("metrics.json")
+    else:
+        stages.run("report", write_report, staging / "report.html", scenario=scenario,
+                   metrics=None, extra_figures=figures, warnings=warnings, inputs=report_inputs)
+    files["report"] = Path("report.html")
 
     lead = lead_summary(ranging, info.n_frames)
     lead_range = (None if not np.isfinite(lead["lead_range_median_m"]) else

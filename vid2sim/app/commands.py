@@ -1,9 +1,12 @@
-"""The single-stage commands (``trace``, ``road``, ``detect``, ``track``): slices of ``build``.
+"""The single-stage commands (``trace``, ``road``, ``detect``, ``track``, ``export``,
+``eval``): slices of ``build``.
 
 Each takes the run's :class:`~vid2sim.app.inputs.Inputs` and
-:class:`~vid2sim.app.settings.Settings`, loads what it needs through
-:mod:`vid2sim.app.loaders` (the same loaders ``build`` uses), runs the stage functions and
-writes its output atomically. Each returns the summary text the CLI prints.
+:class:`~vid2sim.app.settings.Settings` (or the scenario it works on), loads what it needs
+through :mod:`vid2sim.app.loaders` (the same loaders ``build`` uses), checks that its output
+can be written before any work, runs the stage functions and writes its output atomically: a
+file renamed into place, or a folder staged and moved into place
+(:func:`vid2sim.fileio.staged_folder`). Each returns the summary text the CLI prints.
 """
 
 from __future__ import annotations
@@ -15,10 +18,12 @@ from pathlib import Path
 
 import numpy as np
 
+from vid2sim import scenario as scenario_io
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.loaders import (
     load_boxes,
     load_camera_for,
+    load_keyframes_for,
     load_trace,
     load_video_info,
     need_video,
@@ -27,12 +32,23 @@ from vid2sim.app.loaders import (
 from vid2sim.app.settings import Settings
 from vid2sim.detect.pipeline import detect_and_range, run_detect
 from vid2sim.detect.plots import plot_lead, plot_topdown
-from vid2sim.fileio import write_text_atomic
+from vid2sim.errors import InputError
+from vid2sim.evaluate.replay import run_eval
+from vid2sim.export import FORMATS, replay_script
+from vid2sim.export.openscenario import write_openscenario
+from vid2sim.fileio import (
+    check_output_file,
+    check_output_folder,
+    staged_folder,
+    write_bytes_atomic,
+    write_text_atomic,
+)
 from vid2sim.geo import roads as geo_roads
 from vid2sim.geo import trace as geo_trace
 from vid2sim.records import RangingResult
 from vid2sim.scenario import dumps_canonical
 from vid2sim.tables import write_detections_csv, write_ego_csv, write_tracks_csv
+from vid2sim.videofile import skipped_frames_note, video_info
 
 # --------------------------------------------------------------------------- trace, road
 
@@ -41,6 +57,7 @@ def run_trace(inputs: Inputs, out_path: Path, settings: Settings | None = None) 
     """``vid2sim trace``: read the GPS trace, smooth it, write ``ego.csv``; the summary."""
     settings = settings or Settings()
     inputs.check()
+    check_output_file(out_path)
     trace = load_trace(inputs)
     ego, stats = smooth_trace(trace, inputs, settings)
     write_ego_csv(ego, out_path)
@@ -59,6 +76,9 @@ def run_road(inputs: Inputs, out_path: Path, settings: Settings | None = None,
     """``vid2sim road``: match the trace to OpenStreetMap, write ``road.json`` (and a PNG)."""
     settings = settings or Settings()
     inputs.check()
+    check_output_file(out_path)
+    if plot_path is not None:
+        check_output_file(plot_path)
     trace = load_trace(inputs)
     ego, _ = smooth_trace(trace, inputs, settings)
     result = match_road(trace, ego, inputs, settings)
@@ -83,6 +103,7 @@ class DetectSummary:
     n_tracks: int
     tracks_per_category: dict[str, int] = field(default_factory=dict)
     detector: str = ""
+    skipped_frames: list[int] = field(default_factory=list)
 
     @property
     def fps(self) -> float:
@@ -93,7 +114,9 @@ class DetectSummary:
         cats = ", ".join(f"{k} {v}" for k, v in sorted(self.tracks_per_category.items()))
         return (f"{self.source}: {self.n_frames} frames in {self.elapsed_s:.1f} s "
                 f"({self.fps:.1f} frames/s) with {self.detector}; {self.n_tracks} tracks"
-                f"{' (' + cats + ')' if cats else ''}, {self.n_rows} rows -> {self.out_path}")
+                f"{' (' + cats + ')' if cats else ''}, {self.n_rows} rows -> {self.out_path}"
+                + (f"\nwarning: {skipped_frames_note(self.skipped_frames)}"
+                   if self.skipped_frames else ""))
 
 
 def run_detect_command(inputs: Inputs, out_path: Path,
@@ -106,17 +129,21 @@ def run_detect_command(inputs: Inputs, out_path: Path,
     # The video first: a mistyped path should not be reported as missing weights.
     n_frames = load_video_info(inputs).n_frames
     detector, imported, label = load_boxes(inputs, settings)
+    check_output_file(out_path)
     start = time.perf_counter()
+    skipped: list[int] = []
     boxes = run_detect(source, detector=detector, detections=imported,
                        detect_every=settings.detector.detect_every, progress=settings.progress,
                        tracker_config=settings.tracker_config(), fps=inputs.fps,
-                       schedule=settings.detector.schedule(), capture_clock=True)
+                       schedule=settings.detector.schedule(), capture_clock=True,
+                       skipped_frames=skipped)
     elapsed = time.perf_counter() - start
     write_detections_csv(boxes, out_path)
     per_track = {b.track_id: b.category for b in boxes}
     return DetectSummary(source=source, out_path=Path(out_path), n_frames=n_frames,
                          elapsed_s=elapsed, n_rows=len(boxes), n_tracks=len(per_track),
-                         tracks_per_category=dict(Counter(per_track.values())), detector=label)
+                         tracks_per_category=dict(Counter(per_track.values())), detector=label,
+                         skipped_frames=skipped)
 
 
 # --------------------------------------------------------------------------- track
@@ -151,6 +178,9 @@ def run_track(inputs: Inputs, out_path: Path, settings: Settings | None = None,
     info = load_video_info(inputs)
     camera, notes = load_camera_for(inputs, info)
     detector, imported, source = load_boxes(inputs, settings)
+    check_output_file(out_path)
+    if plot_dir is not None:
+        check_output_folder(plot_dir)
     result, camera, stage_notes = detect_and_range(
         video, camera, detector=detector, detections=imported,
         detect_every=settings.detector.detect_every, fps=inputs.fps,
@@ -179,3 +209,89 @@ def run_track(inputs: Inputs, out_path: Path, settings: Settings | None = None,
         lines.append(f"plots: {p1}, {p2}")
     lines += [f"note: {w}" for w in result.warnings]
     return "\n".join(lines)
+
+
+# --------------------------------------------------------------------------- export, eval
+
+#: The files each export format writes into its folder.
+EXPORT_OUTPUTS: dict[str, tuple[str, ...]] = {
+    "openscenario": ("scenario.xosc", "road.xodr"),
+    "highway-env": ("scenario.json", "replay.py", "preview.png"),
+}
+#: What ``vid2sim eval`` writes into its folder (a rerun replaces all of it).
+EVAL_OUTPUTS: tuple[str, ...] = ("metrics.json", "keyframes", "report.html")
+
+
+def run_export(scenario_path: Path, fmt: str, out_dir: Path) -> str:
+    """``vid2sim export``: a scenario.json for a simulator; returns the summary.
+
+    ``openscenario``: ``out_dir/scenario.xosc`` + ``out_dir/road.xodr``.
+    ``highway-env``: ``out_dir/scenario.json`` (canonical copy), ``out_dir/replay.py`` (runnable
+    example: ACC + AEB ego, or ``--log``) and ``out_dir/preview.png`` (top view of the replay
+    with the logged ego at mid-scenario).
+
+    The scenario is validated first (schema, finite numbers, limits, road geometry), the
+    outputs are staged and moved into ``out_dir`` together: a failure leaves the folder as it
+    was.
+    """
+    if fmt not in EXPORT_OUTPUTS:
+        raise InputError(None, f"unknown export format {fmt!r}", f"use one of {', '.join(FORMATS)}")
+    scenario_path = Path(scenario_path)
+    sc = scenario_io.load(scenario_path)
+    out_dir = Path(out_dir)
+    with staged_folder(out_dir, EXPORT_OUTPUTS[fmt]) as staging:
+        if fmt == "openscenario":
+            write_openscenario(sc, staging)
+            return (f"wrote {out_dir / 'scenario.xosc'} (OpenSCENARIO 1.2, {1 + len(sc.actors)} "
+                    f"vehicles, {sc.duration_s:.1f} s) and {out_dir / 'road.xodr'} (OpenDRIVE "
+                    f"1.8, {max(len(sc.roads), 1)} road(s))")
+        scenario_io.save(sc, staging / "scenario.json")
+        v_ref = max(float(np.max(sc.ego.trajectory.speed)), 5.0)
+        write_text_atomic(staging / "replay.py", replay_script(scenario_path.name, v_ref))
+        write_bytes_atomic(staging / "preview.png", _highway_preview_png(sc))
+    return (f"wrote {out_dir / 'scenario.json'}, {out_dir / 'replay.py'} and "
+            f"{out_dir / 'preview.png'} ({1 + len(sc.actors)} vehicles, {sc.duration_s:.1f} s; "
+            f"run: python {out_dir / 'replay.py'})")
+
+
+def _highway_preview_png(sc) -> bytes:
+    """Top view of the highway-env replay with the logged ego at mid-scenario, as PNG."""
+    import cv2
+
+    # highway-env and pygame take a second to import: only the highway-env export needs them.
+    from vid2sim.export.highway import ReplayEnv
+
+    env = ReplayEnv(sc, ego_mode="log", render_mode="rgb_array",
+                    config={"screen_width": 800, "screen_height": 400})
+    try:
+        env.reset(seed=0)
+        action = np.zeros(1, dtype=np.float32)
+        for _ in range(env.n_steps // 2):
+            env.step(action)
+        frame = env.render()
+    finally:
+        env.close()
+    ok, png = cv2.imencode(".png", cv2.cvtColor(frame, cv2.COLOR_RGB2BGR))
+    if not ok:  # pragma: no cover - PNG encoding of an RGB array does not fail
+        raise RuntimeError("PNG encoding failed")
+    return png.tobytes()
+
+
+def run_eval_command(scenario_path: Path, keyframes_path: Path, out_dir: Path, *,
+                     video: Path | None = None, fps: float | None = None,
+                     use_env: bool = True) -> str:
+    """``vid2sim eval``: replay a scenario at annotated keyframes, score it, write
+    ``metrics.json``, ``keyframes/`` and ``report.html`` into ``out_dir`` (staged); the summary.
+
+    With a video, keyframes beyond its frames are an input error before any replay.
+    """
+    out_dir = Path(out_dir)
+    check_output_folder(out_dir)
+    scenario_io.load(scenario_path)  # the scenario's own errors before the keyframes'
+    if video is not None:
+        info = video_info(Path(video), fps=fps)
+        load_keyframes_for(Path(keyframes_path), Path(video), info, fps)
+    with staged_folder(out_dir, EVAL_OUTPUTS) as staging:
+        _, summary = run_eval(scenario_path, keyframes_path, video=video, out_dir=staging,
+                              fps=fps, use_env=use_env, scenario_label=str(scenario_path))
+    return summary.replace(str(staging), str(out_dir))

@@ -16,9 +16,11 @@ from vid2sim.detect.detector import OnnxDetector, load_detector
 from vid2sim.detect.external import read_detections
 from vid2sim.detect.video import video_info
 from vid2sim.errors import InputError
+from vid2sim.evaluate.annotations import read_keyframes
 from vid2sim.geo.readers import read_gps
 from vid2sim.geo.trace import smooth_ego
-from vid2sim.records import Detection, EgoTrack, GpsTrace, Note, TraceStats, VideoInfo
+from vid2sim.records import Detection, EgoTrack, GpsTrace, Keyframe, Note, TraceStats, VideoInfo
+from vid2sim.videofile import image_files
 
 
 def need_video(inputs: Inputs) -> Path:
@@ -84,3 +86,34 @@ def smooth_trace(trace: GpsTrace, inputs: Inputs, settings: Settings
     """The ego trajectory of a trace on the run's GPS time base (``inputs.gps_offset_s``)."""
     return smooth_ego(trace, rate_hz=settings.rate_hz, gps_offset_s=inputs.gps_offset_s,
                       params=settings.trace)
+
+
+def load_keyframes_for(keyframes: Path, video: Path, info: VideoInfo,
+                       fps: float | None = None) -> list[Keyframe]:
+    """The annotated keyframes on the video's frames, checked against the video.
+
+    Frame numbers and times are read as the evaluation reads them (an image folder's frames
+    matched by name, times at ``fps`` or the video's rate). Run before any detection: a
+    keyframe file for another video must fail in a second, not be scored as a zero on a grey
+    canvas after the whole build.
+
+    Raises
+    ------
+    InputError
+        If no keyframe matches a frame of the video, or any lies beyond its last frame.
+    """
+    rate = float(fps or info.fps)
+    names = [p.name for p in image_files(video)] if Path(video).is_dir() else None
+    frames = read_keyframes(keyframes, fps=rate, frame_names=names)
+    if not frames:
+        raise InputError(keyframes, "no annotated keyframe matches a frame of the video "
+                         f"({info.n_frames} frames)", "are the annotations for this video?")
+    index = [k.frame if k.frame is not None else round(k.t_s * rate) for k in frames]
+    outside = [(k, f) for k, f in zip(frames, index, strict=True)
+               if not 0 <= f < info.n_frames]
+    if outside:
+        k, f = outside[0]
+        raise InputError(keyframes, f"{len(outside)} of {len(frames)} keyframes lie outside the "
+                         f"video's {info.n_frames} frames (first: {k.name!r}, frame {f})",
+                         "are the annotations for this video, at this frame rate?")
+    return frames

@@ -10,7 +10,8 @@ our frame f - 1. Scalabel frames use ``frameIndex`` (0-based, as BDD100K writes 
 from __future__ import annotations
 
 import csv
-import json
+import io
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -18,6 +19,7 @@ import numpy as np
 
 from vid2sim.detect.boxes import iou_matrix, match
 from vid2sim.errors import InputError
+from vid2sim.fileio import parse_json, read_input_text
 from vid2sim.records import Detection
 
 # Category names other tools use -> ours. Anything absent (pedestrian, train, bicycle...)
@@ -34,6 +36,13 @@ MOT_CLASS_IDS: dict[int, str] = {3: "car", 5: "motorcycle"}
 
 def _category(name: str) -> str | None:
     return CATEGORY_ALIASES.get(name.strip().lower())
+
+
+#: Largest |pixel coordinate| of an imported box [px]: boxes reach a little past the image
+#: edge; 100,000 px is beyond any frame (16K video is 15,360 px wide).
+MAX_BOX_COORD_PX = 100_000.0
+#: Largest imported frame number: a month of video at 30 frames/s.
+MAX_FRAME_INDEX = 100_000_000
 
 
 def read_detections(path: Path) -> dict[int, list[Detection]]:
@@ -54,41 +63,80 @@ def read_detections(path: Path) -> dict[int, list[Detection]]:
     Raises
     ------
     InputError
-        If the file is missing or not in either format.
+        If the file is missing, binary or not in either format, or a vehicle row holds a box
+        that is not finite, has no area (x2 <= x1 or y2 <= y1, w or h <= 0) or lies beyond
+        any frame, a score that is not a number in [0, 1] (MOT's -1: unknown), or a frame
+        number that is not a video's. Such a row is an error, not skipped: a file with one is
+        broken, and the boxes it would leave out are cars missing from the scenario.
     """
     path = Path(path)
     if not path.is_file():
         raise InputError(path, "no such detections file")
-    if path.suffix.lower() == ".json":
-        return read_scalabel(path)
-    with open(path, encoding="utf-8-sig") as fh:
-        header = fh.readline().strip().replace(" ", "")
-    if header.startswith("frame,t_s,track_id,category,score,x1,y1,x2,y2"):
-        return read_vid2sim_csv(path)
-    return read_mot(path)
+    text = read_input_text(path)
+    try:
+        if path.suffix.lower() == ".json":
+            return _read_scalabel_text(text, path)
+        header = text.split("\n", 1)[0].strip().replace(" ", "")
+        if header.startswith("frame,t_s,track_id,category,score,x1,y1,x2,y2"):
+            return _read_vid2sim_text(text, path)
+        return _read_mot_text(text, path)
+    except csv.Error as exc:
+        raise InputError(path, f"not a readable CSV: {exc}") from None
 
 
 def read_vid2sim_csv(path: Path) -> dict[int, list[Detection]]:
     """Read this project's own ``detections.csv`` (``vid2sim detect`` output; 0-based frames,
     corner boxes [px]) back as per-frame detections, e.g. to re-track or re-range them."""
-    out: dict[int, list[Detection]] = {}
-    with open(path, newline="", encoding="utf-8-sig") as fh:
-        for n, row in enumerate(csv.DictReader(fh), start=2):
-            try:
-                frame = int(row["frame"])
-                box = tuple(float(row[k]) for k in ("x1", "y1", "x2", "y2"))
-                score = float(row["score"])
-            except (KeyError, TypeError, ValueError) as exc:
-                raise InputError(path, f"line {n}: {exc}", "columns: frame,t_s,track_id,"
-                                 "category,score,x1,y1,x2,y2") from None
-            category = _category(row.get("category") or "")
-            if category is None:
-                continue
-            out.setdefault(frame, []).append(Detection(box_px=box, score=score, category=category))
-    return out
+    return _read_vid2sim_text(read_input_text(path), Path(path))
 
 
 def read_mot(path: Path) -> dict[int, list[Detection]]:
+    """Read a MOT-challenge file (see :func:`_read_mot_text` for the columns)."""
+    return _read_mot_text(read_input_text(path), Path(path))
+
+
+def read_scalabel(path: Path) -> dict[int, list[Detection]]:
+    """Read a Scalabel / BDD100K JSON (see :func:`_read_scalabel_text`)."""
+    return _read_scalabel_text(read_input_text(path), Path(path))
+
+
+def _checked(path: Path, where: str, frame: int, box: tuple[float, float, float, float],
+             score: float) -> None:
+    """Raise :class:`InputError` for an imported box or score no detector could give."""
+    if not 0 <= frame <= MAX_FRAME_INDEX:
+        raise InputError(path, f"{where}: frame {frame} is not a video frame number")
+    if not all(math.isfinite(v) for v in (*box, score)):
+        raise InputError(path, f"{where}: box {box} or score {score} is not a finite number",
+                         "every box needs finite pixel coordinates")
+    x1, y1, x2, y2 = box
+    if x2 <= x1 or y2 <= y1:
+        raise InputError(path, f"{where}: box {box} has no area (width {x2 - x1:g}, height "
+                         f"{y2 - y1:g} px)", "remove the row, or fix its size")
+    if max(abs(v) for v in box) > MAX_BOX_COORD_PX:
+        raise InputError(path, f"{where}: box {box} lies beyond any frame")
+    if not 0.0 <= score <= 1.0:
+        raise InputError(path, f"{where}: score {score:g} outside [0, 1]")
+
+
+def _read_vid2sim_text(text: str, path: Path) -> dict[int, list[Detection]]:
+    out: dict[int, list[Detection]] = {}
+    for n, row in enumerate(csv.DictReader(io.StringIO(text)), start=2):
+        try:
+            frame = int(row["frame"])
+            box = tuple(float(row[k]) for k in ("x1", "y1", "x2", "y2"))
+            score = float(row["score"])
+        except (KeyError, TypeError, ValueError, OverflowError) as exc:
+            raise InputError(path, f"line {n}: {exc}", "columns: frame,t_s,track_id,"
+                             "category,score,x1,y1,x2,y2") from None
+        category = _category(row.get("category") or "")
+        if category is None:
+            continue
+        _checked(path, f"line {n}", frame, box, score)
+        out.setdefault(frame, []).append(Detection(box_px=box, score=score, category=category))
+    return out
+
+
+def _read_mot_text(text: str, path: Path) -> dict[int, list[Detection]]:
     """Read a MOT-challenge file: ``frame,id,x,y,w,h,score[,class|x[,visibility|y[,z]]]``.
 
     - ``frame`` is 1-based (MOT convention) and becomes ``frame - 1``;
@@ -102,64 +150,60 @@ def read_mot(path: Path) -> dict[int, list[Detection]]:
       without a class give every box the category car; non-vehicle names are dropped.
     """
     out: dict[int, list[Detection]] = {}
-    with open(path, newline="", encoding="utf-8-sig") as fh:
-        sample = fh.read(4096)
-        fh.seek(0)
-        delimiter = "," if "," in sample else None
-        lines = (csv.reader(fh, delimiter=delimiter) if delimiter
-                 else (line.split() for line in fh))
-        for n, row in enumerate(lines, start=1):
-            row = [c.strip() for c in row]
-            if not row or not any(row) or row[0].startswith("#"):
+    delimiter = "," if "," in text[:4096] else None
+    lines = (csv.reader(io.StringIO(text), delimiter=delimiter) if delimiter
+             else (line.split() for line in text.splitlines()))
+    for n, row in enumerate(lines, start=1):
+        row = [c.strip() for c in row]
+        if not row or not any(row) or row[0].startswith("#"):
+            continue
+        if n == 1 and not _is_number(row[0]):
+            continue  # a header line
+        if len(row) < 6:
+            raise InputError(path, f"line {n}: expected at least 6 columns "
+                             f"(frame,id,x,y,w,h[,score,...]), got {len(row)}",
+                             "is this a MOT-challenge file?")
+        klass = row[7] if len(row) > 7 else ""
+        try:
+            frame = int(float(row[0]))
+            x, y, w, h = (float(v) for v in row[2:6])
+            score = float(row[6]) if len(row) > 6 and row[6] else 1.0
+            class_id = (int(float(klass)) if klass and _is_number(klass) and klass != "-1"
+                        else None)
+        except (ValueError, OverflowError) as exc:
+            raise InputError(path, f"line {n}: {exc}", "MOT columns must be numbers") from None
+        if frame < 1:
+            raise InputError(path, f"line {n}: frame {frame} < 1",
+                             "MOT-challenge frames count from 1")
+        category: str | None = "car"
+        if klass and not _is_number(klass):
+            category = _category(klass)
+        elif class_id is not None and len(row) <= 9:
+            # Ground-truth layout: column 7 is a "consider" flag (0 = ignore), not a score.
+            if len(row) == 9 and score == 0.0:
                 continue
-            if n == 1 and not _is_number(row[0]):
-                continue  # a header line
-            if len(row) < 6:
-                raise InputError(path, f"line {n}: expected at least 6 columns "
-                                 f"(frame,id,x,y,w,h[,score,...]), got {len(row)}",
-                                 "is this a MOT-challenge file?")
-            try:
-                frame = int(float(row[0]))
-                x, y, w, h = (float(v) for v in row[2:6])
-                score = float(row[6]) if len(row) > 6 and row[6] else 1.0
-            except ValueError as exc:
-                raise InputError(path, f"line {n}: {exc}", "MOT columns must be numbers") from None
-            if frame < 1:
-                raise InputError(path, f"line {n}: frame {frame} < 1",
-                                 "MOT-challenge frames count from 1")
-            category: str | None = "car"
-            klass = row[7] if len(row) > 7 else ""
-            if klass and not _is_number(klass):
-                category = _category(klass)
-            elif klass and klass != "-1" and len(row) <= 9:
-                # Ground-truth layout: column 7 is a "consider" flag (0 = ignore), not a score.
-                if len(row) == 9 and score == 0.0:
-                    continue
-                category = MOT_CLASS_IDS.get(int(float(klass)))
-                score = 1.0
-            # (10-column detection files carry world x, y, z = -1 after the score: ignored.)
-            if category is None:
-                continue
-            if score < 0:
-                score = 1.0  # -1 = confidence unknown
-            if w <= 0 or h <= 0:
-                continue
-            out.setdefault(frame - 1, []).append(
-                Detection(box_px=(x, y, x + w, y + h), score=min(score, 1.0), category=category))
+            category = MOT_CLASS_IDS.get(class_id)
+            score = 1.0
+        # (10-column detection files carry world x, y, z = -1 after the score: ignored.)
+        if category is None:
+            continue
+        if score < 0:
+            score = 1.0  # -1 = confidence unknown
+        box = (x, y, x + w, y + h)
+        _checked(path, f"line {n}", frame - 1, box, min(score, 1.0))
+        out.setdefault(frame - 1, []).append(
+            Detection(box_px=box, score=min(score, 1.0), category=category))
     return out
 
 
-def read_scalabel(path: Path) -> dict[int, list[Detection]]:
+def _read_scalabel_text(text: str, path: Path) -> dict[int, list[Detection]]:
     """Read a Scalabel / BDD100K JSON: a list of frames, or ``{"frames": [...]}``.
 
     Each frame has ``name`` and ``frameIndex`` (or ``index``), and ``labels``: objects with
     ``category`` and ``box2d`` {x1, y1, x2, y2} [px], optionally ``score``. Non-vehicle
     categories and labels without a ``box2d`` are dropped.
     """
-    try:
-        data = json.loads(Path(path).read_text(encoding="utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise InputError(path, f"not valid JSON: {exc}") from None
+    data = parse_json(text, path)
     frames = data.get("frames") if isinstance(data, dict) else data
     if not isinstance(frames, list):
         raise InputError(path, "expected a list of frames or an object with 'frames'",
@@ -172,23 +216,45 @@ def read_scalabel(path: Path) -> dict[int, list[Detection]]:
     for order, item in enumerate(frames):
         if not isinstance(item, dict):
             raise InputError(path, f"frame {order} is not an object")
-        index = int(item.get("frameIndex", item.get("index", order))) if has_index else order
+        try:
+            index = (_whole(item.get("frameIndex", item.get("index", order))) if has_index
+                     else order)
+        except (TypeError, ValueError, OverflowError):
+            raise InputError(path, f"frame {order}: frameIndex/index is not a whole number"
+                             ) from None
+        labels = item.get("labels") or []
+        if not isinstance(labels, list):
+            raise InputError(path, f"frame {index}: labels must be a list")
         dets = out.setdefault(index, [])
-        for label in item.get("labels") or []:
+        for label in labels:
             box = label.get("box2d") if isinstance(label, dict) else None
             category = _category(str(label.get("category", ""))) if box else None
             if box is None or category is None:
                 continue
             try:
-                x1, y1, x2, y2 = (float(box[k]) for k in ("x1", "y1", "x2", "y2"))
-            except (KeyError, TypeError, ValueError):
-                raise InputError(path, f"frame {index}: box2d needs numbers x1, y1, x2, y2"
-                                 ) from None
-            if x2 <= x1 or y2 <= y1:
-                continue
-            score = float(label.get("score", 1.0))
+                x1, y1, x2, y2 = (_real(box[k]) for k in ("x1", "y1", "x2", "y2"))
+                score = _real(label.get("score", 1.0))
+            except (KeyError, TypeError, ValueError, OverflowError):
+                raise InputError(path, f"frame {index}: box2d needs numbers x1, y1, x2, y2 "
+                                 "(and a numeric score)") from None
+            _checked(path, f"frame {index}", index, (x1, y1, x2, y2), score)
             dets.append(Detection(box_px=(x1, y1, x2, y2), score=score, category=category))
     return out
+
+
+def _real(value) -> float:
+    """A JSON number as a float (booleans are not numbers)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise TypeError(value)
+    return float(value)
+
+
+def _whole(value) -> int:
+    """A JSON whole number (``7`` or ``7.0``) as an int."""
+    v = _real(value)
+    if v != int(v):
+        raise ValueError(value)
+    return int(v)
 
 
 def _is_number(text: str) -> bool:

@@ -25,6 +25,7 @@ from vid2sim.detect.tracker import Tracker, TrackerConfig
 from vid2sim.detect.video import folder_frame_steps, iter_frames, prefetch, video_info
 from vid2sim.errors import InputError
 from vid2sim.records import Detection, Frame, Note, RangingResult, TrackedBox
+from vid2sim.videofile import skipped_frames_note
 
 
 def run_detect(source: Path, *, detector: Detector | None,
@@ -32,7 +33,8 @@ def run_detect(source: Path, *, detector: Detector | None,
                progress: bool = True, on_frame: Callable[[Frame], None] | None = None,
                tracker_config: TrackerConfig | None = None, fps: float | None = None,
                schedule: ScheduleConfig | None = None, flow: FlowConfig | None = None,
-               stats: dict | None = None, capture_clock: bool = False) -> list[TrackedBox]:
+               stats: dict | None = None, capture_clock: bool = False,
+               skipped_frames: list[int] | None = None) -> list[TrackedBox]:
     """Detect and track vehicles through a video, one frame in memory at a time.
 
     Parameters
@@ -71,6 +73,9 @@ def run_detect(source: Path, *, detector: Detector | None,
         associate on the numbering's clock (0.5 s apart at 10 fps), so a folder of sparse
         keyframes is tracked as sparse input; the rows keep one frame per image. For
         ``detect`` only: ranging filters over the rows' time, which stays the output's.
+    skipped_frames : list of int, optional
+        Receives the indices of corrupt or missing frames, skipped (the tracker predicts
+        across them).
 
     Returns
     -------
@@ -99,7 +104,8 @@ def run_detect(source: Path, *, detector: Detector | None,
     n_seen = n_detected = 0
     # Imported boxes need no pixels: decode only if someone looks at the image.
     decode_every = detect_every if (detector is not None or on_frame is not None) else 0
-    frames = prefetch(iter_frames(source, every=decode_every or 1_000_000_000, fps=fps))
+    frames = prefetch(iter_frames(source, every=decode_every or 1_000_000_000, fps=fps,
+                                  skipped=skipped_frames))
     with tqdm(total=info.n_frames or None, unit="frame", desc="detect",
               disable=not progress) as bar:
         for frame in frames:
@@ -223,10 +229,13 @@ def detect_and_range(video: Path, camera: Camera, *, detector, detections=None,
         horizon_est.add_frame(frame.image_bgr, frame.index)
         lane_obs.append(markings.measure(frame.image_bgr, frame.index, frame.t_s))
 
+    skipped: list[int] = []
     boxes = run_detect(video, detector=detector, detections=detections,
                        detect_every=detect_every, progress=progress, fps=fps,
                        tracker_config=tracker_config, schedule=schedule, stats=stats,
-                       on_frame=on_frame)
+                       on_frame=on_frame, skipped_frames=skipped)
+    if skipped:
+        notes.append(Note.warning(f"{Path(video).name}: {skipped_frames_note(skipped)}"))
     yaw_before = camera.yaw_deg
     # Lane markings also say where straight ahead is: correct the camera's yaw so the ego
     # corridor runs along the lane rather than along a slightly turned camera axis.

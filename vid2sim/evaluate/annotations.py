@@ -24,7 +24,6 @@ ignore regions; people and bicycles are dropped (the scenario holds vehicles onl
 
 from __future__ import annotations
 
-import json
 import logging
 import math
 import re
@@ -34,6 +33,7 @@ from pathlib import Path
 from typing import Any
 
 from vid2sim.errors import InputError
+from vid2sim.fileio import check_input_size, parse_json
 from vid2sim.records import AnnotatedBox, Keyframe
 
 log = logging.getLogger(__name__)
@@ -103,6 +103,7 @@ def read_keyframes(path: str | Path, *, fps: float | None = None,
     if fps is not None and not (math.isfinite(fps) and fps > 0):
         raise InputError(path, f"fps {fps} must be a positive number")
     try:
+        check_input_size(path, what="annotation")
         text = path.read_text(encoding="utf-8-sig")
     except FileNotFoundError:
         raise InputError(path, "no such annotation file") from None
@@ -252,10 +253,7 @@ def _read_scalabel(text: str, path: Path, fps: float | None,
     """Scalabel / BDD100K JSON: a list of frames or ``{"frames": [...]}``; each frame with
     ``name``, ``index`` (or ``frameIndex``) or ``timestamp`` [ms], and ``labels`` holding
     ``category``, ``box2d {x1, y1, x2, y2}``, optional ``id`` and ``attributes.crowd``."""
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise InputError(path, f"not valid JSON: {exc.msg} at line {exc.lineno}") from None
+    data = parse_json(text, path)  # bad JSON, or nesting too deep, as an input error
     if isinstance(data, dict):
         if "frames" not in data:
             raise InputError(path, "JSON object without 'frames'",

@@ -1,8 +1,10 @@
-"""Export: scenario assembly, the highway-env gymnasium environment, OpenSCENARIO/OpenDRIVE."""
+"""Export: scenario assembly, the highway-env gymnasium environment, OpenSCENARIO/OpenDRIVE.
+
+The ``vid2sim export`` command itself (loading, staging the outputs) is
+:func:`vid2sim.app.commands.run_export`.
+"""
 
 from __future__ import annotations
-
-from pathlib import Path
 
 FORMATS = ("highway-env", "openscenario")
 
@@ -42,51 +44,8 @@ print(f"{{len(infos) - 1}} steps, {{infos[-1]['t_s']:.1f}} s simulated, "
 '''
 
 
-def run_export(scenario_path: Path, fmt: str, out_dir: Path) -> str:
-    """Export a scenario.json; returns a summary for the CLI.
-
-    ``openscenario``: ``out_dir/scenario.xosc`` + ``out_dir/road.xodr``.
-    ``highway-env``: ``out_dir/scenario.json`` (canonical copy), ``out_dir/replay.py`` (runnable
-    example: the ACC + AEB of :mod:`vid2sim.adas` through its camera model, or ``--log``) and
-    ``out_dir/preview.png`` (top view of the replay
-    with the logged ego at mid-scenario).
-    """
-    from vid2sim import scenario as scenario_io
-    from vid2sim.errors import InputError
-    from vid2sim.fileio import write_bytes_atomic, write_text_atomic
-
-    sc = scenario_io.load(scenario_path)
-    out_dir = Path(out_dir)
-    if fmt == "openscenario":
-        from vid2sim.export.openscenario import write_openscenario
-
-        xosc_path, xodr_path = write_openscenario(sc, out_dir)
-        return (f"wrote {xosc_path} (OpenSCENARIO 1.2, {1 + len(sc.actors)} vehicles, "
-                f"{sc.duration_s:.1f} s) and {xodr_path} (OpenDRIVE 1.8, "
-                f"{max(len(sc.roads), 1)} road(s))")
-    if fmt != "highway-env":
-        raise InputError(None, f"unknown export format {fmt!r}", f"use one of {', '.join(FORMATS)}")
-    import cv2
-    import numpy as np
-
-    from vid2sim.export.highway import ReplayEnv
-
-    scenario_io.save(sc, out_dir / "scenario.json")
-    v_ref = max(float(np.max(sc.ego.trajectory.speed)), 5.0)
-    write_text_atomic(out_dir / "replay.py",
-                      _REPLAY_SCRIPT.format(name=Path(scenario_path).name, v_ref=v_ref))
-    env = ReplayEnv(sc, ego_mode="log", render_mode="rgb_array",
-                    config={"screen_width": 800, "screen_height": 400})
-    env.reset(seed=0)
-    action = np.zeros(1, dtype=np.float32)
-    for _ in range(env.n_steps // 2):
-        env.step(action)
-    frame = env.render()
-    env.close()
-    ok, png = cv2.imencode(".png", cv2.cvtColor(frame, cv2.COLOR_RGB2BGR))
-    if not ok:  # pragma: no cover - PNG encoding of an RGB array does not fail
-        raise RuntimeError("PNG encoding failed")
-    write_bytes_atomic(out_dir / "preview.png", png.tobytes())
-    return (f"wrote {out_dir / 'scenario.json'}, {out_dir / 'replay.py'} and "
-            f"{out_dir / 'preview.png'} ({1 + len(sc.actors)} vehicles, {sc.duration_s:.1f} s; "
-            f"run: python {out_dir / 'replay.py'})")
+def replay_script(scenario_name: str, v_ref_mps: float) -> str:
+    """The runnable ``replay.py`` of a highway-env export: the scenario file beside it, the
+    ACC + AEB of :mod:`vid2sim.adas` through its camera model at ``v_ref_mps`` desired speed,
+    or ``--log``."""
+    return _REPLAY_SCRIPT.format(name=scenario_name, v_ref=v_ref_mps)

@@ -30,6 +30,8 @@ uses only elements common to 1.7 and 1.8 (the ASAM checker validates it against 
 from __future__ import annotations
 
 import contextlib
+import functools
+import itertools
 import logging
 import math
 import os
@@ -191,6 +193,16 @@ class _ClothoidModel:
         return jac
 
 
+#: Longest piece of road fitted at once [m]. One least-squares fit costs about samples x
+#: knots^2 per iteration, i.e. the cube of the length (a 6 km road: 40 s, 1.5 km: 5.6 s);
+#: longer roads are fitted piece by piece, each piece starting at the previous one's end
+#: pose and curvature, so the cost is linear in the length and the chain stays continuous.
+FIT_PIECE_M = 500.0
+# weight pinning a piece's start heading [rad] and curvature [1/m] to the previous piece's end
+# (residuals are metres: 1e4 holds them to ~1e-6 while the positions are fitted)
+_PIN_WEIGHT = 1e4
+
+
 def fit_reference_line(centerline_m: np.ndarray, tolerance_m: float = FIT_TOLERANCE_M,
                        knot_spacing_m: float = KNOT_SPACING_M) -> tuple[ReferenceLine, float]:
     """Fit a continuous-curvature clothoid chain to a polyline.
@@ -200,8 +212,10 @@ def fit_reference_line(centerline_m: np.ndarray, tolerance_m: float = FIT_TOLERA
     Knot intervals holding samples farther than ``tolerance_m`` are halved and the fit repeated
     (warm-started) until all samples are within tolerance or the intervals reach
     :data:`MIN_KNOT_SPACING_M` (a sharp polyline corner cannot be followed by any curve of
-    finite curvature). Near-zero and near-constant curvatures are then snapped to
-    lines and arcs if the fit stays within tolerance.
+    finite curvature). Roads longer than :data:`FIT_PIECE_M` are fitted in pieces of about that
+    length, each continuing the chain (position, heading and curvature) where the previous one
+    ends. Near-zero and near-constant curvatures are then snapped to lines and arcs if the fit
+    stays within tolerance.
 
     Returns
     -------
@@ -213,15 +227,56 @@ def fit_reference_line(centerline_m: np.ndarray, tolerance_m: float = FIT_TOLERA
     length = float(s_data[-1])
     if length < 1e-3:
         raise ValueError("centerline has no length")
-    x0, y0 = p_data[0]
+    n_pieces = max(1, round(length / FIT_PIECE_M))
+    bounds = np.linspace(0, len(s_data) - 1, n_pieces + 1).round().astype(int)
+    knots, kappa = [np.zeros(1)], []
+    start: tuple[float, float, float, float] | None = None
+    first: ReferenceLine | None = None
+    for a, b in itertools.pairwise(bounds):
+        piece = _fit_piece(s_data[a:b + 1] - s_data[a], p_data[a:b + 1], start, tolerance_m,
+                           knot_spacing_m)
+        first = first or piece
+        knots.append(s_data[a] + piece.knots_s_m[1:])
+        # the chain continues with the previous piece's end curvature (the new piece's first
+        # knot is pinned to it)
+        kappa.append(piece.curvature_per_m if start is None else piece.curvature_per_m[1:])
+        end = piece.sample(np.array([piece.length_m]))[0]
+        k = piece.curvature_per_m
+        heading_end = piece.heading0_rad + float(np.sum(0.5 * (k[1:] + k[:-1])
+                                                        * np.diff(piece.knots_s_m)))
+        start = (float(end[0]), float(end[1]), heading_end, float(piece.curvature_per_m[-1]))
+    line = ReferenceLine(first.x0_m, first.y0_m, first.heading0_rad, np.concatenate(knots),
+                         np.concatenate(kappa))
+    err = float(np.max(np.linalg.norm(line.sample(s_data) - p_data, axis=1)))
+    snapped = _snap(line)
+    snapped_err = float(np.max(np.linalg.norm(snapped.sample(s_data) - p_data, axis=1)))
+    if snapped_err <= max(tolerance_m, err):
+        return snapped, snapped_err
+    return line, err
+
+
+def _fit_piece(s_data: np.ndarray, p_data: np.ndarray,
+               start: tuple[float, float, float, float] | None, tolerance_m: float,
+               knot_spacing_m: float) -> ReferenceLine:
+    """The clothoid chain of one piece (arc lengths ``s_data`` from 0, points ``p_data``).
+
+    ``start``: None for the road's first piece (start at its first point, heading fitted),
+    else the (x, y, heading, curvature) it must continue from.
+    """
+    length = float(s_data[-1])
+    x0, y0 = p_data[0] if start is None else start[:2]
     d = np.diff(p_data, axis=0)
     seg_h = np.unwrap(np.arctan2(d[:, 1], d[:, 0]))
+    if start is not None:  # unwrap onto the heading the chain arrives with
+        seg_h += 2 * math.pi * round((start[2] - seg_h[0]) / (2 * math.pi))
     min_spacing = max(MIN_KNOT_SPACING_M, length / _MAX_KNOTS)
     n_int = max(math.ceil(length / max(knot_spacing_m, min_spacing)), 1)
     knots = np.linspace(0.0, length, n_int + 1)
     # initial guess: curvature from the heading slope between knots
     h_knots = np.interp(knots, 0.5 * (s_data[1:] + s_data[:-1]), seg_h)
     params = np.r_[seg_h[0], np.gradient(h_knots, knots) if n_int > 1 else np.zeros(2)]
+    if start is not None:
+        params[0], params[1] = start[2], start[3]
     best: tuple[ReferenceLine, float] | None = None
     while True:
         model = _ClothoidModel(float(x0), float(y0), knots, s_data)
@@ -230,13 +285,18 @@ def fit_reference_line(centerline_m: np.ndarray, tolerance_m: float = FIT_TOLERA
         w_smooth = _SMOOTHING * np.diff(knots) ** 2
         diff_op = np.diff(np.eye(len(knots)), axis=0)
         smooth_jac = np.column_stack((np.zeros(len(knots) - 1), w_smooth[:, None] * diff_op))
+        pin_jac = np.zeros((0 if start is None else 2, len(knots) + 1))
+        if start is not None:
+            pin_jac[0, 0] = pin_jac[1, 1] = _PIN_WEIGHT
 
         def residual(params, model=model, w_smooth=w_smooth):
+            pin = ([] if start is None else
+                   [_PIN_WEIGHT * (params[0] - start[2]), _PIN_WEIGHT * (params[1] - start[3])])
             return np.r_[(model.positions(params) - p_data).ravel(),
-                         w_smooth * np.diff(params[1:])]
+                         w_smooth * np.diff(params[1:]), pin]
 
-        def jacobian(params, model=model, smooth_jac=smooth_jac):
-            return np.vstack((model.jacobian(params), smooth_jac))
+        def jacobian(params, model=model, smooth_jac=smooth_jac, pin_jac=pin_jac):
+            return np.vstack((model.jacobian(params), smooth_jac, pin_jac))
 
         with _single_blas_thread():
             sol = least_squares(residual, params, jac=jacobian, method="trf", x_scale="jac")
@@ -254,12 +314,7 @@ def fit_reference_line(centerline_m: np.ndarray, tolerance_m: float = FIT_TOLERA
         new_knots = np.sort(np.r_[knots, 0.5 * (knots[bad] + knots[bad + 1])])
         params = np.r_[sol.x[0], np.interp(new_knots, knots, sol.x[1:])]  # warm start
         knots = new_knots
-    line, err = best
-    snapped = _snap(line)
-    snapped_err = float(np.max(np.linalg.norm(snapped.sample(s_data) - p_data, axis=1)))
-    if snapped_err <= max(tolerance_m, err):
-        return snapped, snapped_err
-    return line, err
+    return best[0]
 
 
 def _snap(line: ReferenceLine) -> ReferenceLine:
@@ -341,17 +396,43 @@ def _vehicle(name: str, category: str, length_m: float, width_m: float, height_m
 
 
 def _polyline(traj: Trajectory, t0_s: float):
-    from scenariogeneration import xosc
-
     heading = np.unwrap(traj.heading)
     times = [float(round(t - t0_s, 4)) for t in traj.t]
-    positions = [xosc.WorldPosition(float(x), float(y), 0.0, float(h), 0.0, 0.0)
-                 for x, y, h in zip(traj.x, traj.y, heading, strict=True)]
+    x, y = traj.x.astype(float), traj.y.astype(float)
     if len(times) == 1:
         # a polyline needs two vertices: a vehicle seen once stands where it was seen
         times.append(times[0] + _SINGLE_SAMPLE_HOLD_S)
-        positions.append(positions[0])
-    return xosc.Polyline(times, positions)
+        x, y, heading = (np.repeat(a, 2) for a in (x, y, heading))
+    return _log_polyline_class()(times, x, y, heading)
+
+
+@functools.cache
+def _log_polyline_class():
+    """A scenariogeneration ``Polyline`` of WorldPositions kept as arrays (its class defined on
+    first use: scenariogeneration is imported only by the exporter)."""
+    from scenariogeneration import xosc
+
+    class _LogPolyline(xosc.Polyline):
+        """Writes the same XML as ``xosc.Polyline`` of ``xosc.WorldPosition(x, y, 0, h, 0, 0)``
+        vertices, without a Python object per vertex (about 1.2 kB each: 44 MB for the 35,000
+        vertices of a 10-minute drive, all alive while the tree is built)."""
+
+        def __init__(self, time: list[float], x: np.ndarray, y: np.ndarray, h: np.ndarray):
+            self.time, self._xyh = time, (x, y, h)
+            self.positions = []  # not kept as objects; see get_element
+
+        def get_element(self) -> ET.Element:
+            shape = ET.Element("Shape")
+            element = ET.SubElement(shape, "Polyline")
+            for t, x, y, h in zip(self.time, *self._xyh, strict=True):
+                vertex = ET.SubElement(element, "Vertex", attrib={"time": str(t)})
+                position = ET.SubElement(vertex, "Position")
+                ET.SubElement(position, "WorldPosition", attrib={
+                    "x": str(float(x)), "y": str(float(y)), "z": "0.0", "h": str(float(h)),
+                    "p": "0.0", "r": "0.0"})
+            return shape
+
+    return _LogPolyline
 
 
 def _sim_time_trigger(name: str, t_s: float):

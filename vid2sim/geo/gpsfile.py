@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import itertools
 import math
+from dataclasses import replace
 from pathlib import Path
 
 from vid2sim.errors import InputError
+from vid2sim.fileio import check_input_size
 from vid2sim.records import GpsFix, GpsTrace
 
 KNOTS_TO_MPS = 1852.0 / 3600.0
@@ -14,6 +16,19 @@ KNOTS_TO_MPS = 1852.0 / 3600.0
 # 5 m is a typical value for an uncorrected single-frequency consumer receiver; it only sets
 # the relative weight of fixes in the smoother, so a rough value is enough.
 UERE_M = 5.0
+
+#: Largest GPS file [bytes]: a day of 10 Hz NMEA (RMC + GGA) is about 150 MB.
+MAX_GPS_BYTES = 256 * 1024 * 1024
+#: Latest fix time [s since the epoch]: 1e10 s is the year 2286; a larger number is not a
+#: time (a GPS time of 1e300 once ran the smoother out of memory). Relative clocks (CSV
+#: seconds from the start) are small numbers and pass.
+MAX_FIX_TIME_S = 1.0e10
+#: Longest trace [s]: a day. A trace is one drive; longer logs hold many drives and must be
+#: cut to the video (resampling weeks at 10 Hz would take gigabytes).
+MAX_TRACE_SPAN_S = 86_400.0
+#: Plausible altitude range [m]: the Dead Sea shore to the highest road (5,800 m) with room;
+#: outside it a reported altitude is dropped (an optional field), not the fix.
+ALTITUDE_RANGE_M = (-1000.0, 10000.0)
 
 
 # --------------------------------------------------------------------------- shared checks
@@ -36,6 +51,11 @@ def finish_trace(fixes: list[GpsFix], fmt: str, path: Path, n_skipped: int = 0,
                              "are lat and lon swapped?")
         if not -180.0 <= f.lon_deg <= 180.0:
             raise InputError(path, f"fix {i + 1}: longitude {f.lon_deg} outside [-180, 180]")
+        if abs(f.t_utc_s) > MAX_FIX_TIME_S:
+            raise InputError(path, f"fix {i + 1}: time {f.t_utc_s:g} s is not a time (after the "
+                             "year 2286)", "times are seconds (or ms, ISO 8601) since the epoch")
+    fixes = [f if f.alt_m is None or ALTITUDE_RANGE_M[0] <= f.alt_m <= ALTITUDE_RANGE_M[1]
+             else replace(f, alt_m=None) for f in fixes]
     times = [f.t_utc_s for f in fixes]
     if any(b < a for a, b in itertools.pairwise(times)):
         warnings.append("fixes were not in time order; sorted them by time")
@@ -50,11 +70,23 @@ def finish_trace(fixes: list[GpsFix], fmt: str, path: Path, n_skipped: int = 0,
         unique.append(f)
     if n_dup:
         warnings.append(f"dropped {n_dup} fixes repeating an earlier time")
+    if video_start_utc_s is not None and not (math.isfinite(video_start_utc_s)
+                                              and abs(video_start_utc_s) <= MAX_FIX_TIME_S):
+        raise InputError(path, f"the video start time {video_start_utc_s:g} s is not a time",
+                         "times are seconds (or ms) since the epoch")
+    span_s = unique[-1].t_utc_s - unique[0].t_utc_s
+    if span_s > MAX_TRACE_SPAN_S:
+        raise InputError(path, f"the fixes span {span_s / 3600:.1f} h, more than the "
+                         f"{MAX_TRACE_SPAN_S / 3600:.0f} h of one drive",
+                         "cut the log to the drive of the video")
     return GpsTrace(fixes=unique, format=fmt, path=path, video_start_utc_s=video_start_utc_s,
                     n_skipped=n_skipped + n_dup, warnings=warnings)
 
 
 def read_text(path: Path) -> str:
+    """A GPS file's text (undecodable bytes replaced: loggers write odd bytes between
+    sentences), refused above :data:`MAX_GPS_BYTES` before it is read."""
+    check_input_size(path, MAX_GPS_BYTES, "GPS")
     try:
         return path.read_text(encoding="utf-8", errors="replace").lstrip("\ufeff")
     except OSError as exc:
@@ -67,6 +99,6 @@ def optional_value(value: float | None, lo: float = -math.inf, hi: float = math.
         return None
     try:
         v = float(value)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         return None
     return v if math.isfinite(v) and lo <= v <= hi else None

@@ -253,10 +253,21 @@ def read_osm(path: str | Path) -> _WaySegments:
         head = fh.read(512)
     is_xml = head.lstrip().startswith(b"<")
     if path.name.endswith(".pbf") and not is_xml:
-        return _read_pbf(path)
+        return _checked_nodes(_read_pbf(path), path)
     if is_xml:
-        return _read_osm_xml(path)
+        return _checked_nodes(_read_osm_xml(path), path)
     raise InputError(path, "not an OSM map (neither XML nor PBF)", "pass a .osm or .osm.pbf file")
+
+
+def _checked_nodes(ways: _WaySegments, path: Path) -> _WaySegments:
+    """Raise InputError for a node that is not a place on earth (``lat="inf"``): it would
+    put non-finite coordinates into the road network."""
+    for node, (lon, lat) in ways.node_lonlat.items():
+        if not (math.isfinite(lon) and math.isfinite(lat) and -90 <= lat <= 90
+                and -180 <= lon <= 180):
+            raise InputError(path, f"node {node}: lat {lat}, lon {lon} is not a position",
+                             "is the map file damaged?")
+    return ways
 
 
 # --------------------------------------------------------------------------- graph building

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 import re
 from collections.abc import Callable
 from datetime import UTC, datetime
@@ -23,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from vid2sim.errors import InputError
+from vid2sim.fileio import parse_json
 from vid2sim.geo.gpsfile import KNOTS_TO_MPS, UERE_M, finish_trace, optional_value, read_text
 from vid2sim.geo.nmea import nmea_checksum_ok, read_nmea
 from vid2sim.geo.oxts import (
@@ -102,7 +102,8 @@ def read_gps(path: str | Path) -> GpsTrace:
     if path.is_dir():
         return read_kitti_oxts(path)
     try:
-        head = path.read_bytes()[:_HEAD_BYTES]
+        with open(path, "rb") as fh:
+            head = fh.read(_HEAD_BYTES)
     except OSError as exc:
         raise InputError(path, f"cannot read: {exc.strerror or exc}") from exc
     if not head.strip():
@@ -211,10 +212,7 @@ def read_bdd_json(path: Path) -> GpsTrace:
 
     Negative speed/course/accuracy mean "invalid" on the phones that recorded BDD and become None.
     """
-    try:
-        data = json.loads(read_text(path))
-    except json.JSONDecodeError as exc:
-        raise InputError(path, f"not valid JSON: {exc.msg} at line {exc.lineno}") from exc
+    data = parse_json(read_text(path), path)
     if not isinstance(data, dict):
         raise InputError(path, "JSON is not a BDD100K info object",
                          "expected an object with a 'locations' list")
@@ -235,7 +233,7 @@ def read_bdd_json(path: Path) -> GpsTrace:
             lon = float(loc["longitude"])
         except KeyError as exc:
             raise InputError(path, f"locations[{i}] lacks {exc.args[0]!r}") from exc
-        except (TypeError, ValueError) as exc:
+        except (TypeError, ValueError, OverflowError) as exc:
             raise InputError(path, f"locations[{i}]: unparsable number ({exc})") from exc
         fixes.append(GpsFix(t_utc_s=t_ms / 1000.0, lat_deg=lat, lon_deg=lon,
                             alt_m=optional_value(loc.get("altitude")),
@@ -247,7 +245,7 @@ def read_bdd_json(path: Path) -> GpsTrace:
     if start is not None:
         try:
             start_s = float(start) / 1000.0
-        except (TypeError, ValueError) as exc:
+        except (TypeError, ValueError, OverflowError) as exc:
             raise InputError(path, f"startTime {start!r} is not a number of ms") from exc
     warnings = [f"skipped {n_bad} malformed location entries"] if n_bad else []
     return finish_trace(fixes, "bdd100k", path, n_skipped=n_bad, warnings=warnings,
@@ -333,7 +331,7 @@ def read_csv(path: Path) -> GpsTrace:
             lon = float(row[cols["lon"]])
         except IndexError as exc:
             raise InputError(path, f"line {i}: too few columns") from exc
-        except ValueError as exc:
+        except (ValueError, OverflowError) as exc:
             raise InputError(path, f"line {i}: unparsable value ({exc})",
                              "time must be seconds, ms since the epoch or ISO 8601") from exc
         extra: dict[str, float | None] = {}

@@ -30,7 +30,7 @@ from vid2sim.geo.mapmatch import MatchConfig, MatchResult, match
 from vid2sim.geo.osm import RoadNetwork, download_network, format_bbox, load_network
 from vid2sim.geo.trace import video_t0_utc
 from vid2sim.records import EgoTrack, GpsTrace, RoadResult
-from vid2sim.scenario import Road
+from vid2sim.scenario import MAX_LANES, Road
 
 log = logging.getLogger(__name__)
 
@@ -100,9 +100,10 @@ def lanes_from_tags(tags: dict[str, str], along_way: bool = True) -> tuple[int, 
         highway, (2, 1, DEFAULT_LANE_WIDTH_M))
     oneway = tags.get("oneway", "") in ("yes", "true", "1", "-1", "reverse") or (
         tags.get("junction") in ("roundabout", "circular") and tags.get("oneway") != "no")
-    lanes = _number(tags.get("lanes"))
-    fwd = _number(tags.get("lanes:forward"))
-    bwd = _number(tags.get("lanes:backward"))
+    # A lane count beyond any carriageway's (a tag typo, "lanes=99") is taken as no tag.
+    lanes, fwd, bwd = (v if v is None or v <= MAX_LANES else None for v in (
+        _number(tags.get("lanes")), _number(tags.get("lanes:forward")),
+        _number(tags.get("lanes:backward"))))
     if oneway:
         total = int(lanes) if lanes and lanes >= 1 else one_way_default
         forward = total

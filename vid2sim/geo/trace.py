@@ -132,8 +132,13 @@ def smooth_ego(trace: GpsTrace, rate_hz: float = EGO_RATE_HZ, gps_offset_s: floa
     # ---- 2. gross outliers (speed gating), in a provisional frame at the median fix
     med = Origin(float(np.median(lat)), float(np.median(lon)), 0.0)
     enu = EnuFrame(med).to_enu(lat, lon, np.nan_to_num(alt, nan=0.0))
-    sigma_rough = _noise_estimate(t, enu[:, :2], np.ones(n_in, bool), p.min_noise_m)
-    keep = _consistent_chain(t, enu[:, :2], _sigmas(acc, sigma_rough, p.min_noise_m), p.v_max_mps)
+    # The noise is capped here: fixes of two different places look like enormous noise, and
+    # a gate that wide would accept them all.
+    sigma_rough = min(_noise_estimate(t, enu[:, :2], np.ones(n_in, bool), p.min_noise_m),
+                      p.max_noise_m)
+    sig_chain = np.minimum(_sigmas(acc, sigma_rough, p.min_noise_m), p.max_noise_m)
+    keep = _consistent_chain(t, enu[:, :2], sig_chain, p.v_max_mps)
+    _check_one_drive(t, enu[:, :2], keep, p, path)
 
     # ---- ENU frame at the origin (first accepted fix by default)
     if origin is None:
@@ -153,35 +158,47 @@ def smooth_ego(trace: GpsTrace, rate_hz: float = EGO_RATE_HZ, gps_offset_s: floa
     heading_rep = np.deg2rad(90.0 - crs)  # clockwise from north -> CCW from east
     vel_meas = np.column_stack((spd * np.cos(heading_rep), spd * np.sin(heading_rep)))
 
-    # ---- 4. smooth, drop fixes far from the smoothed track, smooth again
+    # ---- 4. smooth each segment (split at long gaps), drop fixes far from the smoothed track,
+    # smooth again
     stops_fix = doppler_stops(t, spd, keep, p)
+    segments = _segments(t, keep, p.segment_gap_s)
     used = keep.copy()
-    for _ in range(4):
-        xs = smooth(t, xy, sig, spd, vel_meas, crs_ok, used, stops_fix, p)
-        resid = np.hypot(*(xy - xs[:, :2]).T)
-        far = resid > np.maximum(p.gate_sigma * sig, p.gate_floor_m)
-        new_used = keep & ~far
-        if np.array_equal(new_used, used):
-            break
-        used = new_used
+    for seg in segments:
+        for _ in range(4):
+            xs = _smooth_segment(t, xy, sig, spd, vel_meas, crs_ok, used & seg, stops_fix, p)
+            resid = np.hypot(*(xy - xs[:, :2]).T)
+            far = resid > np.maximum(p.gate_sigma * sig, p.gate_floor_m)
+            new_used = used.copy()
+            new_used[seg] = keep[seg] & ~far[seg]
+            if np.array_equal(new_used, used) or new_used[seg].sum() < 1:
+                break
+            used = new_used
     if used.sum() < 2:
         raise InputError(path, "fewer than two fixes survive outlier rejection",
                          "the trace is too noisy to use")
 
     # ---- 5. stops from positions; final smoothing with zero-velocity updates
     stops_fix = stops_fix | position_stops(t, xy, sig, spd, used, p)
-    xs = smooth(t, xy, sig, spd, vel_meas, crs_ok, used, stops_fix, p)
+    xs = np.zeros((n_in, 6))
+    for seg in segments:
+        part = _smooth_segment(t, xy, sig, spd, vel_meas, crs_ok, used & seg, stops_fix, p)
+        xs[seg] = part[seg]
     # Spans over the used fixes only: a rejected fix inside a stop must not split it.
     stop_spans = spans(t[used], stops_fix[used], p.stop_min_s)
 
-    # ---- 6. resample
+    # ---- 6. resample: cubic Hermite inside segments, a straight line at constant speed
+    # across the gaps between them (no motion is invented where there are no fixes)
     tu, xu = t[used], xs[used]
     k0, k1 = math.ceil(tu[0] * rate_hz - 1e-9), math.floor(tu[-1] * rate_hz + 1e-9)
     if k1 < k0:
         raise InputError(path, f"fixes span {tu[-1] - tu[0]:.3f} s, less than one sample at "
                          f"{rate_hz} Hz", "use a higher --rate")
+    if k1 - k0 + 1 > MAX_EGO_SAMPLES:
+        raise InputError(path, f"{k1 - k0 + 1:,} trajectory samples at {rate_hz:g} Hz, more "
+                         f"than the {MAX_EGO_SAMPLES:,} limit", "use a lower --rate")
     tg = np.arange(k0, k1 + 1) / rate_hz
     pos, vel = hermite(tu, xu[:, 0:2], xu[:, 2:4], tg)
+    long_gaps = _bridge_gaps(tu, xu[:, 0:2], tg, pos, vel, p.segment_gap_s)
     speed = np.hypot(vel[:, 0], vel[:, 1])
     stopped = np.zeros(len(tg), bool)
     for a, b in stop_spans:
@@ -208,6 +225,13 @@ def smooth_ego(trace: GpsTrace, rate_hz: float = EGO_RATE_HZ, gps_offset_s: floa
     dt_used = np.diff(tu)
     gap_mask = dt_used > p.gap_s
     gaps = [(float(tu[i]), float(dt_used[i])) for i in np.flatnonzero(gap_mask)]
+    assumptions = []
+    for start_s, length_s, chord_m in long_gaps:
+        text = (f"GPS gap of {length_s:.0f} s at t={start_s:.1f} s: the ego is placed on the "
+                f"straight line between the fixes around it at a constant "
+                f"{chord_m / length_s:.1f} m/s ({chord_m:.0f} m)")
+        warnings.append(text)
+        assumptions.append(text)
     n_rejected = int(n_in - used.sum())
     if n_rejected:
         warnings.append(f"rejected {n_rejected} outlier fixes")
@@ -222,7 +246,7 @@ def smooth_ego(trace: GpsTrace, rate_hz: float = EGO_RATE_HZ, gps_offset_s: floa
         gaps=gaps, stationary=[(float(a), float(b)) for a, b in stop_spans],
         warnings=warnings, time_alignment=alignment, t0_utc_s=float(t0_utc),
         first_fix_t_s=float(t[0]), noise_m=float(noise_m), rate_hz=float(rate_hz),
-        n_samples=len(tg))
+        n_samples=len(tg), assumptions=assumptions)
     return ego, stats
 
 
@@ -329,3 +353,81 @@ def _consistent_chain(t: np.ndarray, xy: np.ndarray, sig: np.ndarray, v_max_mps:
         keep[i] = True
         i = prev[i]
     return keep
+
+
+# --------------------------------------------------------------------------- one drive, gaps
+
+#: Most samples of one ego trajectory: a day at 20 Hz. (The trace's span is limited to a day
+#: by the readers; this bounds a high --rate.)
+MAX_EGO_SAMPLES = 2_000_000
+
+
+def _check_one_drive(t: np.ndarray, xy: np.ndarray, keep: np.ndarray, p: TraceParams,
+                     path) -> None:
+    """Raise :class:`InputError` when the fixes cannot be one drive.
+
+    A few fixes far beyond any car's reach of the kept chain are a receiver's glitches
+    (dropped as outliers); more than ``max_wild_share`` of the trace (and at least 3) are
+    fixes of other places: two drives in one file, or fixes alternating between two cities.
+    The error names the first step between consecutive fixes that no car can drive.
+    """
+    rejected = np.flatnonzero(~keep)
+    idx = np.flatnonzero(keep)
+    if rejected.size < 3 or rejected.size <= p.max_wild_share * len(t):
+        return
+    j = np.searchsorted(t[idx], t[rejected])
+    nearest = np.stack((idx[np.clip(j - 1, 0, len(idx) - 1)], idx[np.clip(j, 0, len(idx) - 1)]))
+    d = np.hypot(xy[nearest, 0] - xy[rejected, 0], xy[nearest, 1] - xy[rejected, 1])
+    reach = p.v_max_mps * np.abs(t[nearest] - t[rejected]) + p.jump_allowance_m
+    n_far = int(np.all(d > reach, axis=0).sum())
+    if n_far < 3 or n_far <= p.max_wild_share * len(t):
+        return
+    step = np.hypot(*np.diff(xy, axis=0).T)
+    dt = np.diff(t)
+    bad = np.flatnonzero(step > p.v_max_mps * dt + p.jump_allowance_m)
+    hint = "a trace is one drive: remove the fixes of other places or times"
+    if bad.size == 0:
+        raise InputError(path, f"{n_far} fixes lie farther from the rest of the trace than any "
+                         f"car could drive ({p.v_max_mps:g} m/s)", hint)
+    k = int(bad[0])
+    raise InputError(path, f"fix {k + 2} (in time order) is {step[k] / 1000:.1f} km from fix "
+                     f"{k + 1}, {dt[k]:.1f} s earlier: {step[k] / dt[k]:,.0f} m/s, beyond any "
+                     f"car ({p.v_max_mps:g} m/s); {n_far} fixes lie that far from the rest", hint)
+
+
+def _segments(t: np.ndarray, keep: np.ndarray, gap_s: float) -> list[np.ndarray]:
+    """Masks over all fixes of the pieces of the trace between gaps longer than ``gap_s``
+    (between kept fixes); a rejected fix belongs to the piece whose time span holds it."""
+    tk = t[keep]
+    cuts = tk[:-1][np.diff(tk) > gap_s]  # last kept time before each long gap
+    piece = np.searchsorted(cuts, t, side="left")  # fixes at or before a cut stay before it
+    return [piece == k for k in range(len(cuts) + 1)]
+
+
+def _smooth_segment(t, xy, sig, spd, vel_meas, crs_ok, used, stopped, p: TraceParams):
+    """:func:`smooth` over the used fixes of one segment; a segment of one fix stands still."""
+    if used.sum() >= 2:
+        return smooth(t, xy, sig, spd, vel_meas, crs_ok, used, stopped, p)
+    out = np.zeros((len(t), 6))
+    if used.any():
+        out[:, :2] = xy[np.flatnonzero(used)[0]]
+    return out
+
+
+def _bridge_gaps(tu: np.ndarray, pu: np.ndarray, tg: np.ndarray, pos: np.ndarray,
+                 vel: np.ndarray, gap_s: float) -> list[tuple[float, float, float]]:
+    """Across gaps longer than ``gap_s`` between used fixes (times ``tu``, smoothed positions
+    ``pu``), replace the resampled ``pos``/``vel`` (in place) by the straight line at constant
+    speed between the fixes either side; return (start_s, length_s, chord_m) of each gap."""
+    dt = np.diff(tu)
+    out = []
+    for i in np.flatnonzero(dt > gap_s):
+        a, b = tu[i], tu[i + 1]
+        m = (tg > a) & (tg < b)
+        chord = pu[i + 1] - pu[i]
+        if m.any():
+            f = ((tg[m] - a) / (b - a))[:, None]
+            pos[m] = pu[i] + f * chord
+            vel[m] = chord / (b - a)
+        out.append((float(a), float(b - a), float(np.hypot(*chord))))
+    return out

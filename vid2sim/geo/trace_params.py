@@ -22,7 +22,21 @@ class TraceParams:
     :param stop_max_mps: a run of fixes moving faster than this is never called a stop [m/s]
     :param heading_min_speed_mps: below this speed the heading is held, not taken from noise
     :param gap_s: a time between accepted fixes longer than this is reported as a gap [s]
+    :param segment_gap_s: a gap longer than this splits the trace into segments smoothed
+        apart, bridged by a straight line at constant speed: beyond ~10 s the
+        constant-acceleration model's prediction spreads by tens of metres (sqrt(q dt^5 / 20))
+        and end velocities in GPS noise, stretched over the gap by a cubic, invent motion
+        (a 10 min gap while parked: 560 m of back-and-forth); such gaps are also warned about
     :param min_noise_m: floor of the position noise [m]
+    :param max_noise_m: ceiling of the noise used to tell outliers from fixes [m]: a poor
+        phone fix is within ~50 m (one sigma); a larger "noise" is fixes of different places
+        (fixes alternating between two cities once gave 500 km and no outlier at all)
+    :param jump_allowance_m: largest position error of a fix [m]: a step between fixes longer
+        than ``v_max_mps * dt`` plus this cannot be driving plus GPS error (urban multipath
+        stays below ~1 km; two such errors in opposite directions, 2 km)
+    :param max_wild_share: share of the fixes that may lie impossibly far from the drive
+        (a receiver's glitches, dropped as outliers); more is a trace that cannot be one
+        drive, an input error (at least 3 such fixes)
     :param noise_m: white position noise [m] if known; default estimated from the fixes
     """
 
@@ -37,5 +51,9 @@ class TraceParams:
     stop_max_mps: float = 1.0
     heading_min_speed_mps: float = 0.5
     gap_s: float = 2.0
+    segment_gap_s: float = 10.0
     min_noise_m: float = 0.02
+    max_noise_m: float = 50.0
+    jump_allowance_m: float = 2000.0
+    max_wild_share: float = 0.01
     noise_m: float | None = None

@@ -58,6 +58,12 @@ class BatchRow:
                   "keyframes": self.keyframes}
         return {role: values[role] for role, _ in INPUT_ROLES if values[role] is not None}
 
+    def check_numbers(self) -> None:
+        """The checks a single build makes of the row's numbers (finite, physical); raises
+        :class:`InputError`. Files are checked where they are (local or URL) by the reader."""
+        Inputs(fps=self.fps, gps_offset_s=self.gps_offset_s,
+               ego_speed_mps=self.ego_speed_mps).check()
+
     def inputs(self, local: dict[str, Path] | None = None) -> Inputs:
         """The row as the :class:`Inputs` of one build.
 
@@ -156,11 +162,17 @@ def read_manifest(path: str | Path) -> list[BatchRow]:
         if row_problems:
             problems.append((line, "; ".join(row_problems)))
             continue
-        rows.append(BatchRow(line=line, name=name, video=paths["video"], gps=paths["gps"],
-                             map_path=paths["map"], camera_path=paths["camera"],
-                             detections=paths["detections"], keyframes=paths["keyframes"],
-                             fps=numbers["fps"], gps_offset_s=numbers["gps_offset_s"],
-                             ego_speed_mps=numbers["ego_speed_mps"] or 0.0))
+        row = BatchRow(line=line, name=name, video=paths["video"], gps=paths["gps"],
+                       map_path=paths["map"], camera_path=paths["camera"],
+                       detections=paths["detections"], keyframes=paths["keyframes"],
+                       fps=numbers["fps"], gps_offset_s=numbers["gps_offset_s"],
+                       ego_speed_mps=numbers["ego_speed_mps"] or 0.0)
+        try:
+            row.check_numbers()  # a single build's checks (finite, physical), before any build
+        except InputError as exc:
+            problems.append((line, exc.problem))
+            continue
+        rows.append(row)
     if problems:
         shown = "; ".join(f"line {line}: {msg}" for line, msg in problems[:MAX_ROWS_IN_ERROR])
         more = (f"; and {len(problems) - MAX_ROWS_IN_ERROR} more"
