@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import cv2
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 UNMATCHED_COST = 1e6
 """Cost standing for "not allowed" in the assignment problems of :func:`match`: far above any
@@ -148,6 +147,10 @@ def match(cost: np.ndarray, max_cost: float) -> tuple[list[tuple[int, int]], lis
     full[:n_rows, n_cols:][np.diag_indices(n_rows)] = half
     full[n_rows:, :n_cols][np.diag_indices(n_cols)] = half
     full[n_rows:, n_cols:] = 0.0
+    # scipy.optimize costs 0.7 s to import: loaded on the first assignment, not by every
+    # command that only parses its options (`vid2sim batch` on a finished manifest).
+    from scipy.optimize import linear_sum_assignment
+
     rows, cols = linear_sum_assignment(full)
     pairs = [(int(r), int(c)) for r, c in zip(rows, cols, strict=True)
              if r < n_rows and c < n_cols and cost[r, c] <= max_cost]
