@@ -19,6 +19,9 @@ LAZY_IMPORTS_ALLOWED = {
     "vid2sim.evaluate.replay",
     # highway-env (and pygame) only for the highway-env export's preview picture.
     "vid2sim.app.commands",
+    # the whole pipeline is loaded by the first row a batch worker builds, so that a driver
+    # resuming a finished manifest starts in a second.
+    "vid2sim.app.batch.worker",
 }
 #: The layers, lowest first: a module may import its own layer and the layers below.
 LAYERS = (

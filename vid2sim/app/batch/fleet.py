@@ -17,8 +17,6 @@ from collections import Counter
 from datetime import UTC, datetime
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
 from vid2sim import __version__
 from vid2sim.app.batch import storage
@@ -70,7 +68,10 @@ def _values(records: list[dict], column: str) -> np.ndarray:
     return out[np.isfinite(out)]
 
 
-def _png(fig: Figure) -> str:
+def _png(fig) -> str:
+    # matplotlib (0.5 s to import) only when a page is drawn, not by every batch command
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
     FigureCanvasAgg(fig)
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=100, bbox_inches="tight")
@@ -83,6 +84,8 @@ def distributions_png(records: list[dict]) -> str:
     panels = (("lead_range_median_m", "lead median range [m]", None),
               ("lead_ttc_min_s", "smallest time to collision [s]", (0.0, 20.0)),
               ("f1", "keyframe F1", (0.0, 1.0)))
+    from matplotlib.figure import Figure
+
     fig = Figure(figsize=(12.0, 3.2))
     for k, (column, label, limits) in enumerate(panels):
         ax = fig.add_subplot(1, 3, k + 1)
@@ -117,6 +120,8 @@ def stage_times(records: list[dict]) -> list[tuple[str, int, float, float]]:
 
 
 def stage_png(times: list[tuple[str, int, float, float]]) -> str:
+    from matplotlib.figure import Figure
+
     fig = Figure(figsize=(7.0, 0.45 * len(times) + 1.0))
     ax = fig.add_subplot(1, 1, 1)
     names = [t[0] for t in times][::-1]

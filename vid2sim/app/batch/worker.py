@@ -31,6 +31,7 @@ import uuid
 from dataclasses import dataclass, field, replace
 from datetime import UTC, datetime
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -40,10 +41,12 @@ from vid2sim.app.batch.hashing import HashEntry, hash_inputs
 from vid2sim.app.batch.index import RowOutcome, stage_column
 from vid2sim.app.batch.manifest import STATE_DIR, BatchRow
 from vid2sim.app.batch.storage import Where
-from vid2sim.app.build import BuildResult, build
 from vid2sim.app.settings import Settings
 from vid2sim.errors import InputError
 from vid2sim.tables import read_tracks_csv
+
+if TYPE_CHECKING:
+    from vid2sim.app.build import BuildResult
 
 #: Closing speeds below this give no time to collision [m/s]: twice the lead range-rate
 #: RMSE measured on KITTI and on the composites (0.5-0.6 m/s, README "Measured figures"),
@@ -153,6 +156,10 @@ def _build_row(inputs, out_dir: Where, name: str, settings: Settings, tmp: Path,
     cleans those of earlier runs when it starts: listing a folder of 100,000 rows once per
     row would cost O(rows^2)).
     """
+    # The whole pipeline (onnxruntime, highway-env, matplotlib: 0.8 s of imports) is loaded
+    # by the first row a process builds, not by a driver resuming a finished manifest.
+    from vid2sim.app.build import build
+
     if not isinstance(out_dir, Path):
         result = build(inputs, tmp / "out" / name, settings)
         storage.upload_folder(tmp / "out" / name, storage.join(out_dir, name))
