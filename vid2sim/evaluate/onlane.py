@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from vid2sim.export.highway.env import ReplayEnv
 from vid2sim.lanelayout import ROAD_LANE_TYPES
 from vid2sim.records import RAIL_CATEGORIES
 from vid2sim.scenario import Scenario
@@ -83,8 +84,6 @@ def lane_of(lanes: list, position: np.ndarray) -> object | None:
 def lane_occupancy(scenario: Scenario | str) -> LaneOccupancy:
     """Replay ``scenario`` with the ego on its log and count where the actors stand (see
     the module docstring)."""
-    from vid2sim.export.highway.env import ReplayEnv  # highway-env: a heavy import
-
     env = ReplayEnv(scenario, ego_mode="log")
     env.reset(seed=0)
     actors = {a.id: a for a in env.scenario.actors}

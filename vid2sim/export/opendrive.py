@@ -25,9 +25,9 @@ import xml.etree.ElementTree as ET
 
 import numpy as np
 
+from vid2sim.enu import EnuFrame
 from vid2sim.export.assemble import straight_road_for
 from vid2sim.export.refline import FIT_TOLERANCE_M, fit_reference_line
-from vid2sim.geo.frames import EnuFrame
 from vid2sim.lanelayout import DRIVING, FORWARD, CrossSection
 from vid2sim.scenario import Road, Scenario
 

@@ -35,9 +35,8 @@ from vid2sim.export.crosssection import (
     infer_cross_section,
     seen_lines,
 )
-from vid2sim.geo.alongroute import signed_offsets
-from vid2sim.geo.roads import resample_polyline
 from vid2sim.lanelayout import BACKWARD, DRIVING, PARKING, RAIL, SHOULDER, CrossSection
+from vid2sim.polyline import resample_polyline, signed_offsets
 from vid2sim.records import RAIL_CATEGORIES, EgoLateral, Note
 from vid2sim.scenario import LANE_WIDTH_RANGE_M, Actor, Road, Scenario, Trajectory
 

@@ -22,10 +22,10 @@ from pathlib import Path
 import numpy as np
 
 from vid2sim.defaults import LANE_WIDTH_M
+from vid2sim.enu import EnuFrame
 from vid2sim.errors import InputError
 from vid2sim.fileio import atomic_open
 from vid2sim.geo.alongroute import signed_offsets
-from vid2sim.geo.frames import EnuFrame
 from vid2sim.geo.mapmatch import MatchConfig, MatchResult, match
 from vid2sim.geo.osm import RoadNetwork, download_network, format_bbox, load_network
 from vid2sim.geo.trace import video_t0_utc
@@ -38,6 +38,7 @@ from vid2sim.lanelayout import (
     CrossSection,
     LaneSpec,
 )
+from vid2sim.polyline import resample_polyline
 from vid2sim.records import EgoTrack, GpsTrace, RoadResult
 from vid2sim.scenario import MAX_LANES, Road
 
@@ -229,25 +230,6 @@ def cross_section_from_tags(tags: dict[str, str], along_way: bool = True) -> Cro
 
 
 # --------------------------------------------------------------------------- geometry
-
-
-def resample_polyline(xy_m: np.ndarray, step_m: float = CENTERLINE_STEP_M) -> np.ndarray:
-    """Resample a polyline at equal spacing <= ``step_m``, keeping both ends.
-
-    Repeated points are dropped first, so standing still or a way join never creates a
-    zero-length step (the source of heading flips and zig-zags).
-    """
-    xy = np.asarray(xy_m, float).reshape(-1, 2)
-    if len(xy) < 2:
-        return xy.copy()
-    seg = np.hypot(*np.diff(xy, axis=0).T)
-    xy = xy[np.concatenate([[True], seg > 1e-6])]
-    if len(xy) < 2:
-        return xy[:1].copy()
-    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
-    n = max(1, math.ceil(s[-1] / step_m - 1e-9))
-    grid = np.linspace(0.0, s[-1], n + 1)
-    return np.column_stack([np.interp(grid, s, xy[:, 0]), np.interp(grid, s, xy[:, 1])])
 
 
 def join_route(net: RoadNetwork, edges: list[int]) -> np.ndarray:
