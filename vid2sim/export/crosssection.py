@@ -25,7 +25,9 @@ Evidence, all as lateral offsets from the road's reference line (positive left):
 4. Moving vehicles beyond the outermost lane add lanes of the ego lane's width, one per lane
    they fill, in their direction.
 5. Static vehicles lining a side beyond the driving lanes make a parking strip (a shoulder on
-   motorways and trunk roads) wide enough for them, facing the way of the lane beside it.
+   motorways and trunk roads) wide enough for them, facing the way of the lane beside it;
+   more static vehicles beyond that strip (a car park behind the kerb) make a parking area
+   there, with a ``border`` (the kerb and pavement) between.
 6. Rail vehicles beyond a road edge (a tram on its own bed) make a track bed (``rail``) at
    their offset, with a ``border`` between the kerb and the bed.
 
@@ -98,6 +100,10 @@ class CrossSectionConfig:
     max_added_lanes: int = 2
     #: a border strip narrower than this is not written (the bed or strip moves in) [m]
     min_border_m: float = 0.2
+    #: widest parking area beyond a kerb strip [m]: a row of perpendicular bays (5.0 m,
+    #: RASt 06 6.1.5) with its 6-7 m aisle (EAR 05, the German car-park guideline) is
+    #: under 12 m, the widest non-driving lane (lanelayout.OTHER_LANE_WIDTH_RANGE_M)
+    car_park_max_width_m: float = 12.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -159,6 +165,7 @@ class Inference:
     parked_sides: list[str] = field(default_factory=list)
     rail_beds: int = 0
     added_lanes: int = 0
+    car_parks: list[str] = field(default_factory=list)
 
 
 # --------------------------------------------------------------------------- lines
@@ -296,6 +303,35 @@ def _outer_strip(lanes: list[_Lane], vehicles: list[StandingVehicle], side: str,
     return _Lane(lo, hi, lane_type, outer.direction)
 
 
+def _car_park(lanes: list[_Lane], vehicles: list[StandingVehicle], side: str,
+              cfg: CrossSectionConfig) -> list[_Lane]:
+    """A parking area (a car park or a row of bays behind the kerb) beyond the outermost lane
+    on one side, with a ``border`` (kerb, pavement, hedge) between, for the static vehicles
+    standing there; empty when fewer than ``min_parked`` do. The area reaches from the
+    nearest of them to the farthest (each widened by ``parking_margin_m``), at most
+    ``car_park_max_width_m`` wide; vehicles beyond that stay off the lanes."""
+    sign = 1.0 if side == "left" else -1.0
+    edge = max(ln.hi for ln in lanes) if sign > 0 else min(ln.lo for ln in lanes)
+    beyond = sorted(sign * (v.offset_m - edge) for v in vehicles
+                    if v.static and not v.rail and sign * (v.offset_m - edge) > 0.0)
+    if len(beyond) < cfg.min_parked:
+        return []
+    inner = max(beyond[0] - cfg.parking_margin_m, 0.0)
+    if inner < cfg.min_border_m:
+        inner = 0.0
+    outer = min(max(beyond[-1] + cfg.parking_margin_m, inner + cfg.parking_width_m),
+                inner + cfg.car_park_max_width_m)
+    direction = (max(lanes, key=lambda ln: ln.hi) if sign > 0
+                 else min(lanes, key=lambda ln: ln.lo)).direction
+    out = []
+    if inner > 0.0:
+        a, b = sorted((edge, edge + sign * inner))
+        out.append(_Lane(a, b, BORDER, direction))
+    a, b = sorted((edge + sign * inner, edge + sign * outer))
+    out.append(_Lane(a, b, PARKING, direction))
+    return out
+
+
 def _rail_beds(lanes: list[_Lane], vehicles: list[StandingVehicle], closed: dict[str, bool],
                cfg: CrossSectionConfig) -> list[_Lane]:
     """Track beds for rail vehicles standing beyond a road edge, with a border before."""
@@ -396,6 +432,12 @@ def infer_cross_section(lines: list[SeenLine], vehicles: list[StandingVehicle],
             closed[side] = True
         elif has_strip:
             closed[side] = closed[side] or strip is not None
+        if closed[side] and (strip is not None or has_strip):
+            # beyond a kerb strip: a car park where more static vehicles stand
+            park = _car_park(lanes, vehicles, side, cfg)
+            lanes.extend(park)
+            if park:
+                inference.car_parks.append(side)
     rails = _rail_beds(lanes, vehicles, closed, cfg)
     inference.rail_beds = sum(r.type == RAIL for r in rails)
     lanes = sorted(lanes + rails, key=lambda ln: ln.lo)

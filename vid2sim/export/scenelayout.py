@@ -60,6 +60,15 @@ class LayoutConfig:
     end_margin_m: float = 10.0
     #: at most this many metres of straight road are added at either end [m]
     max_extension_m: float = 300.0
+    #: a vehicle outside every driving lane that seems to move along the road slower than
+    #: the ego (this share of its speed), or against it at up to ``off_road_max_back_share``
+    #: of it, is a standing one whose monocular range is off by the factor k = 1 - v/u
+    #: (u the ego's speed): a car parked side-on in a lot is ranged by its rear-view width
+    #: prior 1.8 m against its 4.5 m length seen (k = 0.4, apparent v = 0.6 u); a box cut
+    #: by a hedge reads too far (k > 1, apparent oncoming). KITTI raw 0001: the car park
+    #: on the left, tracks at 0.4-0.85 u forward and one at 1.3 u backward.
+    off_road_max_forward_share: float = 1.0
+    off_road_max_back_share: float = 2.0
 
 
 @dataclass(slots=True)
@@ -79,6 +88,8 @@ class SceneLayout:
     moving_in_lane: float = float("nan")
     moving_from_centre_m: tuple[float, float] = (float("nan"), float("nan"))
     notes: list[str] = field(default_factory=list)
+    #: ids of actors held standing by :func:`off_road_standing`
+    held: list[str] = field(default_factory=list)
 
 
 # --------------------------------------------------------------------------- geometry
@@ -185,10 +196,41 @@ def standing_vehicles(actors: list[Actor], offsets: list[tuple[np.ndarray, np.nd
 # --------------------------------------------------------------------------- placing
 
 
+def off_road_standing(actors: list[Actor], offsets: list[tuple[np.ndarray, np.ndarray]],
+                      section: CrossSection, ego_speed_at, config: LayoutConfig) -> set[str]:
+    """Ids of moving actors that are standing ones seen through a wrong monocular range:
+    outside every driving lane of ``section`` and moving along the road at a share of the
+    ego's speed a range scale error explains (``off_road_max_forward_share`` forward,
+    ``off_road_max_back_share`` backward) while the ego moves (see :class:`LayoutConfig`).
+    ``ego_speed_at``: time [s] -> the ego's speed [m/s]."""
+    held = set()
+    for a, (s, d) in zip(actors, offsets, strict=True):
+        t = a.trajectory.t
+        ok = np.isfinite(s) & np.isfinite(d)
+        if a.static or a.category in RAIL_CATEGORIES or ok.sum() < 2 or t[ok][-1] <= t[ok][0]:
+            continue
+        k = int(section.lane_at(float(np.median(d[ok]))))
+        if k >= 0 and section.lanes[k].type == DRIVING:
+            continue
+        u = float(np.median(ego_speed_at(t[ok])))
+        if u < config.assemble.static_min_ego_speed_mps:
+            continue
+        v = float(np.polyfit(t[ok], s[ok], 1)[0])  # along-road speed [m/s]
+        if -config.off_road_max_back_share < v / u < config.off_road_max_forward_share:
+            held.add(a.id)
+    return held
+
+
+#: Parking lanes at most this wide are strips whose parked cars stand on the middle; wider
+#: ones are car parks where each stands where it was seen (CrossSectionConfig default).
+_STRIP_MAX_M = CrossSectionConfig().parking_max_width_m
+
+
 def place_static(actor: Actor, line: np.ndarray, section: CrossSection, s_m: float,
                  offset_m: float, tolerance_m: float) -> tuple[Actor, bool]:
     """A static actor on the road: on its strip's middle when its centre lies in the strip
-    (widened by ``tolerance_m``), facing along the road the way of the lane it stands in.
+    (widened by ``tolerance_m``), inside a car park (a parking lane wider than a strip)
+    where it was seen, facing along the road the way of the lane it stands in.
     Returns the actor and whether it was moved across the road."""
     centres, edges = section.centres_m, section.edges_m
     moved = False
@@ -200,7 +242,11 @@ def place_static(actor: Actor, line: np.ndarray, section: CrossSection, s_m: flo
         if edges[k] - tolerance_m <= offset_m <= edges[k + 1] + tolerance_m and (
                 best is None or abs(centres[k] - offset_m) < abs(centres[best] - offset_m)):
             best = k
-    if best is not None:
+    if best is not None and section.lanes[best].width_m > _STRIP_MAX_M:
+        half = min(actor.width_m / 2.0, section.lanes[best].width_m / 2.0)
+        d = float(np.clip(offset_m, edges[best] + half, edges[best + 1] - half))
+        moved = d != offset_m
+    elif best is not None:
         d, moved = float(centres[best]), True
     k = int(section.lane_at(d))
     pts, normal = line_frame(line, np.array([s_m]))
@@ -248,13 +294,23 @@ def lay_out_scene(scenario: Scenario, lateral: EgoLateral | None,
     if extendable:
         line = _cover_actors(line, scenario.actors, cfg)
     offsets = project_actors(line, scenario.actors)
-    vehicles = standing_vehicles(
-        scenario.actors, offsets,
-        lambda t: np.interp(t, ego.t_s, ego.speed_mps), cfg)
+    def ego_speed_at(t_s: np.ndarray) -> np.ndarray:
+        return np.interp(t_s, ego.t_s, ego.speed_mps)
+
+    vehicles = standing_vehicles(scenario.actors, offsets, ego_speed_at, cfg)
     lines = seen_lines(lateral.lanes, anchor, cfg.cross_section)
     prior = road.cross_section if road.source == "osm" else None
     inference = infer_cross_section(lines, vehicles, width, ego_lane, anchor, prior,
                                     road.highway, cfg.cross_section)
+    # vehicles off the driving lanes whose motion is a range error: standing, and the
+    # cross-section again with them (they may line a strip or fill a car park)
+    held = off_road_standing(scenario.actors, offsets, inference.section, ego_speed_at, cfg)
+    if held:
+        scenario = replace(scenario, actors=[replace(a, static=True) if a.id in held else a
+                                             for a in scenario.actors])
+        vehicles = standing_vehicles(scenario.actors, offsets, ego_speed_at, cfg)
+        inference = infer_cross_section(lines, vehicles, width, ego_lane, anchor, prior,
+                                        road.highway, cfg.cross_section)
     section = inference.section
     lane_width = float(np.clip(round(width, 3), *LANE_WIDTH_RANGE_M))
     new_road = replace(road, centerline=line, lanes=section.n_driving,
@@ -277,6 +333,12 @@ def lay_out_scene(scenario: Scenario, lateral: EgoLateral | None,
     out.moving_in_lane, out.moving_from_centre_m = in_lane, from_centre
     out.notes.extend(_notes(new_road, inference, ego_lane, placed, static, in_lane,
                             from_centre, extendable and len(line) != len(road.centerline)))
+    if held:
+        out.notes.append(Note.estimate(
+            f"{len(held)} vehicle(s) off the driving lanes ({', '.join(sorted(held))}) seemed "
+            "to move along the road slower than the ego: standing, their monocular range off "
+            "by a scale factor; replayed standing"))
+    out.held = sorted(held)
     return out
 
 
@@ -344,6 +406,8 @@ def _notes(road: Road, inference: Inference, ego_lane: int, placed: int, static:
         f"direction with the ego in lane {inference.ego_lane} (0 = rightmost), {backward} "
         f"oncoming" + (f"; parked cars make a strip on the {' and '.join(inference.parked_sides)}"
                        if inference.parked_sides else "")
+        + (f"; a car park on the {' and '.join(inference.car_parks)}" if inference.car_parks
+           else "")
         + (f"; {inference.rail_beds} track bed(s) beside the road" if inference.rail_beds
            else ""))]
     if static:
