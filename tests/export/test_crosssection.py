@@ -15,7 +15,13 @@ from vid2sim.export.crosssection import (
     infer_cross_section,
     seen_lines,
 )
-from vid2sim.export.scenelayout import LayoutConfig, off_road_standing, place_static
+from vid2sim.export.scenelayout import (
+    LayoutConfig,
+    extend_line,
+    line_frame,
+    off_road_standing,
+    place_static,
+)
 from vid2sim.geo.roads import cross_section_from_tags
 from vid2sim.lanelayout import (
     BACKWARD,
@@ -274,3 +280,21 @@ def test_off_road_standing_known_answer():
     held = off_road_standing(actors, offsets, SECTION, lambda tt: np.full_like(tt, 10.0),
                              LayoutConfig())
     assert held == {"lot", "back"}
+
+
+@settings(max_examples=60, deadline=None)
+@given(heading=st.floats(-3.1, 3.1), bend=st.floats(-0.02, 0.02),
+       before=st.floats(0.0, 80.0), after=st.floats(0.0, 80.0))
+def test_extend_line_keeps_the_line_and_runs_on_straight(heading, bend, before, after):
+    s = np.linspace(0.0, 50.0, 51)
+    h = heading + bend * s
+    line = np.column_stack((np.cumsum(np.cos(h)), np.cumsum(np.sin(h))))
+    ext = extend_line(line, before, after)
+    n0 = len(ext) - len(line) - (int(np.ceil(after)) if after > 0 else 0)
+    np.testing.assert_allclose(ext[n0:n0 + len(line)], line)
+    assert np.linalg.norm(ext[0] - line[0]) == pytest.approx(before, abs=1e-6)
+    assert np.linalg.norm(ext[-1] - line[-1]) == pytest.approx(after, abs=1e-6)
+    # points, normals: unit left normals perpendicular to the line's direction
+    pts, normal = line_frame(ext, np.linspace(0.0, 40.0, 9))
+    np.testing.assert_allclose(np.hypot(normal[:, 0], normal[:, 1]), 1.0)
+    assert np.all(np.isfinite(pts))
