@@ -105,6 +105,9 @@ class SceneLayout:
 
 # --------------------------------------------------------------------------- geometry
 
+#: Shortest prolongation of a line written [m] (shorter ones are left out).
+MIN_EXTENSION_M = 1e-3
+
 
 def line_frame(line_xy_m: np.ndarray, s_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Points and unit left normals of a polyline at arc lengths ``s_m`` (clipped to it)."""
@@ -124,12 +127,13 @@ def extend_line(line_xy_m: np.ndarray, before_m: float, after_m: float,
     """Prolong a polyline straight along its end tangents [m]."""
     p = np.asarray(line_xy_m, float)
     out = [p]
-    if before_m > 0:
+    # under a millimetre adds no road, only a zero-length segment without a direction
+    if before_m > MIN_EXTENSION_M:
         t0 = (p[1] - p[0]) / np.linalg.norm(p[1] - p[0])
         k = np.arange(math.ceil(before_m / step_m), 0, -1)[:, None] * (before_m / max(
             math.ceil(before_m / step_m), 1))
         out.insert(0, p[0] - k * t0)
-    if after_m > 0:
+    if after_m > MIN_EXTENSION_M:
         t1 = (p[-1] - p[-2]) / np.linalg.norm(p[-1] - p[-2])
         k = np.arange(1, math.ceil(after_m / step_m) + 1)[:, None] * (after_m / max(
             math.ceil(after_m / step_m), 1))
