@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from vid2sim import scenario as scenario_io
@@ -13,7 +14,10 @@ from vid2sim.app.demo import run_demo
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.settings import DetectorSettings, Settings
 from vid2sim.cli import main
+from vid2sim.enu import EnuFrame
 from vid2sim.evaluate.lanes import ego_cross_error, summary
+from vid2sim.lanelayout import BACKWARD, DRIVING, FORWARD, PARKING
+from vid2sim.polyline import signed_offsets
 from vid2sim.samples.demo_truth import truth_scenario
 
 QUIET = Settings(progress=False, allow_download=False)
@@ -198,3 +202,29 @@ def test_demo_ego_sits_in_its_lane(demo_result):
     assert lateral.source == "lane markings + map"
     assert (lateral.lane == 0).all() and lateral.lane_changes == []  # the ego holds its lane
     assert lateral.lanes.detection_rate >= 0.8
+
+
+def test_demo_street_has_its_lanes_and_parking_strip(demo_result):
+    """The rendered demo street (one 3.5 m lane each way, a 2.5 m parking strip on the right
+    with three parked cars; an OSM map): the built road's cross-section and the parked cars
+    against the truth."""
+    out, _ = demo_result
+    built = scenario_io.load(out / "build" / "scenario.json")
+    truth = truth_scenario(out / "sample" / "truth.json")
+    road = built.roads[0]
+    sec = road.layout()
+    kinds = [(lane.type, lane.direction) for lane in sec.lanes]
+    assert kinds == [(PARKING, FORWARD), (DRIVING, FORWARD), (DRIVING, BACKWARD)]
+    for k in (1, 2):
+        assert abs(sec.lanes[k].width_m - 3.5) <= 0.5
+    assert 2.0 <= sec.lanes[0].width_m <= 3.5
+    # every true parked car stands in the built parking lane (its truth position measured
+    # against the built road)
+    e = sec.edges_m
+    parked = [a for a in truth.actors if a.id.startswith("parked")]
+    assert len(parked) == 3
+    for a in parked:  # truth ENU -> WGS-84 -> the build's ENU (a build picks its origin)
+        lat, lon, _ = EnuFrame(truth.origin).to_geodetic(
+            np.column_stack((a.trajectory.x, a.trajectory.y)))
+        _, d = signed_offsets(road.centerline, EnuFrame(built.origin).to_enu(lat, lon))
+        assert e[0] - 0.3 <= float(np.median(d)) <= e[1] + 0.3, a.id

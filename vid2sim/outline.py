@@ -117,6 +117,10 @@ class OutlineShape:
 # - Buses (12 m city buses, e.g. Mercedes Citaro, MAN Lion's City): rear overhang 3.2-3.6 m,
 #   rear bumper 0.35 m, body 2.55 m nearly full width at the rear, mirrors 0.3 m out near
 #   the front end at ~2.3 m height.
+# - Trams (low-floor articulated trams: Siemens Avenio/Combino, Alstom Citadis, Bombardier
+#   Flexity, the Karlsruhe NET 2012): the end car's face is full width (2.30-2.65 m) and
+#   nearly full height, its lower edge ~0.35 m above the rail head; the first bogie sits
+#   ~3.5 m behind each end; camera arms or mirrors reach ~0.25 m out at ~2.2 m.
 # - Motorcycles: the rear wheel's contact ~0.25 m ahead of the rear fender, no bumper below
 #   ~0.35 m, mirrors at the handlebar within the rider's width.
 CAR_SHAPE = OutlineShape(rear_clearance_m=0.35, rear_inset_m=0.12, rear_top_frac=0.65,
@@ -139,6 +143,11 @@ BUS_SHAPE = OutlineShape(rear_clearance_m=0.35, rear_inset_m=0.03, rear_top_frac
                          roof_rear_m=0.1, roof_front_m=0.1, roof_inset_m=0.05,
                          mirror_from_front_m=0.2, mirror_out_m=0.3, mirror_height_m=2.3,
                          front_contact_m=2.7)
+TRAM_SHAPE = OutlineShape(rear_clearance_m=0.35, rear_inset_m=0.05, rear_top_frac=1.0,
+                          contact_m=3.5, tyre_inset_m=0.3, widest_m=0.0, belt_frac=0.85,
+                          roof_rear_m=0.3, roof_front_m=0.3, roof_inset_m=0.15,
+                          mirror_from_front_m=0.5, mirror_out_m=0.25, mirror_height_m=2.2,
+                          front_contact_m=3.5)
 MOTORCYCLE_SHAPE = OutlineShape(rear_clearance_m=0.35, rear_inset_m=0.1, rear_top_frac=0.7,
                                 contact_m=0.25, tyre_inset_m=0.3, widest_m=0.6,
                                 belt_frac=0.6, roof_rear_m=0.5, roof_front_m=0.7,
@@ -153,7 +162,7 @@ CUBOID = OutlineShape(rear_clearance_m=0.0, rear_inset_m=0.0, rear_top_frac=1.0,
 #: The outline of each detector class (a class not listed takes the car's).
 CLASS_SHAPES: dict[str, OutlineShape] = {
     "car": CAR_SHAPE, "van": VAN_SHAPE, "truck": TRUCK_SHAPE, "bus": BUS_SHAPE,
-    "motorcycle": MOTORCYCLE_SHAPE,
+    "motorcycle": MOTORCYCLE_SHAPE, "tram": TRAM_SHAPE,
 }
 
 _SHAPE_FIELDS = tuple(f.name for f in fields(OutlineShape))

@@ -177,7 +177,9 @@ class TraceStats:
 # --------------------------------------------------------------------------- detection
 
 
-VEHICLE_CATEGORIES = ("car", "truck", "bus", "motorcycle")
+VEHICLE_CATEGORIES = ("car", "truck", "bus", "motorcycle", "tram")
+#: Vehicles that run on rails: a tram on its own track bed is never the ego's lead.
+RAIL_CATEGORIES = ("tram",)
 
 
 @dataclass(frozen=True, slots=True)

@@ -5,9 +5,13 @@ Every exporter and evaluator reads this file; the field names are a contract:
 - ``schema``: ``"vid2sim.scenario"``, ``version``: 1
 - ``origin``: ``{lat, lon, alt}``, origin of the local ENU frame (x east, y north, z up, m)
 - ``roads``: ``[{id, name, highway, source, osm_way_ids, lanes, lane_width_m, centerline}]``
-  with ``centerline`` a list of ``[x, y]`` ENU points in travel order
+  with ``centerline`` a list of ``[x, y]`` ENU points in travel order, and optionally
+  ``cross_section``: ``{right_edge_m, lanes: [{type, direction, width_m}]}``, the lanes from
+  right to left (:mod:`vid2sim.lanelayout`); without it the road's ``lanes`` are forward
+  driving lanes of ``lane_width_m`` centred on the centerline
 - ``ego``: ``{length_m, width_m, height_m, trajectory}``
-- ``actors``: ``[{id, category, length_m, width_m, height_m, trajectory}]``
+- ``actors``: ``[{id, category, length_m, width_m, height_m, trajectory}]``, and
+  ``static: true`` for a vehicle that stood still (parked) and is replayed standing
 - trajectories: ``[{t, x, y, heading, speed}]`` with ``t`` seconds from the video's first
   frame, ``x``/``y`` ENU metres, ``heading`` radians counter-clockwise from east, ``speed`` m/s
 - ``camera``: the camera record (see :mod:`vid2sim.camera`)
@@ -32,9 +36,13 @@ import numpy as np
 
 from vid2sim.errors import ScenarioError
 from vid2sim.fileio import parse_json, read_input_text, write_text_atomic
+from vid2sim.lanelayout import CrossSection, uniform_cross_section, validate_cross_section
 from vid2sim.records import Origin
 
 SCHEMA = "vid2sim.scenario"
+#: The format's version. Fields added since version 1 was first written (a road's
+#: ``cross_section``, an actor's ``static``) are optional, so every version-1 file, older or
+#: newer, still loads, and a reader that does not know them still reads the rest.
 VERSION = 1
 
 # Decimals kept per key when writing: 1e-9 deg is 0.1 mm; 1e-4 m and 1e-4 s are far below
@@ -96,7 +104,11 @@ class Road:
 
     :param source: ``"osm"`` (matched OpenStreetMap ways) or ``"trajectory"`` (derived
         from the ego path where no map was available)
+    :param lanes: driving lanes (both directions)
+    :param lane_width_m: width of a driving lane in the ego's direction [m]
     :param centerline: (N, 2) ENU points [m]
+    :param cross_section: every lane from right to left with its type, direction and width;
+        None: ``lanes`` forward driving lanes centred on the centerline (:meth:`layout`)
     """
 
     id: str
@@ -107,23 +119,36 @@ class Road:
     lanes: int
     lane_width_m: float
     centerline: np.ndarray
+    cross_section: CrossSection | None = None
 
     def __post_init__(self) -> None:
         self.centerline = np.asarray(self.centerline, dtype=float).reshape(-1, 2)
 
+    def layout(self) -> CrossSection:
+        """The road's lanes from right to left: its ``cross_section``, or what a road without
+        one means."""
+        if self.cross_section is not None:
+            return self.cross_section
+        return uniform_cross_section(self.lanes, self.lane_width_m)
+
     def to_json(self) -> dict[str, Any]:
-        return {
+        out = {
             "id": self.id, "name": self.name, "highway": self.highway, "source": self.source,
             "osm_way_ids": [int(w) for w in self.osm_way_ids], "lanes": int(self.lanes),
             "lane_width_m": float(self.lane_width_m), "centerline": self.centerline.tolist(),
         }
+        if self.cross_section is not None:
+            out["cross_section"] = self.cross_section.to_json()
+        return out
 
     @classmethod
     def from_json(cls, d: dict[str, Any]) -> Road:
+        section = d.get("cross_section")
         return cls(
             id=str(d["id"]), name=d["name"], highway=d["highway"], source=d["source"],
             osm_way_ids=list(d["osm_way_ids"]), lanes=int(d["lanes"]),
             lane_width_m=float(d["lane_width_m"]), centerline=np.asarray(d["centerline"]),
+            cross_section=None if section is None else CrossSection.from_json(section),
         )
 
 
@@ -141,17 +166,24 @@ class Ego:
 
 @dataclass(slots=True)
 class Actor:
+    """A recorded vehicle. ``static``: it stood still (a parked car) and is replayed
+    standing where it was seen."""
+
     id: str
     category: str
     length_m: float
     width_m: float
     height_m: float
     trajectory: Trajectory
+    static: bool = False
 
     def to_json(self) -> dict[str, Any]:
-        return {"id": self.id, "category": self.category, "length_m": self.length_m,
-                "width_m": self.width_m, "height_m": self.height_m,
-                "trajectory": self.trajectory.to_json()}
+        out = {"id": self.id, "category": self.category, "length_m": self.length_m,
+               "width_m": self.width_m, "height_m": self.height_m,
+               "trajectory": self.trajectory.to_json()}
+        if self.static:
+            out["static"] = True
+        return out
 
 
 @dataclass(slots=True)
@@ -405,6 +437,9 @@ def validate(data: Any, path: str | Path | None = None) -> None:
         if isinstance(width, (int, float)) and not width > 0:
             raise ScenarioError(path, f"{w}lane_width_m", "must be > 0")
         _number(road, "lane_width_m", w, path, *LANE_WIDTH_RANGE_M)
+        if road.get("cross_section") is not None:
+            validate_cross_section(road["cross_section"], f"{w}cross_section", path, lanes,
+                                   LANE_WIDTH_RANGE_M)
         n_line += _validate_centerline(_require(road, "centerline", list, w, path),
                                        f"{w}centerline", path)
         if n_line > MAX_CENTERLINE_POINTS:
@@ -426,6 +461,8 @@ def validate(data: Any, path: str | Path | None = None) -> None:
             raise ScenarioError(path, f"{w}id", f"duplicate actor id {actor_id!r}")
         seen.add(actor_id)
         _require(actor, "category", str, w, path)
+        if "static" in actor:
+            _require(actor, "static", bool, w, path)
         _validate_box(actor, w, path)
         traj = _require(actor, "trajectory", list, w, path)
         if n_points + len(traj) > MAX_TRAJECTORY_POINTS:
@@ -455,7 +492,8 @@ def from_json(data: dict[str, Any], path: str | Path | None = None) -> Scenario:
                 Trajectory.from_json(ego["trajectory"])),
         actors=[
             Actor(str(a["id"]), a["category"], float(a["length_m"]), float(a["width_m"]),
-                  float(a["height_m"]), Trajectory.from_json(a["trajectory"]))
+                  float(a["height_m"]), Trajectory.from_json(a["trajectory"]),
+                  static=bool(a.get("static", False)))
             for a in data["actors"]
         ],
         camera=dict(data["camera"]),

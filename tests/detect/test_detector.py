@@ -191,7 +191,8 @@ def test_picodet_detector_scales_plain_resize_and_normalises():
 
 
 def test_vehicle_classes():
-    assert COCO_VEHICLES == {2: "car", 3: "motorcycle", 5: "bus", 7: "truck"}
+    # COCO's train (6) is the tram category (issue 19): trams are tracked as rail vehicles
+    assert COCO_VEHICLES == {2: "car", 3: "motorcycle", 5: "bus", 6: "tram", 7: "truck"}
 
 
 def test_load_detector_unknown_name(tmp_path):

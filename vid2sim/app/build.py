@@ -47,6 +47,7 @@ from vid2sim.evaluate.replay import run_eval
 from vid2sim.evaluate.report import write_report
 from vid2sim.export.assemble import assemble_scenario
 from vid2sim.export.openscenario import write_openscenario
+from vid2sim.export.scenelayout import SceneLayout, lay_out_scene
 from vid2sim.fileio import staged_folder, write_text_atomic
 from vid2sim.geo import roads as geo_roads
 from vid2sim.geo.lateral import fuse_lateral
@@ -71,6 +72,8 @@ class BuildResult:
     stage_seconds: dict[str, float] = field(default_factory=dict)
     #: the ego's lane, lane changes and lateral correction (from the lane markings)
     lateral: EgoLateral | None = None
+    #: the road's cross-section and the parked cars placed on it
+    scene: SceneLayout | None = None
 
     def summary(self) -> str:
         lines = [(f"scenario: {self.duration_s:.1f} s, ego distance {self.distance_m:.0f} m, "
@@ -276,6 +279,12 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
                                              config=settings.assemble,
                                              ego_noise_m=ego_noise_m)
     warnings.extend(assemble_warnings)
+    # ---- the street: the road's lanes from the video (and map), parked cars on their strip
+    scene = stages.run("road cross-section", lay_out_scene, scenario, lateral)
+    scenario = scene.scenario
+    warnings.extend(notes_of(scene.notes, NoteKind.WARNING))
+    scenario.source.assumptions.extend(str(n) for n in scene.notes
+                                       if getattr(n, "kind", None) is not NoteKind.WARNING)
     scenario.source.warnings = [str(w) for w in warnings]
 
     # ---- write into the staging folder (moved into place by the caller)
@@ -314,5 +323,6 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
         out_dir=out_dir, files={k: out_dir / v for k, v in files.items()},
         duration_s=scenario.duration_s, distance_m=path_length_m(ego),
         n_actors=len(scenario.actors), lead_share=lead["lead_share"], lead_range_m=lead_range,
-        metrics=metrics, warnings=warnings, stage_seconds=stages.seconds, lateral=lateral)
+        metrics=metrics, warnings=warnings, stage_seconds=stages.seconds, lateral=lateral,
+        scene=scene)
 

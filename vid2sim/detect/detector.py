@@ -53,8 +53,10 @@ CENTRE_MIN_SCORE = 0.5
 start a track: a car 30-45 m ahead scores about 0.65 there against 0.37 in the full frame, a
 road shadow or a fragment of a partly hidden car 0.3-0.47."""
 
-COCO_VEHICLES: dict[int, str] = {2: "car", 3: "motorcycle", 5: "bus", 7: "truck"}
-"""COCO class id (0-based) -> vehicle category; train (6) is left out on purpose (trams)."""
+COCO_VEHICLES: dict[int, str] = {2: "car", 3: "motorcycle", 5: "bus", 6: "tram", 7: "truck"}
+"""COCO class id (0-based) -> vehicle category. COCO's ``train`` (6) holds trains and trams,
+and the only rail vehicle a road camera meets beside or on the street is a tram: it is its
+own category, replayed on its own track (:mod:`vid2sim.detect.rail`)."""
 
 DEFAULT_DETECTOR = models.DEFAULT_DETECTOR
 

@@ -22,12 +22,14 @@ from vid2sim.errors import InputError
 from vid2sim.fileio import parse_json, read_input_text
 from vid2sim.records import Detection
 
-# Category names other tools use -> ours. Anything absent (pedestrian, train, bicycle...)
-# is not a vehicle we track and is dropped.
+# Category names other tools use -> ours. Anything absent (pedestrian, bicycle...) is not a
+# vehicle we track and is dropped. Trains and trams (COCO "train", KITTI "Tram", BDD100K
+# "train") are rail vehicles: our "tram".
 CATEGORY_ALIASES: dict[str, str] = {
     "car": "car", "van": "car", "suv": "car", "vehicle": "car", "pickup": "truck",
     "truck": "truck", "lorry": "truck", "trailer": "truck", "bus": "bus",
     "motorcycle": "motorcycle", "motorbike": "motorcycle", "motor": "motorcycle",
+    "tram": "tram", "train": "tram", "streetcar": "tram", "light_rail": "tram",
 }
 # MOT16/17 ground-truth class ids (Milan et al. 2016, table of classes): 3 car,
 # 5 motorbike; the other classes are not vehicles we track.

@@ -65,7 +65,8 @@ def lane_indices(lateral_m: np.ndarray, lane_width_m: float, hysteresis_m: float
 
 
 def assign_lanes_and_lead(boxes: list[TrackedBox], range_m: np.ndarray, lateral_m: np.ndarray,
-                          config: LaneSettings) -> tuple[list[str], np.ndarray]:
+                          config: LaneSettings, never_lead: np.ndarray | None = None
+                          ) -> tuple[list[str], np.ndarray]:
     """Lane of every box and whether it is the lead vehicle in its frame.
 
     The lead is the nearest vehicle in the ego lane. Another ego-lane vehicle that is only a
@@ -83,6 +84,9 @@ def assign_lanes_and_lead(boxes: list[TrackedBox], range_m: np.ndarray, lateral_
         Range to the rear and lateral offset of each box [m] (smoothed).
     config : LaneSettings
         Lane width, hysteresis, switch delay, maximum range.
+    never_lead : ndarray of bool, optional
+        Boxes that may not be the lead whatever their lane (a tram on its own track bed,
+        :mod:`vid2sim.detect.rail`).
 
     Returns
     -------
@@ -101,6 +105,9 @@ def assign_lanes_and_lead(boxes: list[TrackedBox], range_m: np.ndarray, lateral_
     lanes = [lane_name(int(k)) for k in lane_idx]
 
     is_lead = np.zeros(n, dtype=bool)
+    may_lead = lane_idx == 0
+    if never_lead is not None:
+        may_lead &= ~np.asarray(never_lead, bool)
     by_frame: dict[int, list[int]] = defaultdict(list)
     for i, b in enumerate(boxes):
         by_frame[b.frame].append(i)
@@ -110,11 +117,11 @@ def assign_lanes_and_lead(boxes: list[TrackedBox], range_m: np.ndarray, lateral_
     challenge_frames = 0
     for frame in sorted(by_frame):
         members = np.asarray(by_frame[frame])
-        k = nearest_ahead(range_m[members], lane_idx[members] == 0, config.max_range_m)
+        k = nearest_ahead(range_m[members], may_lead[members], config.max_range_m)
         if k < 0:
             continue
         nearest = int(members[k])
-        cands = [int(i) for i in members if lane_idx[i] == 0 and np.isfinite(range_m[i])
+        cands = [int(i) for i in members if may_lead[i] and np.isfinite(range_m[i])
                  and 0 < range_m[i] <= config.max_range_m]
         current = next((i for i in cands if boxes[i].track_id == lead_track), None)
         if current is None:

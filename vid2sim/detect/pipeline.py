@@ -19,6 +19,7 @@ from vid2sim.detect.flow import FlowConfig, MedianFlow
 from vid2sim.detect.lane_markings import LaneMarkingDetector
 from vid2sim.detect.lane_track import track_lanes
 from vid2sim.detect.lanes import HorizonEstimator, yaw_for_vanishing_column
+from vid2sim.detect.rail import with_rail_vehicles
 from vid2sim.detect.ranging import RangingConfig, range_tracks
 from vid2sim.detect.schedule import KeyframeSchedule, ScheduleConfig
 from vid2sim.detect.tracker import Tracker, TrackerConfig
@@ -251,7 +252,14 @@ def detect_and_range(video: Path, camera: Camera, *, detector, detections=None,
             notes.append(Note.warning(
                 f"lane markings point {yaw - camera.yaw_deg:+.1f} deg off the camera axis: "
                 "implausible for a mounting, yaw not changed"))
-    result = range_tracks(boxes, camera, horizon_hints_px=horizon_est.rows_px,
-                          horizon_hint_frames=horizon_est.frames, config=config)
+    def rerange(tracked: list[TrackedBox]) -> RangingResult:
+        return range_tracks(tracked, camera, horizon_hints_px=horizon_est.rows_px,
+                            horizon_hint_frames=horizon_est.frames, config=config)
+
+    result = rerange(boxes)
     result.lanes = track_lanes(lane_obs, math.radians(camera.yaw_deg - yaw_before))
+    # trams: the detector's, and tall vehicles beyond the kerb (ranged again as trams)
+    result, rail_notes = with_rail_vehicles(boxes, result, camera, rerange,
+                                            config or RangingConfig())
+    notes.extend(rail_notes)
     return result, camera, notes

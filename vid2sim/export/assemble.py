@@ -50,12 +50,14 @@ if TYPE_CHECKING:
     from vid2sim.camera import Camera
 
 # Typical dimensions [m] (length, width, height): EU/US passenger-car fleet medians, a rigid
-# delivery truck, a 12 m city bus, a motorcycle with rider.
+# delivery truck, a 12 m city bus, a motorcycle with rider, a low-floor tram (ranging's
+# prior, vid2sim.detect.ranging.config: 2.30-2.65 m wide, 3.4-3.6 m high, 20-45 m long).
 CLASS_PRIORS_M: dict[str, tuple[float, float, float]] = {
     "car": (4.5, 1.8, 1.5),
     "truck": (8.0, 2.5, 3.2),
     "bus": (12.0, 2.55, 3.1),
     "motorcycle": (2.2, 0.8, 1.5),
+    "tram": (30.0, 2.55, 3.5),
 }
 
 
@@ -342,7 +344,8 @@ def _actor_from_rows(rows: list[RangedBox], actor_id: str, ego: EgoTrack, cfg: A
               else np.array([float(np.median(he))]))
         heading = np.full_like(xs, float(he[0]))
         return Actor(id=actor_id, category=category, length_m=length, width_m=width,
-                     height_m=height, trajectory=Trajectory(t, xs, ys, heading, np.zeros_like(t)))
+                     height_m=height, trajectory=Trajectory(t, xs, ys, heading, np.zeros_like(t)),
+                     static=True)
     if roads and cfg.max_yaw_from_road_deg < 180.0:
         axis = roads if isinstance(roads, RoadAxis) else RoadAxis(roads)
         heading = heading_along_road(vx, vy, axis.heading_at(xs, ys), cfg)

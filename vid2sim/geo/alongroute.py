@@ -8,6 +8,7 @@ import math
 import numpy as np
 
 from vid2sim.geo.osm import RoadNetwork
+from vid2sim.polyline import signed_offsets  # noqa: F401 - its old home, still imported here
 
 #: innovations beyond 4 sigma (16 = 4^2 in variance) are rejected by the along-route filter
 GATE = 16.0
@@ -91,64 +92,6 @@ def trim_route(net: RoadNetwork, piece: list[int], s_m: np.ndarray, min_cover_m:
         last -= 1
     last = max(last, first)
     return piece[first:last + 1], s_m - starts[first]
-
-
-def signed_offsets(line_xy_m: np.ndarray, xy_m: np.ndarray,
-                   expected_s_m: np.ndarray | None = None, window_m: float = 40.0
-                   ) -> tuple[np.ndarray, np.ndarray]:
-    """Arc length along ``line_xy_m`` and signed lateral offset (positive left) of points.
-
-    With ``expected_s_m`` each point is projected only onto the part of the line within
-    ``window_m`` of where it should be, so a route that passes a place twice (a loop round a
-    block) does not project onto the wrong pass.
-
-    Returns
-    -------
-    (s_m, offset_m) per point [m]
-    """
-    line = np.asarray(line_xy_m, float)
-    pts = np.asarray(xy_m, float).reshape(-1, 2)
-    a, d = line[:-1], np.diff(line, axis=0)
-    seg_len = np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-9)
-    seg_s = np.concatenate([[0.0], np.cumsum(seg_len)])
-    n_seg = len(a)
-    if expected_s_m is None or not len(pts):
-        first = np.zeros(len(pts), dtype=np.int64)
-        width = n_seg
-    else:
-        exp = np.asarray(expected_s_m, float).reshape(-1)
-        known = np.isfinite(exp)
-        lo = np.where(known, np.searchsorted(seg_s, exp - window_m, side="right") - 1, 0)
-        hi = np.where(known, np.searchsorted(seg_s, exp + window_m, side="left"), n_seg)
-        first = np.clip(lo, 0, n_seg - 1)
-        width = int(max(1, (np.clip(hi, 1, n_seg) - first).max()))
-    s_out = np.full(len(pts), np.nan)
-    off_out = np.full(len(pts), np.nan)
-    chunk = max(1, 200_000 // max(width, 1))  # bounds the (points x segments) work arrays
-    for k0 in range(0, len(pts), chunk):
-        p = pts[k0:k0 + chunk]
-        # candidate segments of each point: a window of ``width`` from ``first``
-        j = np.minimum(first[k0:k0 + chunk, None] + np.arange(width)[None], n_seg - 1)
-        rel0 = p[:, None, :] - a[j]
-        u = np.clip((rel0 * d[j]).sum(-1) / seg_len[j] ** 2, 0.0, 1.0)
-        foot = a[j] + u[..., None] * d[j]
-        dist2 = ((p[:, None, :] - foot) ** 2).sum(-1)
-        if expected_s_m is not None:
-            exp_k = np.asarray(expected_s_m, float)[k0:k0 + chunk]
-            far = np.abs(seg_s[j] + u * seg_len[j] - exp_k[:, None]) > window_m
-            dist2 = np.where(far & np.isfinite(exp_k)[:, None] & (dist2 < np.inf), np.inf,
-                             dist2)
-            # no segment inside the window (an expectation off the line): take the nearest
-            none = ~np.isfinite(dist2).any(axis=1)
-            dist2[none] = ((p[none, None, :] - foot[none]) ** 2).sum(-1)
-        best = np.argmin(dist2, axis=1)
-        rows = np.arange(len(p))
-        jj = j[rows, best]
-        rel = p - foot[rows, best]
-        cross = d[jj, 0] * rel[:, 1] - d[jj, 1] * rel[:, 0]
-        s_out[k0:k0 + chunk] = seg_s[jj] + u[rows, best] * seg_len[jj]
-        off_out[k0:k0 + chunk] = np.sign(cross) * np.sqrt(dist2[rows, best])
-    return s_out, off_out
 
 
 def join_xy(net: RoadNetwork, edges: list[int]) -> np.ndarray:

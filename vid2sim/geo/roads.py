@@ -29,6 +29,16 @@ from vid2sim.geo.alongroute import signed_offsets
 from vid2sim.geo.mapmatch import MatchConfig, MatchResult, match
 from vid2sim.geo.osm import RoadNetwork, download_network, format_bbox, load_network
 from vid2sim.geo.trace import video_t0_utc
+from vid2sim.lanelayout import (
+    BACKWARD,
+    DRIVING,
+    FORWARD,
+    PARKING,
+    SHOULDER,
+    CrossSection,
+    LaneSpec,
+)
+from vid2sim.polyline import resample_polyline
 from vid2sim.records import EgoTrack, GpsTrace, RoadResult
 from vid2sim.scenario import MAX_LANES, Road
 
@@ -129,26 +139,97 @@ def lanes_from_tags(tags: dict[str, str], along_way: bool = True) -> tuple[int, 
     return total, forward, float(lane_width)
 
 
-# --------------------------------------------------------------------------- geometry
+#: Width of a parking lane by how the cars stand [m] (RASt 06, the German street design
+#: guideline, 6.1.5: parallel parking 2.00 m, at least 1.80 m, 2.50 m beside a bus route;
+#: diagonal bays 4.15-4.50 m deep; perpendicular bays 5.00 m). ``parking:*:width`` wins.
+PARKING_WIDTH_M = {"parallel": 2.3, "diagonal": 4.5, "perpendicular": 5.0}
+#: Tag values (``parking:lane:<side>`` of the older scheme, ``parking:<side>`` of the 2022
+#: one) that put standing cars beside the driving lanes; others (``no``, ``no_parking``,
+#: ``no_stopping``, ``separate``, ``fire_lane``) do not.
+PARKING_ON_ROAD = {"parallel", "diagonal", "perpendicular", "marked", "yes", "lane",
+                   "street_side", "on_kerb", "half_on_kerb", "shoulder"}
+#: Width of a shoulder without a ``shoulder:width`` tag [m]: the hard shoulder of German
+#: motorways (RAA 2008: 2.50-3.00 m) and of rural roads (1.5 m) by road class.
+SHOULDER_WIDTH_M = {"motorway": 2.5, "motorway_link": 2.5, "trunk": 2.5}
+SHOULDER_WIDTH_OTHER_M = 1.5
 
 
-def resample_polyline(xy_m: np.ndarray, step_m: float = CENTERLINE_STEP_M) -> np.ndarray:
-    """Resample a polyline at equal spacing <= ``step_m``, keeping both ends.
+def _side_value(tags: dict[str, str], prefix: str, side: str) -> str | None:
+    """The tag ``<prefix>:<side>``, or ``<prefix>:both``."""
+    for key in (f"{prefix}:{side}", f"{prefix}:both"):
+        if tags.get(key):
+            return str(tags[key]).strip().lower()
+    return None
 
-    Repeated points are dropped first, so standing still or a way join never creates a
-    zero-length step (the source of heading flips and zig-zags).
+
+def _parking_side(tags: dict[str, str], side: str) -> float | None:
+    """Width of the parking lane on one side of the way (``left``/``right`` of its node
+    order) from ``parking:lane:*`` or ``parking:*`` tags [m], None without one."""
+    old = _side_value(tags, "parking:lane", side)
+    new = _side_value(tags, "parking", side)
+    value = old or new
+    if value is None or value not in PARKING_ON_ROAD:
+        return None
+    orientation = (value if value in PARKING_WIDTH_M else
+                   _side_value(tags, "parking", f"{side}:orientation") or "parallel")
+    width = (_number(tags.get(f"parking:{side}:width") or tags.get(f"parking:lane:{side}:width")
+                     or tags.get("parking:both:width")))
+    if width and 1.5 <= width <= 12.0:
+        return float(width)
+    return PARKING_WIDTH_M.get(orientation, PARKING_WIDTH_M["parallel"])
+
+
+def _shoulder_sides(tags: dict[str, str]) -> set[str]:
+    value = str(tags.get("shoulder", "")).strip().lower()
+    sides = {"both": {"left", "right"}, "yes": {"right"}, "right": {"right"},
+             "left": {"left"}}.get(value, set())
+    sides |= {s for s in ("left", "right") if tags.get(f"shoulder:{s}") == "yes"}
+    return sides
+
+
+def cross_section_from_tags(tags: dict[str, str], along_way: bool = True) -> CrossSection:
+    """A carriageway's lanes from its OSM tags, rightmost first in the travel direction.
+
+    Driving lanes come from :func:`lanes_from_tags` (``lanes``, ``lanes:forward``,
+    ``lanes:backward``, ``width``, ``oneway``): on a two-way road the travel direction's
+    lanes lie right of the centerline (the way's geometry) and the others left of it, the
+    rule by which :func:`vid2sim.geo.lateral.fuse_lateral` places the ego; a one-way road's
+    lanes are centred on it. Parking lanes (``parking:lane:<side>``, ``parking:<side>`` with
+    its ``:orientation`` and ``:width``) and shoulders (``shoulder``, ``shoulder:width``) go
+    outside the driving lanes on their side; a way drawn against the travel direction has
+    its sides swapped. Parked cars face the way of the driving lane beside them.
     """
-    xy = np.asarray(xy_m, float).reshape(-1, 2)
-    if len(xy) < 2:
-        return xy.copy()
-    seg = np.hypot(*np.diff(xy, axis=0).T)
-    xy = xy[np.concatenate([[True], seg > 1e-6])]
-    if len(xy) < 2:
-        return xy[:1].copy()
-    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
-    n = max(1, math.ceil(s[-1] / step_m - 1e-9))
-    grid = np.linspace(0.0, s[-1], n + 1)
-    return np.column_stack([np.interp(grid, s, xy[:, 0]), np.interp(grid, s, xy[:, 1])])
+    total, forward, width = lanes_from_tags(tags, along_way)
+    backward = total - forward
+    oneway = backward <= 0 or tags.get("oneway", "") in ("yes", "true", "1", "-1", "reverse")
+    if oneway:
+        forward, backward = total, 0
+    right_edge = -forward * width if backward else -total * width / 2.0
+    lanes = [LaneSpec(DRIVING, FORWARD, width) for _ in range(forward)]
+    lanes += [LaneSpec(DRIVING, BACKWARD, width) for _ in range(backward)]
+    # sides in the travel direction: a way drawn against it has its left on our right
+    right, left = ("right", "left") if along_way else ("left", "right")
+    shoulder_w = _number(tags.get("shoulder:width"))
+    shoulder_w = (shoulder_w if shoulder_w and 0.5 <= shoulder_w <= 5.0 else
+                  SHOULDER_WIDTH_M.get(tags.get("highway", ""), SHOULDER_WIDTH_OTHER_M))
+    shoulders = _shoulder_sides(tags)
+    left_dir = BACKWARD if backward else FORWARD
+    park_right, park_left = _parking_side(tags, right), _parking_side(tags, left)
+    outer_right: list[LaneSpec] = []
+    if park_right:
+        outer_right.append(LaneSpec(PARKING, FORWARD, park_right))
+    if right in shoulders:
+        outer_right.append(LaneSpec(SHOULDER, FORWARD, shoulder_w))
+    outer_left: list[LaneSpec] = []
+    if park_left:
+        outer_left.append(LaneSpec(PARKING, left_dir, park_left))
+    if left in shoulders:
+        outer_left.append(LaneSpec(SHOULDER, left_dir, shoulder_w))
+    right_edge -= sum(lane.width_m for lane in outer_right)
+    return CrossSection(right_edge, tuple(outer_right[::-1] + lanes + outer_left))
+
+
+# --------------------------------------------------------------------------- geometry
 
 
 def join_route(net: RoadNetwork, edges: list[int]) -> np.ndarray:
@@ -226,6 +307,11 @@ def _osm_road(net: RoadNetwork, res: MatchResult, piece: int) -> tuple[Road, int
         counts = sorted({p[0] for p in per_edge})
         warnings.append(f"lane count varies along the route ({counts}); the road uses {lanes}, "
                         "the most common by length")
+    # the cross-section of the longest stretch with the chosen lane count (a road has one)
+    same = [i for i, p in enumerate(per_edge) if p[0] == lanes and p[1] == forward]
+    main_edge = edges[max(same, key=lambda i: lengths[i])]
+    section = cross_section_from_tags(net.edge_tags[main_edge], bool(net.edge_along_way[main_edge]))
+    section = with_driving_width(section, round(width, 3))
     names = [net.edge_tags[e].get("name", "") for e in edges]
     highways = [net.edge_tags[e].get("highway", "") for e in edges]
     ways: list[int] = []
@@ -234,8 +320,22 @@ def _osm_road(net: RoadNetwork, res: MatchResult, piece: int) -> tuple[Road, int
             ways.append(int(net.edge_way_id[e]))
     road = Road(id=f"road{piece}", name=_weighted_mode(names, lengths),
                 highway=_weighted_mode(highways, lengths), source="osm", osm_way_ids=ways,
-                lanes=lanes, lane_width_m=round(width, 3), centerline=centerline)
+                lanes=lanes, lane_width_m=round(width, 3), centerline=centerline,
+                cross_section=section)
     return road, forward, warnings
+
+
+def with_driving_width(section: CrossSection, width_m: float) -> CrossSection:
+    """The cross-section with every driving lane ``width_m`` wide, laid out by the rule of
+    :func:`cross_section_from_tags` (two-way: the travel direction's lanes right of the
+    centerline; one-way: centred on it)."""
+    lanes = tuple(LaneSpec(lane.type, lane.direction, width_m) if lane.type == DRIVING
+                  else lane for lane in section.lanes)
+    forward = len(section.indices(DRIVING, FORWARD))
+    backward = len(section.indices(DRIVING, BACKWARD))
+    first = next(i for i, lane in enumerate(lanes) if lane.type == DRIVING)
+    edge = -forward * width_m if backward else -(forward + backward) * width_m / 2.0
+    return CrossSection(edge - sum(lane.width_m for lane in lanes[:first]), lanes)
 
 
 def trajectory_road(ego: EgoTrack) -> Road:

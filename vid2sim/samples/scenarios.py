@@ -9,6 +9,16 @@ from pathlib import Path
 import numpy as np
 
 from vid2sim.camera import Camera
+from vid2sim.lanelayout import (
+    BACKWARD,
+    BORDER,
+    DRIVING,
+    FORWARD,
+    PARKING,
+    RAIL,
+    CrossSection,
+    LaneSpec,
+)
 from vid2sim.records import Origin
 from vid2sim.scenario import Actor, Ego, Road, Scenario, Source, Trajectory
 
@@ -202,3 +212,46 @@ def scenario_from_kitti_labels(label_file: Path, numbers: tuple[int, ...], fps: 
                                         speed=[0, 0]))
     return Scenario(origin=Origin(49.0, 8.4, 0.0), roads=[], ego=ego, actors=actors,
                     camera=camera.to_dict(), source=Source(assumptions=["from KITTI 3D labels"]))
+
+
+#: The street of :func:`street_scenario`, right to left: a tram's track bed beyond a kerb
+#: strip, two lanes in the ego's direction, one oncoming lane, a parking strip on the left
+#: (the kind of street KITTI raw 0001 drives along).
+STREET_SECTION = CrossSection(-8.0, (
+    LaneSpec(RAIL, FORWARD, 3.0), LaneSpec(BORDER, FORWARD, 1.5),
+    LaneSpec(DRIVING, FORWARD, 3.25), LaneSpec(DRIVING, FORWARD, 3.25),
+    LaneSpec(DRIVING, BACKWARD, 3.25), LaneSpec(PARKING, BACKWARD, 2.3)))
+
+
+def street_scenario(duration_s: float = 12.0, dt_s: float = 0.1) -> Scenario:
+    """A LEFT curve with :data:`STREET_SECTION`: the ego in the right lane at 10 m/s, a car
+    overtaking in the lane left of it, an oncoming car, three cars parked on the left strip
+    (static, facing the oncoming lane's way) and a tram on its bed, all where a street puts
+    them (lane middles, the strip's middle, the bed's middle)."""
+    line = left_turn_centerline(radius_m=60.0)
+    t = np.round(np.arange(0.0, duration_s + 1e-9, dt_s), 6)
+    centres = STREET_SECTION.centres_m
+    road = Road("r1", "Street", "secondary", "osm", [1], STREET_SECTION.n_driving, 3.25, line,
+                cross_section=STREET_SECTION)
+    ego = trajectory_along(line, 10.0 + 10.0 * t, t, centres[2])
+    length = float(np.sum(np.linalg.norm(np.diff(line, axis=0), axis=1)))
+    oncoming = _reversed(trajectory_along(line, length - 20.0 - 11.0 * t, t, centres[4]))
+    oncoming.speed[:] = 11.0
+    actors = [Actor("overtaker", "car", 4.5, 1.8, 1.5,
+                    trajectory_along(line, 5.0 + 12.0 * t, t, centres[3])),
+              Actor("oncoming", "car", 4.5, 1.8, 1.5, oncoming),
+              Actor("tram", "tram", 30.0, 2.55, 3.5,
+                    trajectory_along(line, 60.0 + 8.0 * t, t, centres[0]))]
+    for k, s in enumerate((50.0, 70.0, 95.0)):
+        parked = trajectory_along(line, np.full_like(t, s), t, centres[5])
+        parked.speed[:] = 0.0
+        actors.append(Actor(f"parked{k}", "car", 4.5, 1.8, 1.5, _reversed(parked),
+                            static=True))
+    return Scenario(ORIGIN, [road], Ego(4.5, 1.8, 1.5, ego), actors, {"fx": 700.0},
+                    Source(tool_version="test"))
+
+
+def _reversed(traj: Trajectory) -> Trajectory:
+    """The trajectory facing the other way (its heading turned by pi)."""
+    h = np.arctan2(np.sin(traj.heading + np.pi), np.cos(traj.heading + np.pi))
+    return Trajectory(traj.t, traj.x, traj.y, h, traj.speed)

@@ -37,6 +37,11 @@ DEFAULT_PRIORS: dict[str, VehiclePrior] = {
     "truck": VehiclePrior(2.70, 0.20, 8.0, 3.20, 0.60, 2.0),
     "bus": VehiclePrior(2.75, 0.15, 12.0, 3.10, 0.30, 2.0),
     "motorcycle": VehiclePrior(0.80, 0.15, 2.1, 1.40, 0.20, 0.2),
+    # Trams: 2.30-2.65 m wide (2.65 m is the German BOStrab section 34 limit, which most
+    # new low-floor trams use: Siemens Avenio 2.65 m, Alstom Citadis 2.40-2.65 m, Bombardier
+    # Flexity 2.30-2.65 m), 3.4-3.6 m high over the rail head without the pantograph,
+    # 20-45 m long (Karlsruhe's NET 2012: 37 m).
+    "tram": VehiclePrior(2.55, 0.12, 30.0, 3.50, 0.10, 8.0),
 }
 
 

@@ -97,6 +97,7 @@ from vid2sim.export.highway.network import (
     hw_lane,
     hw_to_enu,
     lane_centerlines_enu,
+    layout_centerlines_enu,
     project_lane,
 )
 from vid2sim.export.highway.traffic import EgoState, ObjectState, Traffic
@@ -114,5 +115,6 @@ __all__ = [
     "Handover", "HandoverRule", "LaneFollowingEgo", "ObjectState", "PathEgo", "ReactiveVehicle",
     "ReplayEnv", "ReplayVehicle", "ScenarioLane", "SteeredEgo", "Traffic", "VehicleState",
     "build_network", "enu_to_hw", "hw_lane", "hw_to_enu", "lane_centerlines_enu",
+    "layout_centerlines_enu",
     "project_lane",
 ]

@@ -17,6 +17,14 @@ of an edge in the order they were added and its ``LANE_RIGHT`` action means inde
 inside the network the lanes are added left to right (highway-env index 0 = the leftmost).
 :func:`project_lane` and :func:`hw_lane` convert at the boundary; everything the environment
 reports (``info["ego_lane"]``, the sensor's lanes) uses the project's numbers.
+
+Lane types. A road's cross-section (:meth:`vid2sim.scenario.Road.layout`) puts its forward
+driving lanes on the edge ``road{i}:start -> road{i}:end`` (the lanes the ego and IDM/MOBIL
+drivers use and the numbers above count), its backward driving lanes on their own edge drawn
+in their travel direction, and every parking strip, shoulder, border and track bed on an edge
+of its own, so that highway-env's lane changes and route planning never enter them while a
+replayed vehicle standing in one is on a lane of the network. highway-env's lanes have no
+type: :class:`ScenarioLane` carries ``lane_type`` and ``direction``.
 """
 
 from __future__ import annotations
@@ -28,6 +36,7 @@ import numpy as np
 from highway_env.road.lane import LineType, PolyLaneFixedWidth
 from highway_env.road.road import RoadNetwork
 
+from vid2sim.lanelayout import BACKWARD, BORDER, DRIVING, FORWARD, PARKING, RAIL, CrossSection
 from vid2sim.scenario import Road
 
 ROAD_EXTENSION_M = 50.0
@@ -75,9 +84,13 @@ class ScenarioLane(PolyLaneFixedWidth):
     curves that come back on themselves. Here the nearest sampled segment wins, in numpy.
     """
 
-    def __init__(self, lane_points, width: float, line_types, speed_limit: float = 30.0):
+    def __init__(self, lane_points, width: float, line_types, speed_limit: float = 30.0,
+                 lane_type: str = DRIVING, direction: str = FORWARD):
         super().__init__(lane_points, width=width, line_types=line_types,
                          speed_limit=speed_limit)
+        #: the cross-section's lane type (``driving``, ``parking``, ``shoulder``, ``border``,
+        #: ``rail``) and direction relative to its road's centerline
+        self.lane_type, self.direction = lane_type, direction
         poses = self.curve.poses
         p = np.array([q.position for q in poses])  # (N, 2) sample positions, 1 m apart
         t = np.array([q.normal for q in poses])  # unit tangents
@@ -166,22 +179,25 @@ def _left_normals(points_m: np.ndarray) -> np.ndarray:
     return np.column_stack((-tangent[:, 1], tangent[:, 0]))
 
 
-def lane_centerlines_enu(road: Road, extension_m: float = ROAD_EXTENSION_M) -> list[np.ndarray]:
-    """Centre polylines of a road's lanes in ENU [m], indexed by the project's lane number
-    (element 0 is the rightmost lane in the travel direction).
-
-    Lanes are laid out symmetrically about the road centerline (the scenario gives a lane count
-    and a width, not a per-direction split).
-    """
+def layout_centerlines_enu(road: Road, extension_m: float = ROAD_EXTENSION_M
+                           ) -> list[np.ndarray]:
+    """Centre polylines in ENU [m] of every lane of a road's cross-section, rightmost first
+    (:meth:`Road.layout`), each in the direction of the road's centerline."""
     centre = _resample_polyline(road.centerline, LANE_SAMPLE_M)
     if extension_m > 0:
         centre = _extend_ends(centre, extension_m, LANE_SAMPLE_M)
     normal = _left_normals(centre)
-    out = []
-    for k in range(road.lanes):
-        offset_left_m = (k - (road.lanes - 1) / 2.0) * road.lane_width_m
-        out.append(centre + offset_left_m * normal)
-    return out
+    return [centre + offset_left_m * normal for offset_left_m in road.layout().centres_m]
+
+
+def lane_centerlines_enu(road: Road, extension_m: float = ROAD_EXTENSION_M) -> list[np.ndarray]:
+    """Centre polylines of a road's forward driving lanes in ENU [m], indexed by the project's
+    lane number (element 0 is the rightmost lane in the travel direction).
+
+    Without a cross-section the lanes lie symmetrically about the road centerline.
+    """
+    every = layout_centerlines_enu(road, extension_m)
+    return [every[i] for i in road.layout().forward_driving()]
 
 
 def _line_types(k_hw: int, lanes: int) -> tuple[int, int]:
@@ -195,21 +211,54 @@ def _line_types(k_hw: int, lanes: int) -> tuple[int, int]:
     return left, right
 
 
-def build_network(roads: list[Road]) -> RoadNetwork:
-    """A highway-env road network with one edge per road and one lane per scenario lane.
+#: How the edges of the lanes other than the forward driving ones are drawn (left, right in
+#: the lane's own direction): parking strips and shoulders end at a kerb line, track beds
+#: show their rails as striped lines, borders nothing.
+_OTHER_LINES = {PARKING: (LineType.NONE, LineType.CONTINUOUS),
+                RAIL: (LineType.STRIPED, LineType.STRIPED),
+                BORDER: (LineType.NONE, LineType.NONE)}
 
-    Edge ``road{i}:start -> road{i}:end`` holds road ``i``'s lanes in highway-env's order
-    (index 0 = the leftmost; :func:`project_lane` converts).
+
+def _hw_lane(points_enu: np.ndarray, width_m: float, line_types, lane_type: str,
+             direction: str) -> ScenarioLane:
+    pts = points_enu[::-1] if direction == BACKWARD else points_enu
+    x_hw, y_hw = enu_to_hw(pts[:, 0], pts[:, 1])
+    return ScenarioLane(list(zip(x_hw.tolist(), y_hw.tolist(), strict=True)), width=width_m,
+                        line_types=line_types, lane_type=lane_type, direction=direction)
+
+
+def build_network(roads: list[Road]) -> RoadNetwork:
+    """A highway-env road network of the roads' cross-sections (see the module docstring).
+
+    Edge ``road{i}:start -> road{i}:end`` holds road ``i``'s forward driving lanes in
+    highway-env's order (index 0 = the leftmost; :func:`project_lane` converts); its backward
+    driving lanes are on ``road{i}:back:start -> road{i}:back:end`` (leftmost in their own
+    direction first); each other lane ``k`` of the cross-section (rightmost 0) is on
+    ``road{i}:{type}{k}:start -> ...:end``. Every edge has nodes of its own, so no route
+    leads from one to another.
     """
     net = RoadNetwork()
     for i, road in enumerate(roads):
-        by_project = lane_centerlines_enu(road)
-        for k_hw in range(road.lanes):
-            lane_enu = by_project[hw_lane(k_hw, road.lanes)]
-            x_hw, y_hw = enu_to_hw(lane_enu[:, 0], lane_enu[:, 1])
-            lane = ScenarioLane(list(zip(x_hw.tolist(), y_hw.tolist(), strict=True)),
-                                width=road.lane_width_m, line_types=_line_types(k_hw, road.lanes))
-            net.add_lane(f"road{i}:start", f"road{i}:end", lane)
+        layout: CrossSection = road.layout()
+        lines = layout_centerlines_enu(road)
+        forward = layout.forward_driving()
+        for k_hw in range(len(forward)):
+            k = forward[hw_lane(k_hw, len(forward))]
+            net.add_lane(f"road{i}:start", f"road{i}:end", _hw_lane(
+                lines[k], layout.lanes[k].width_m, _line_types(k_hw, len(forward)), DRIVING,
+                FORWARD))
+        backward = layout.indices(DRIVING, BACKWARD)  # rightmost first = leftmost for them
+        for k_hw, k in enumerate(backward):
+            net.add_lane(f"road{i}:back:start", f"road{i}:back:end", _hw_lane(
+                lines[k], layout.lanes[k].width_m, _line_types(k_hw, len(backward)), DRIVING,
+                BACKWARD))
+        for k, spec in enumerate(layout.lanes):
+            if spec.type == DRIVING:
+                continue
+            net.add_lane(f"road{i}:{spec.type}{k}:start", f"road{i}:{spec.type}{k}:end",
+                         _hw_lane(lines[k], spec.width_m,
+                                  _OTHER_LINES.get(spec.type, _OTHER_LINES[PARKING]),
+                                  spec.type, spec.direction))
     return net
 
 
@@ -244,14 +293,15 @@ def nearby_lane_index(network: RoadNetwork, lane_index, position: np.ndarray,
 
 
 def _roads_key(roads: list[Road]) -> tuple:
-    return tuple((r.lanes, float(r.lane_width_m), r.centerline.tobytes()) for r in roads)
+    return tuple((r.lanes, float(r.lane_width_m), r.centerline.tobytes(), r.cross_section)
+                 for r in roads)
 
 
 @lru_cache(maxsize=8)
 def _cached_network(key: tuple) -> RoadNetwork:
     roads = [Road(str(i), "", "", "", [], lanes, width,
-                  np.frombuffer(points, dtype=float).reshape(-1, 2))
-             for i, (lanes, width, points) in enumerate(key)]
+                  np.frombuffer(points, dtype=float).reshape(-1, 2), cross_section=section)
+             for i, (lanes, width, points, section) in enumerate(key)]
     return build_network(roads)
 
 

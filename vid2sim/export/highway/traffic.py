@@ -127,13 +127,15 @@ def measure(ego, others, reference, network) -> Traffic:
         gap = along - half_lengths if along > 0.0 else along + half_lengths
         heading_at = reference.heading_at(s)
         v_along = float(v.speed * math.cos(utils.wrap_to_pi(v.heading - heading_at)))
-        v_lanes = lanes_on_edge(network, v.lane_index)
-        v_lane = project_lane(v.lane_index[2], v_lanes)
+        v_lane = project_lane(v.lane_index[2], lanes_on_edge(network, v.lane_index))
         if v.lane_index[:2] == ego.lane_index[:2]:
             offset = v_lane - ego_lane
-        else:  # on another road of the map: count lane widths from the ego's lane
+        else:  # another edge (oncoming lanes, a parking strip, another road): count lane
+            # widths from the ego's lane
             _, lat_v = lane.local_coordinates(v.position)
             offset = round(-lat_v / max(ego_state.lane_width_m, 0.1))
+            if v.lane_index[0].split(":")[0] == ego.lane_index[0].split(":")[0]:
+                v_lane = ego_lane + offset  # the ego's road: its numbers count driving lanes
         objects.append(ObjectState(
             id=str(getattr(v, "vehicle_id", "")), along_m=float(along), gap_m=float(gap),
             lateral_m=float(-lat), speed_along_mps=v_along, lane=v_lane, lane_offset=offset,
