@@ -55,7 +55,7 @@ def test_demo_writes_every_output_and_a_valid_scenario(demo_result):
     assert scen.duration_s == pytest.approx(23.9, abs=0.3)
     header = (build_dir / "tracks.csv").read_text().splitlines()[0]
     assert header == ("frame,t_s,track_id,category,score,x1,y1,x2,y2,range_m,lateral_m,"
-                      "range_rate_mps,range_std_m,is_lead")
+                      "range_rate_mps,range_std_m,is_lead,lane")
     # No staging folders are left beside the output.
     assert not [p for p in out.iterdir() if p.name.startswith(".build.")]
     assert result.lead_share > 0.5

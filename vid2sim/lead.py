@@ -1,10 +1,17 @@
-"""The one definition of the lead vehicle, shared by tracking, the report and the environment.
+"""The one definition of the lead vehicle and of lanes relative to the ego lane, shared by
+tracking, the report and the environment.
 
 The lead is the nearest vehicle AHEAD of the ego (its rear beyond the ego's reference point,
 within a maximum range) whose centre lies in the ego's corridor: within half a lane width of
 the ego's lane centre, measured across the lane. Tracking adds hysteresis on top (a car
 drifting along a lane line keeps its lane; a rival must be clearly nearer to take over, see
 :mod:`vid2sim.detect.lead`), but the geometry is this one.
+
+Lanes relative to the ego lane are numbered 0 (the ego lane), +1, +2, ... to the left and
+-1, -2, ... to the right, named "ego", "left", "right", "left2", "right2", ...
+(:func:`lane_name`). Where the lane markings were measured, the ego lane's centre line ahead
+is the lane model's (:func:`lane_centre_m`: offset, heading and curvature in the vehicle
+frame); otherwise it is the camera's axis on the road.
 """
 
 from __future__ import annotations
@@ -12,6 +19,75 @@ from __future__ import annotations
 import math
 
 import numpy as np
+
+#: The lane model's curvature is trusted this far ahead [m]; beyond, the centre line goes on
+#: straight along its direction there. Lines are measured out to 35 m, but their curvature
+#: is fitted mostly from the near rows: on KITTI raw 0001 the ego lane's left boundary,
+#: against the same line fixed in the world with the OXTS poses, is off by 0.07 / 0.16 /
+#: 0.32 / 0.64 m RMS at 10 / 20 / 30 / 40 m with 15 m and 0.07 / 0.17 / 0.42 / 0.77 m with
+#: 25 m (0.44 / 0.62 / 1.00 / 1.58 m for the camera axis and a 3.5 m lane);
+#: ``python benchmarks/bench_lanes.py --kitti``.
+LANE_MODEL_REACH_M = 20.0
+
+#: Beyond this distance ahead [m] the ego lane's centre line follows the road's course (where
+#: the ego itself drove, :mod:`vid2sim.geo.course`) from the lane model's direction there,
+#: instead of the lane model's curvature: against the world-fixed line on KITTI raw 0001,
+#: 0.13 / 0.20 / 0.39 m RMS at 20 / 30 / 40 m (lane model: 0.16 / 0.35 / 0.64), on the demo
+#: against its true lane 0.26 / 0.50 / 0.76 m (0.32 / 0.76 / 1.48) with the join at 10 m;
+#: joined at 15 m, 0.15 / 0.26 / 0.46 and 0.30 / 0.60 / 0.94 m
+#: (``python benchmarks/bench_lanes.py``).
+COURSE_JOIN_M = 10.0
+
+#: Largest |lane| relative to the ego lane: a carriageway has at most 16 lanes
+#: (vid2sim.scenario.MAX_LANES), so a vehicle further lanes away is not on the ego's road
+#: (or its position is wrong) and its lane is unknown.
+MAX_RELATIVE_LANE = 16
+
+
+def lane_name(index: int) -> str:
+    """0 -> "ego", 1 -> "left", -1 -> "right", 2 -> "left2", -3 -> "right3"."""
+    if index == 0:
+        return "ego"
+    side = "left" if index > 0 else "right"
+    return side if abs(index) == 1 else f"{side}{abs(index)}"
+
+
+def lane_index(name: str) -> int | None:
+    """Inverse of :func:`lane_name`: "ego" -> 0, "left2" -> 2, "right" -> -1; None for ""
+    (unknown) or a name that is not a lane's."""
+    if name == "ego":
+        return 0
+    for side, sign in (("left", 1), ("right", -1)):
+        if name.startswith(side):
+            rest = name[len(side):]
+            if rest == "":
+                return sign
+            if rest.isdigit() and int(rest) >= 2 and rest == str(int(rest)):
+                return sign * int(rest)
+    return None
+
+
+def lane_centre_m(x_m: np.ndarray | float, offset_m: np.ndarray | float,
+                  heading_rad: np.ndarray | float, curvature_inv_m: np.ndarray | float,
+                  reach_m: float = LANE_MODEL_REACH_M) -> np.ndarray:
+    """Lateral position [m, positive left] of the ego lane's centre line at ``x_m`` ahead of
+    the camera's ground point, in the vehicle frame.
+
+    The centre line is ``offset + heading x + curvature x^2 / 2`` up to ``reach_m`` and
+    straight along its direction there beyond (see :data:`LANE_MODEL_REACH_M`).
+
+    Parameters
+    ----------
+    x_m : distance ahead [m] (negative: behind, where the line is taken straight)
+    offset_m : the centre line beside the camera (x = 0) [m]; minus the camera's offset
+        from the lane's middle
+    heading_rad : the lane's direction relative to the vehicle's x axis [rad, positive left]
+    curvature_inv_m : the lane's curvature [1/m, positive bending left]
+    """
+    x = np.asarray(x_m, dtype=float)
+    xr = np.clip(x, 0.0, reach_m)
+    return (np.asarray(offset_m, dtype=float) + np.asarray(heading_rad, dtype=float) * x
+            + np.asarray(curvature_inv_m, dtype=float) * xr * (x - 0.5 * xr))
 
 
 def in_ego_corridor(lateral_m: np.ndarray | float, lane_width_m: float) -> np.ndarray:
@@ -48,3 +124,25 @@ def lead_of(ahead_m: np.ndarray, lateral_m: np.ndarray, lane_width_m: float,
     """Index of the lead among vehicles at ``ahead_m`` (to their rear) and ``lateral_m`` (of
     their centre) relative to the ego lane [m], or -1 when there is none."""
     return nearest_ahead(ahead_m, in_ego_corridor(lateral_m, lane_width_m), max_range_m)
+
+
+def lane_centre_ahead_m(x_m: np.ndarray | float, offset_m: np.ndarray | float,
+                        heading_rad: np.ndarray | float, curvature_inv_m: np.ndarray | float,
+                        bend_m: np.ndarray | float, join_m: float = COURSE_JOIN_M,
+                        reach_m: float = LANE_MODEL_REACH_M) -> np.ndarray:
+    """:func:`lane_centre_m` continued along the road's course beyond ``join_m``.
+
+    Up to ``join_m`` the centre line is the lane model's; beyond, it leaves the model's
+    point and direction at ``join_m`` and bends as the road's course does: ``bend_m`` is how
+    far left of the course's tangent at the join the course lies at ``x_m``
+    (:meth:`vid2sim.geo.course.RoadCourse.bend_m`). Where ``bend_m`` is NaN (the course
+    does not reach), the lane model alone.
+    """
+    x = np.asarray(x_m, dtype=float)
+    model = lane_centre_m(x, offset_m, heading_rad, curvature_inv_m, reach_m)
+    y_join = lane_centre_m(join_m, offset_m, heading_rad, curvature_inv_m, reach_m)
+    dir_join = (np.asarray(heading_rad, dtype=float)
+                + np.asarray(curvature_inv_m, dtype=float) * min(join_m, reach_m))
+    bend = np.asarray(bend_m, dtype=float)
+    along = y_join + dir_join * (x - join_m) + bend
+    return np.where((x > join_m) & np.isfinite(bend), along, model)

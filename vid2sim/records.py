@@ -238,7 +238,10 @@ class RangedBox(TrackedBox):
     :param range_rate_mps: d(range)/dt, negative when closing [m/s]
     :param range_std_m: one-sigma uncertainty of ``range_m`` [m]
     :param width_m: estimated vehicle width [m]
-    :param lane: "ego", "left", "right" (or "left2"/"right2"...) lane assignment
+    :param lane: "ego", "left", "right" (or "left2"/"right2"...) lane relative to the ego lane
+        of the frame ("" where unknown)
+    :param lane_offset_m: the centre's offset from the ego lane's centre line at its range,
+        positive left [m] (NaN where unknown)
     """
 
     range_m: float
@@ -249,6 +252,7 @@ class RangedBox(TrackedBox):
     width_m: float = float("nan")
     lateral_rate_mps: float = float("nan")
     lane: str = ""
+    lane_offset_m: float = float("nan")
 
 
 # --------------------------------------------------------------------------- lane markings

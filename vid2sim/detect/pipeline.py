@@ -251,7 +251,8 @@ def detect_and_range(video: Path, camera: Camera, *, detector, detections=None,
             notes.append(Note.warning(
                 f"lane markings point {yaw - camera.yaw_deg:+.1f} deg off the camera axis: "
                 "implausible for a mounting, yaw not changed"))
+    # The ego lane first: vehicles' lanes (and so the lead) are counted from it.
+    lanes = track_lanes(lane_obs, math.radians(camera.yaw_deg - yaw_before))
     result = range_tracks(boxes, camera, horizon_hints_px=horizon_est.rows_px,
-                          horizon_hint_frames=horizon_est.frames, config=config)
-    result.lanes = track_lanes(lane_obs, math.radians(camera.yaw_deg - yaw_before))
+                          horizon_hint_frames=horizon_est.frames, config=config, lanes=lanes)
     return result, camera, notes

@@ -1,0 +1,162 @@
+"""Lanes of tracked vehicles relative to the ego lane, from the lane markings."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from vid2sim.detect.lane_track import ego_lane_at, smoothed_curvature
+from vid2sim.detect.lead import assign_lanes_and_lead, lane_indices, lane_offsets, relane
+from vid2sim.detect.ranging import RangingConfig
+from vid2sim.records import LaneTrack, RangedBox, TrackedBox
+
+CFG = RangingConfig()
+CAR_HALF_LENGTH_M = CFG.prior_for("car").length_m / 2.0
+
+
+def make_track(t_s, lateral_m, width_m=3.0, heading_rad=0.0, curvature_inv_m=0.0,
+               lane=None) -> LaneTrack:
+    """A lane track with the given continuous lateral position (lanes from it if not given)."""
+    t = np.asarray(t_s, float)
+    n = len(t)
+    lat = np.broadcast_to(np.asarray(lateral_m, float), (n,)).copy()
+    w = np.broadcast_to(np.asarray(width_m, float), (n,)).copy()
+    ln = np.round(lat / w).astype(int) if lane is None else np.asarray(lane, int)
+    return LaneTrack(
+        frame=np.arange(n), t_s=t, found=np.ones(n, bool), ego_offset_raw_m=lat - ln * w,
+        ego_offset_m=lat - ln * w, offset_std_m=np.full(n, 0.05), lateral_m=lat, lane=ln,
+        lane_width_m=w, heading_rad=np.broadcast_to(np.asarray(heading_rad, float), (n,)).copy(),
+        curvature_inv_m=np.broadcast_to(np.asarray(curvature_inv_m, float), (n,)).copy())
+
+
+def box(frame, t, tid=1, category="car") -> TrackedBox:
+    return TrackedBox(frame, t, tid, category, 0.9, 0, 0, 10, 10)
+
+
+# --------------------------------------------------------------------------- hysteresis
+
+
+def test_a_vehicle_keeps_its_road_lane_when_the_ego_changes_lanes():
+    # The vehicle holds its lane 3 m left of the ego's first lane; the ego moves into that
+    # lane at frame 3: the vehicle is "left" until then and in the ego lane after, with no
+    # hysteresis to overcome (its offset from the new ego lane is 0).
+    offset = np.array([3.0, 3.0, 3.0, 0.0, 0.0])
+    idx = lane_indices(offset, 3.0, 0.3, ego_lane=np.array([0, 0, 0, 1, 1]))
+    assert idx.tolist() == [1, 1, 1, 0, 0]
+    # per-sample widths: a lane 2.8 m wide puts a car 1.6 m left in the next lane
+    assert lane_indices(np.array([1.6, 1.6]), np.array([3.6, 2.8]), 0.1).tolist() == [0, 1]
+    # unknown offsets hold the lane (0 before any is known)
+    assert lane_indices(np.array([np.nan, 3.2, np.nan]), 3.0, 0.3).tolist() == [0, 1, 1]
+
+
+@settings(max_examples=60)
+@given(y=st.lists(st.floats(-12, 12), min_size=1, max_size=40), w=st.floats(2.5, 4.0),
+       hyst=st.floats(0.0, 0.6), shift=st.integers(-3, 3))
+def test_lane_indices_properties(y, w, hyst, shift):
+    y = np.array(y)
+    idx = lane_indices(y, w, hyst)
+    # a lane index is never more than the hysteresis beyond its lane's boundary ...
+    assert np.all(np.abs(y - idx * w) <= w / 2 + hyst + 1e-9)
+    # ... and without hysteresis it is the nearest lane
+    assert np.all(np.abs(y - lane_indices(y, w, 0.0) * w) <= w / 2 + 1e-9)
+    # a constant ego lane (any number) changes nothing relative to it
+    np.testing.assert_array_equal(lane_indices(y, w, hyst, np.full(len(y), shift)), idx)
+    # a change happens only once the centre is past the boundary by the hysteresis
+    for k in np.flatnonzero(np.diff(idx)) + 1:
+        assert abs(y[k] - idx[k - 1] * w) > w / 2 + hyst - 1e-9
+
+
+# --------------------------------------------------------------------------- lane model
+
+
+def test_ego_lane_at_interpolates_and_keeps_the_lane_of_the_latest_frame():
+    t = np.arange(0.0, 2.01, 0.1)
+    # a lane change to the left: lateral passes 1.5 m (w = 3 m) at 1.0 s, where the track
+    # puts the new lane (LaneTrack backdates a change to its crossing)
+    lat = np.interp(t, [0.0, 0.5, 1.5, 2.0], [0.0, 0.0, 3.0, 3.0])
+    track = make_track(t, lat, heading_rad=0.02, curvature_inv_m=0.001,
+                       lane=(t >= 1.0 - 1e-9).astype(int))
+    at = ego_lane_at(track, np.array([0.25, 1.04, 1.06, 5.0]))
+    assert at.lane.tolist() == [0, 1, 1, 1]
+    # the camera's offset from its lane's middle: lateral minus lane x width
+    np.testing.assert_allclose(at.offset_m[:3], [0.0, np.interp(1.04, t, lat) - 3.0,
+                                                 np.interp(1.06, t, lat) - 3.0], atol=1e-9)
+    np.testing.assert_allclose(at.centre_m[:3], -at.offset_m[:3])
+    np.testing.assert_allclose(at.heading_rad[:3], 0.02)
+    np.testing.assert_allclose(at.curvature_inv_m[:3], 0.001)
+    assert np.isnan(at.offset_m[3]) and np.isnan(at.lane_width_m[3])  # far from any frame
+
+
+def test_smoothed_curvature_is_the_median_over_a_second():
+    t = np.arange(0.0, 3.0, 0.1)
+    k = np.full(len(t), 0.002)
+    k[10] = 0.05  # one frame's curvature from a shadow
+    k[20] = np.nan
+    track = make_track(t, 0.0, curvature_inv_m=k)
+    np.testing.assert_allclose(smoothed_curvature(track), 0.002)
+
+
+def test_lane_offsets_follow_the_measured_lane_not_the_camera_axis():
+    # The camera sits 0.6 m left of its lane's middle (lane 3 m wide) and the lane bends
+    # right at 1/250 m: a car on the lane's centre line 15 m ahead (its rear; its centre
+    # half a car length farther) is at lateral -0.6 - x^2 / 500.
+    t = np.arange(0.0, 1.0, 0.1)
+    track = make_track(t, 0.6, curvature_inv_m=-1 / 250)
+    x_c = 15.0 + CAR_HALF_LENGTH_M
+    lat_on_centre = -0.6 - x_c ** 2 / 500.0
+    boxes = [box(i, t[i]) for i in range(len(t))]
+    rng = np.full(len(t), 15.0)
+    offset, width, ego_lane = lane_offsets(boxes, rng, np.full(len(t), lat_on_centre), CFG,
+                                           track)
+    np.testing.assert_allclose(offset, 0.0, atol=1e-9)
+    np.testing.assert_allclose(width, 3.0)
+    assert (ego_lane == 0).all()
+    # the camera axis puts it 1.2 m right: in the ego lane of 3.6 m, but 1.2 m off its middle
+    _, _, off_axis = assign_lanes_and_lead(boxes, rng, np.full(len(t), lat_on_centre), CFG)
+    np.testing.assert_allclose(off_axis, lat_on_centre)
+    names2, lead2, off2 = assign_lanes_and_lead(boxes, rng, np.full(len(t), lat_on_centre),
+                                                CFG, track)
+    assert set(names2) == {"ego"} and lead2.all()
+    # one lane to the left of it is "left"
+    names3, lead3, _ = assign_lanes_and_lead(boxes, rng, np.full(len(t), lat_on_centre + 3.0),
+                                             CFG, track)
+    assert set(names3) == {"left"} and not lead3.any()
+
+
+def test_unknown_positions_have_no_lane_and_are_never_the_lead():
+    t = np.arange(0.0, 0.5, 0.1)
+    boxes = [box(i, t[i]) for i in range(len(t))]
+    rng = np.array([20.0, np.nan, 20.0, 200.0, 20.0])
+    lat = np.array([0.0, 0.0, np.nan, 0.0, 0.0])
+    names, lead, offset = assign_lanes_and_lead(boxes, rng, lat, CFG)
+    assert names == ["ego", "", "", "", "ego"]
+    assert lead.tolist() == [True, False, False, False, True]
+    assert np.isnan(offset[2])
+
+
+class _StraightThenLeft:
+    """A course straight for 30 m ahead, then bending left: 2 m at a car's centre 40 m ahead
+    (its rear)."""
+
+    rate = 2.0 / (40.0 + CAR_HALF_LENGTH_M - 30.0)
+
+    def bend_m(self, t_s, ahead_m, join_m):
+        return np.maximum(np.asarray(ahead_m, float) - 30.0, 0.0) * self.rate
+
+
+def test_relane_with_the_road_course():
+    t = np.arange(0.0, 1.0, 0.1)
+    track = make_track(t, 0.0)
+    # a car 40 m ahead, 2 m left: the lane model (straight) says "left" in a 3 m lane; the
+    # course bends 2 m left there: it is on the lane's centre line
+    boxes = [RangedBox(i, t[i], 1, "car", 0.9, 0, 0, 10, 10, range_m=40.0, lateral_m=2.0,
+                       range_rate_mps=0.0, range_std_m=1.0, is_lead=False)
+             for i in range(len(t))]
+    straight = relane(boxes, CFG, track)
+    assert {b.lane for b in straight} == {"left"} and not any(b.is_lead for b in straight)
+    bent = relane(boxes, CFG, track, _StraightThenLeft())
+    assert {b.lane for b in bent} == {"ego"} and all(b.is_lead for b in bent)
+    assert [b.lane_offset_m for b in bent] == pytest.approx([0.0] * len(t), abs=1e-9)
+    assert relane([], CFG, track) == []
