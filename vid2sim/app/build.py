@@ -41,18 +41,24 @@ from vid2sim.app.loaders import (
 from vid2sim.app.settings import Settings
 from vid2sim.camera import Camera
 from vid2sim.detect.lane_track import lane_track
+from vid2sim.detect.lead import relane
 from vid2sim.detect.pipeline import detect_and_range
 from vid2sim.errors import InputError
 from vid2sim.evaluate.replay import run_eval
 from vid2sim.evaluate.report import write_report
 from vid2sim.export.assemble import assemble_scenario
+from vid2sim.export.events import scenario_events
 from vid2sim.export.openscenario import write_openscenario
 from vid2sim.fileio import staged_folder, write_text_atomic
 from vid2sim.geo import roads as geo_roads
+from vid2sim.geo.course import road_course
 from vid2sim.geo.lateral import fuse_lateral
 from vid2sim.records import EgoLateral, EgoTrack, Note, NoteKind, Origin, VideoInfo, notes_of
-from vid2sim.scenario import Source, dumps_canonical
+from vid2sim.scenario import Event, Source, dumps_canonical
 from vid2sim.tables import write_tracks_csv
+
+#: Events listed one by one in the summary; more are counted.
+MAX_SUMMARY_EVENTS = 8
 
 
 @dataclass(slots=True)
@@ -71,6 +77,8 @@ class BuildResult:
     stage_seconds: dict[str, float] = field(default_factory=dict)
     #: the ego's lane, lane changes and lateral correction (from the lane markings)
     lateral: EgoLateral | None = None
+    #: the scenario's lane-change events (cut-ins, cut-outs, lane changes)
+    events: list[Event] = field(default_factory=list)
 
     def summary(self) -> str:
         lines = [(f"scenario: {self.duration_s:.1f} s, ego distance {self.distance_m:.0f} m, "
@@ -81,6 +89,12 @@ class BuildResult:
                          f"min {lo:.1f} / median {med:.1f} / max {hi:.1f} m")
         else:
             lines.append("no lead vehicle seen")
+        if self.events:
+            lines.append("events: " + ", ".join(
+                f"{e.type} {e.actor} at {e.t_s:.1f} s ({e.from_lane:+d} -> {e.to_lane:+d})"
+                for e in self.events[:MAX_SUMMARY_EVENTS])
+                + (f" and {len(self.events) - MAX_SUMMARY_EVENTS} more"
+                   if len(self.events) > MAX_SUMMARY_EVENTS else ""))
         if self.metrics:
             m = self.metrics
             lines.append(f"keyframes {m['keyframes']}: precision {m['precision']:.3f}, recall "
@@ -261,6 +275,11 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
                              track.observations, settings.lanes, speed_mps=speed))
     ego = lateral.ego
     notes.extend(lateral.notes)
+    if inputs.gps is not None:
+        # With a trajectory the road's course ahead is where the ego drove: lanes (and the
+        # lead) beyond the lane model's reach follow it.
+        ranging.boxes = stages.run("lanes of the vehicles", relane, ranging.boxes,
+                                   settings.ranging, ranging.lanes, road_course(lateral))
     warnings = notes_of(notes, NoteKind.WARNING)
     assumptions = [n for n in notes if getattr(n, "kind", None) in (NoteKind.ASSUMPTION,
                                                                      NoteKind.ESTIMATE)]
@@ -277,6 +296,11 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
                                              ego_noise_m=ego_noise_m)
     warnings.extend(assemble_warnings)
     scenario.source.warnings = [str(w) for w in warnings]
+    # ---- lane-change events: the actors' (lanes counted from the ego lane the ranging
+    # used) and the ego's own
+    scenario.events = stages.run("lane-change events", scenario_events, ranging.boxes,
+                                 ranging.lanes, scenario.actors, lateral.lane_changes,
+                                 settings.ranging.lane_width_m, scenario.ego.trajectory)
 
     # ---- write into the staging folder (moved into place by the caller)
     files = stages.run("write scenario and tables", _write_tables, staging, scenario, ranging,
@@ -314,5 +338,6 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
         out_dir=out_dir, files={k: out_dir / v for k, v in files.items()},
         duration_s=scenario.duration_s, distance_m=path_length_m(ego),
         n_actors=len(scenario.actors), lead_share=lead["lead_share"], lead_range_m=lead_range,
-        metrics=metrics, warnings=warnings, stage_seconds=stages.seconds, lateral=lateral)
+        metrics=metrics, warnings=warnings, stage_seconds=stages.seconds, lateral=lateral,
+        events=list(scenario.events))
 
