@@ -38,7 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vid2sim.geo.frames import EnuFrame
+from vid2sim.enu import EnuFrame
 from vid2sim.geo.mapcache import clear_memory
 from vid2sim.geo.mapmatch import match
 from vid2sim.geo.matcheval import rmf_corridor, score_route, stretch_xy

@@ -63,7 +63,7 @@ def looped_inputs(raw: Path, detections: Path, n_frames: int, work: Path) -> dic
     """Video, detections and GPS of the raw drive looped to ``n_frames`` (cached)."""
     import cv2
 
-    from vid2sim.geo.frames import EnuFrame
+    from vid2sim.enu import EnuFrame
     from vid2sim.geo.readers import read_gps
     from vid2sim.records import Origin
 

@@ -54,9 +54,9 @@ from vid2sim.app.commands import run_track
 from vid2sim.app.demo import run_demo
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.settings import DetectorSettings, Settings
+from vid2sim.boxes import iou_matrix
 from vid2sim.camera import fit_camera_to_frames, load_camera
 from vid2sim.detect import pipeline
-from vid2sim.detect.boxes import iou_matrix
 from vid2sim.detect.detector import OnnxDetector, load_detector
 from vid2sim.detect.external import (
     MatchCounts,

@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
-from vid2sim.detect.boxes import cut_by_window, iou_matrix, nms, suppress_fragments
+from vid2sim.boxes import cut_by_window, iou_matrix, nms, suppress_fragments
 from vid2sim.detect.detector import (
     COCO_VEHICLES,
     DEFAULT_DETECTOR,

@@ -8,7 +8,7 @@ import itertools
 import numpy as np
 import pytest
 
-from vid2sim.detect.boxes import iou_matrix, match, xyah_to_xyxy, xyxy_to_xyah
+from vid2sim.boxes import iou_matrix, match, xyah_to_xyxy, xyxy_to_xyah
 from vid2sim.detect.egomotion import expansion_cost
 from vid2sim.detect.kalman import BoxKalman
 from vid2sim.detect.tracker import Tracker, TrackerConfig

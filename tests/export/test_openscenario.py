@@ -14,8 +14,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from vid2sim.cli import main
+from vid2sim.enu import EnuFrame
 from vid2sim.export.openscenario import fit_reference_line, write_openscenario
-from vid2sim.geo.frames import EnuFrame
 from vid2sim.samples.scenarios import (
     ORIGIN,
     left_turn_centerline,

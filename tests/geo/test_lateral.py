@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 
 from tests.detect.lane_frames import FPS, observations
 from vid2sim.detect.lane_track import lane_track
-from vid2sim.geo.frames import EnuFrame
+from vid2sim.enu import EnuFrame
 from vid2sim.geo.lateral import LateralConfig, fuse_lateral
 from vid2sim.records import EgoTrack, Origin, RoadResult
 from vid2sim.scenario import Road

@@ -13,8 +13,8 @@ from hypothesis import strategies as st
 
 from tests.geo.test_osm import NODES, ORIGIN, WAYS, osm_xml
 from vid2sim.cli import main
+from vid2sim.enu import EnuFrame
 from vid2sim.geo.alongroute import signed_offsets
-from vid2sim.geo.frames import EnuFrame
 from vid2sim.geo.roads import (
     DEFAULT_LANE_WIDTH_M,
     LANE_DEFAULTS,

@@ -16,8 +16,8 @@ from hypothesis import strategies as st
 from vid2sim.app.commands import run_trace
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.settings import Settings
+from vid2sim.enu import EnuFrame
 from vid2sim.errors import InputError
-from vid2sim.geo.frames import EnuFrame
 from vid2sim.geo.readers import read_gps
 from vid2sim.geo.trace import smooth_ego
 from vid2sim.records import GpsTrace, Origin

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from vid2sim.camera import load_camera
-from vid2sim.geo.frames import EnuFrame
+from vid2sim.enu import EnuFrame
 from vid2sim.records import Origin
 from vid2sim.samples.demo_sample import (
     EGO_LANE_OFFSET_M,

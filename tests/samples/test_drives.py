@@ -14,8 +14,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from tests.geo.test_osm import ORIGIN, helsinki_pbf, town_osm  # noqa: F401 - fixture
+from vid2sim.enu import EnuFrame
 from vid2sim.geo.alongroute import join_xy, signed_offsets
-from vid2sim.geo.frames import EnuFrame
 from vid2sim.geo.mapmatch import match
 from vid2sim.geo.matcheval import rmf_corridor, score_route
 from vid2sim.geo.osm import load_network

@@ -32,8 +32,8 @@ from typing import Protocol, runtime_checkable
 import cv2
 import numpy as np
 
+from vid2sim.boxes import cut_by_window, iou_matrix, nms, suppress_fragments
 from vid2sim.detect import models
-from vid2sim.detect.boxes import cut_by_window, iou_matrix, nms, suppress_fragments
 from vid2sim.detect.dynamic import dynamic_copy
 from vid2sim.detect.windows import (
     REFINE_CROP_SCALE,

@@ -13,7 +13,7 @@ from typing import Protocol
 
 import numpy as np
 
-from vid2sim.detect.boxes import border_cut
+from vid2sim.boxes import border_cut
 
 CHI2_99 = {2: 9.210, 3: 11.345, 4: 13.277}
 """99 % quantiles of the chi-square distribution by degrees of freedom: the gate of

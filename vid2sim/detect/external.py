@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vid2sim.detect.boxes import iou_matrix, match
+from vid2sim.boxes import iou_matrix, match
 from vid2sim.errors import InputError
 from vid2sim.fileio import parse_json, read_input_text
 from vid2sim.records import Detection

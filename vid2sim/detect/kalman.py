@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from vid2sim.detect.boxes import xyah_to_xyxy, xyxy_to_xyah
+from vid2sim.boxes import xyah_to_xyxy, xyxy_to_xyah
 
 
 class BoxKalman:

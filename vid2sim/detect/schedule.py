@@ -22,7 +22,7 @@ import math
 from collections import Counter
 from dataclasses import dataclass
 
-from vid2sim.detect.boxes import border_cut
+from vid2sim.boxes import border_cut
 from vid2sim.detect.tracker import Tracker
 from vid2sim.detect.windows import refine_candidates
 

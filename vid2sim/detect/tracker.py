@@ -44,7 +44,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from vid2sim.detect.boxes import (
+from vid2sim.boxes import (
     UNMATCHED_COST,
     border_cut,
     buffered_iou,

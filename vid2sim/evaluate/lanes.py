@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 
 from vid2sim.camera import parse_kitti_calib
+from vid2sim.enu import EnuFrame
 from vid2sim.errors import InputError
-from vid2sim.geo.frames import EnuFrame
 from vid2sim.geo.oxts import read_kitti_oxts_table, read_kitti_stamps
 from vid2sim.records import Origin
 from vid2sim.scenario import Scenario, Trajectory

@@ -45,8 +45,8 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import least_squares
 
+from vid2sim.enu import EnuFrame
 from vid2sim.export.assemble import straight_road_for
-from vid2sim.geo.frames import EnuFrame
 from vid2sim.scenario import Road, Scenario, Trajectory
 
 log = logging.getLogger(__name__)

@@ -30,7 +30,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-from vid2sim.geo.frames import EnuFrame
+from vid2sim.enu import EnuFrame
 from vid2sim.geo.mapmatch import signed_offsets
 from vid2sim.records import (
     EgoLateral,

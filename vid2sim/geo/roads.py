@@ -22,10 +22,10 @@ from pathlib import Path
 import numpy as np
 
 from vid2sim.defaults import LANE_WIDTH_M
+from vid2sim.enu import EnuFrame
 from vid2sim.errors import InputError
 from vid2sim.fileio import atomic_open
 from vid2sim.geo.alongroute import signed_offsets
-from vid2sim.geo.frames import EnuFrame
 from vid2sim.geo.mapmatch import MatchConfig, MatchResult, match
 from vid2sim.geo.osm import RoadNetwork, download_network, format_bbox, load_network
 from vid2sim.geo.trace import video_t0_utc

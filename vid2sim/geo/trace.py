@@ -26,8 +26,8 @@ from pathlib import Path
 import numpy as np
 
 from vid2sim.defaults import EGO_RATE_HZ
+from vid2sim.enu import EnuFrame
 from vid2sim.errors import InputError
-from vid2sim.geo.frames import EnuFrame
 from vid2sim.geo.kalman import hermite, smooth
 from vid2sim.geo.stops import (
     doppler_stops,

@@ -40,8 +40,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from vid2sim.boxes import iou_matrix
 from vid2sim.camera import Camera, fit_camera_to_frames, load_camera
-from vid2sim.detect.boxes import iou_matrix
 from vid2sim.errors import InputError
 from vid2sim.fileio import write_text_atomic
 from vid2sim.geo.readers import OXTS_PITCH, read_kitti_oxts_table

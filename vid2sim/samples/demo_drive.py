@@ -9,8 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
+from vid2sim.enu import EnuFrame
 from vid2sim.errors import InputError
-from vid2sim.geo.frames import EnuFrame
 from vid2sim.records import Origin
 from vid2sim.samples.render import Building, RoadGeometry
 

@@ -40,9 +40,9 @@ import cv2
 import numpy as np
 
 from vid2sim.camera import Camera
+from vid2sim.enu import EnuFrame
 from vid2sim.errors import InputError
 from vid2sim.fileio import write_text_atomic
-from vid2sim.geo.frames import EnuFrame
 from vid2sim.records import Origin
 from vid2sim.samples.demo_drive import (
     ACTORS,

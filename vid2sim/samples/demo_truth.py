@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vid2sim.geo.frames import EnuFrame
+from vid2sim.enu import EnuFrame
 from vid2sim.records import Origin
 from vid2sim.scenario import Actor, Ego, Road, Scenario, Source, Trajectory
 

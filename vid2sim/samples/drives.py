@@ -13,7 +13,7 @@ from pathlib import Path
 import networkx as nx
 import numpy as np
 
-from vid2sim.geo.frames import EnuFrame
+from vid2sim.enu import EnuFrame
 from vid2sim.geo.mapmatch import merge_ways
 from vid2sim.geo.osm import RoadNetwork, load_network
 from vid2sim.records import GpsFix, Origin

@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
+from vid2sim.enu import EnuFrame
 from vid2sim.fileio import write_text_atomic
-from vid2sim.geo.frames import EnuFrame
 from vid2sim.records import GpsFix, Origin
 from vid2sim.samples.drives import helsinki_sample
 

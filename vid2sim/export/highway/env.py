@@ -14,6 +14,7 @@ from highway_env.road.road import Road as HwRoad
 
 from vid2sim import scenario as scenario_io
 from vid2sim.errors import InputError
+from vid2sim.export.assemble import straight_road_for
 from vid2sim.export.highway.network import hw_to_enu, network_for, path_lane
 from vid2sim.export.highway.observation import FastKinematics
 from vid2sim.export.highway.traffic import Traffic, measure
@@ -102,8 +103,6 @@ class ReplayEnv(AbstractEnv):
         self.ego_mode = ego_mode
         self._default_ego_mode = ego_mode
         if not self.scenario.roads:
-            from vid2sim.export.assemble import straight_road_for
-
             self._roads = [straight_road_for(self.scenario.ego.trajectory)]
         else:
             self._roads = list(self.scenario.roads)

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from vid2sim.geo.frames import EnuFrame, ecef_to_geodetic, geodetic_to_ecef
+from vid2sim.enu import EnuFrame, ecef_to_geodetic, geodetic_to_ecef
 from vid2sim.records import Origin
 
 A_M = 6378137.0  # WGS-84 semi-major axis (definition)

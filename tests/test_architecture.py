@@ -1,0 +1,147 @@
+"""The package's shape: imports run one way, no module too big to read, no hidden imports."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+from tests.conftest import REPO
+
+PACKAGE = REPO / "vid2sim"
+#: Largest module [lines]: above it a module holds more than one concern (issue 12).
+MAX_MODULE_LINES = 600
+#: Where a vid2sim import inside a function is allowed, and why.
+LAZY_IMPORTS_ALLOWED = {
+    # The CLI imports each command's application module when the command runs, so that
+    # `vid2sim --help` and light commands do not load onnxruntime, osmnx or highway-env.
+    "vid2sim.cli.stage_commands", "vid2sim.cli.scenario_commands", "vid2sim.cli.batch_commands",
+    # `import vid2sim` registers the gym environment; checked only where the env is wanted.
+    "vid2sim.evaluate.replay",
+    # highway-env (and pygame) only for the highway-env export's preview picture.
+    "vid2sim.app.commands",
+}
+#: The layers, lowest first: a module may import its own layer and the layers below.
+LAYERS = (
+    ("errors", "fileio", "defaults"),
+    ("records", "camera", "scenario", "tables", "videofile", "lead", "outline", "enu",
+     "boxes"),
+    STAGES := ("geo", "detect", "export"),
+    # consumers of the stages: evaluation (replay, scoring, truth readers), policy testing
+    # on the exported environment, generators of samples
+    ("evaluate", "adas", "samples"),
+    ("app",),
+    ("cli", "__main__"),
+)
+
+
+def _modules() -> dict[str, Path]:
+    mods = {}
+    for path in PACKAGE.rglob("*.py"):
+        parts = path.relative_to(REPO).with_suffix("").parts
+        name = ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+        mods[name] = path
+    return mods
+
+
+MODULES = _modules()
+
+
+def _imports(path: Path) -> list[tuple[str, bool]]:
+    """(imported vid2sim module, inside a function) of every import in a file."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    inside: set[int] = set()
+    for fn in ast.walk(tree):
+        if isinstance(fn, ast.FunctionDef | ast.AsyncFunctionDef):
+            inside.update(id(n) for n in ast.walk(fn) if n is not fn)
+    out = []
+    for node in ast.walk(tree):
+        names: list[str] = []
+        if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            # `from pkg import mod` imports the module; `from mod import name` the module
+            subs = [f"{node.module}.{a.name}" for a in node.names]
+            names = [s for s in subs if s in MODULES] or [node.module]
+        elif isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        for name in names:
+            if name == "vid2sim" or name.startswith("vid2sim."):
+                out.append((name, id(node) in inside))
+    return out
+
+
+def _graph() -> dict[str, set[str]]:
+    mods = _modules()
+    return {m: {n for n, _ in _imports(p) if n in mods and n != m} for m, p in mods.items()}
+
+
+def _layer(module: str) -> int:
+    top = module.split(".")[1] if "." in module else ""
+    for k, names in enumerate(LAYERS):
+        if top in names:
+            return k
+    raise AssertionError(f"{module}: not in any layer of tests/test_architecture.py")
+
+
+def test_no_module_is_too_long():
+    long = {m: n for m, p in _modules().items()
+            if (n := len(p.read_text(encoding="utf-8").splitlines())) > MAX_MODULE_LINES}
+    assert not long, long
+
+
+def test_no_import_cycle():
+    graph = _graph()
+    seen: dict[str, int] = {}  # 1 on the stack, 2 done
+
+    def visit(m: str, stack: list[str]) -> None:
+        seen[m] = 1
+        for n in sorted(graph[m]):
+            if n.startswith(m + ".") or m.startswith(n + "."):
+                continue  # a package and its own modules
+            assert seen.get(n) != 1, " -> ".join([*stack, m, n])
+            if n not in seen:
+                visit(n, [*stack, m])
+        seen[m] = 2
+
+    for m in sorted(graph):
+        if m not in seen:
+            visit(m, [])
+
+
+def test_imports_run_down_the_layers():
+    wrong = []
+    for m, targets in _graph().items():
+        if m == "vid2sim":
+            continue
+        for n in targets:
+            if n != "vid2sim" and _layer(n) > _layer(m):
+                wrong.append(f"{m} -> {n}")
+    assert not wrong, wrong
+
+
+def test_a_stage_never_imports_another_stage():
+    """geo, detect and export receive records; none reaches into another (STYLE.md)."""
+    crossing = []
+    for m, targets in _graph().items():
+        top = m.split(".")[1] if "." in m else ""
+        for n in targets:
+            other = n.split(".")[1] if "." in n else ""
+            if top in STAGES and other in STAGES and other != top:
+                crossing.append(f"{m} -> {n}")
+    assert not crossing, crossing
+
+
+def test_no_hidden_imports_of_vid2sim_modules():
+    hidden = [(m, n) for m, p in _modules().items() if m not in LAZY_IMPORTS_ALLOWED
+              for n, in_function in _imports(p) if in_function]
+    assert not hidden, hidden
+
+
+def test_no_test_imports_a_benchmark_and_no_benchmark_a_test():
+    for folder, other in (("tests", "benchmarks"), ("benchmarks", "tests")):
+        for path in (REPO / folder).rglob("*.py"):
+            tree = ast.parse(path.read_text(encoding="utf-8"))
+            for node in ast.walk(tree):
+                mods = ([node.module or ""] if isinstance(node, ast.ImportFrom)
+                        else [a.name for a in node.names] if isinstance(node, ast.Import)
+                        else [])
+                bad = [x for x in mods if x == other or x.startswith(other + ".")]
+                assert not bad, f"{path.relative_to(REPO)} imports {bad}"

@@ -1,0 +1,126 @@
+"""What the commands share: output path checks, the detector options, settings from options, quiet/progress."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from vid2sim.app.settings import DetectorSettings, Settings
+from vid2sim.defaults import IMAGE_FOLDER_FPS
+from vid2sim.detect.models import DEFAULT_DETECTOR
+from vid2sim.detect.windows import REFINE_MAX_BOXES
+from vid2sim.errors import InputError
+
+EXISTING_PATH = click.Path(exists=False, path_type=Path)
+
+
+class _Context:
+    def __init__(self, verbosity: int):
+        self.verbosity = verbosity
+
+    @property
+    def quiet(self) -> bool:
+        return self.verbosity < 0
+
+
+def echo(msg: str = "", ctx: click.Context | None = None) -> None:
+    """Print a summary line unless -q was given."""
+    ctx = ctx or click.get_current_context(silent=True)
+    if ctx is not None and ctx.find_object(_Context) is not None and ctx.find_object(_Context).quiet:
+        return
+    click.echo(msg)
+
+
+def show_progress() -> bool:
+    """Progress bars on a terminal (stderr) and not with -q."""
+    ctx = click.get_current_context(silent=True)
+    obj = ctx.find_object(_Context) if ctx else None
+    return not (obj is not None and obj.quiet)
+
+
+def check_out_file(path: Path, example: str) -> None:
+    """Refuse an output file path that cannot be written, before any work is done.
+
+    An existing folder (or a file where one of its parent folders should be) is a user
+    mistake; without this check it surfaced only at the final rename, as an internal error.
+    """
+    if path.is_dir():
+        raise InputError(path, "is a folder", f"give the output file name, e.g. {example}")
+    _check_parents(path)
+
+
+def check_out_dir(path: Path) -> None:
+    """Refuse an output folder path that is an existing file, before any work is done."""
+    if path.exists() and not path.is_dir():
+        raise InputError(path, "is a file, not a folder", "give an output folder")
+    _check_parents(path)
+
+
+def _check_parents(path: Path) -> None:
+    for parent in path.parents:
+        if parent.exists():
+            if not parent.is_dir():
+                raise InputError(path, f"{parent} is a file, not a folder",
+                                 "give a path inside a folder")
+            return
+
+def detector_options(fn):
+    """The detector options shared by every command that finds vehicles (detect, track, build,
+    batch); their defaults are :class:`vid2sim.app.settings.DetectorSettings`'."""
+    options = [
+        click.option("--detector", "detector_name", default=DEFAULT_DETECTOR, show_default=True,
+                     help="Registry name (yolox-nano, picodet-s; see `vid2sim models list`) or "
+                          "path to an .onnx file."),
+        click.option("--model-dir", type=EXISTING_PATH, default=None, envvar="VID2SIM_MODEL_DIR",
+                     help="Folder with detector weights [env VID2SIM_MODEL_DIR; else the user "
+                          "cache]."),
+        click.option("--detect-every", type=click.IntRange(min=1), default=1, show_default=True,
+                     help="Run the detector on every N-th frame; the tracker carries boxes "
+                          "between (above 1 replaces the keyframe schedule)."),
+        click.option("--keyframe-s", type=click.FloatRange(min=0.0, max=10.0),
+                     default=DetectorSettings().keyframe_s, show_default=True,
+                     metavar="SECONDS",
+                     help="Longest time between detector keyframes; optical flow carries the "
+                          "boxes between, and new tracks, flow failures and a new lead get "
+                          "a keyframe sooner (0 = detector on every frame)."),
+        click.option("--score", type=click.FloatRange(min=0.0, max=1.0, min_open=True,
+                                                      max_open=True), default=None,
+                     help="Minimum score to start a track [0-1] (default 0.45)."),
+        click.option("--no-tiles", is_flag=True,
+                     help="Full frame only: faster, but misses more distant cars."),
+        click.option("--refine", type=click.IntRange(min=0), default=None, metavar="N",
+                     help="Re-detect up to N cars ahead on a crop about each, per frame, for "
+                          "tighter, steadier boxes (one more detector run each; 0 = off; "
+                          f"default {REFINE_MAX_BOXES} with tiles, 0 with --no-tiles)."),
+    ]
+    for option in reversed(options):
+        fn = option(fn)
+    return fn
+
+
+def frame_source_options(fn):
+    """Where boxes come from besides the detector, and the frame rate of image folders."""
+    options = [
+        click.option("--detections", "detections_path", type=EXISTING_PATH, default=None,
+                     help="Import boxes (MOT-challenge CSV or Scalabel/BDD100K JSON) instead of "
+                          "running a detector."),
+        click.option("--fps", type=click.FloatRange(min=0.1), default=None,
+                     help=f"Frame rate of an image folder [frames/s] (default "
+                          f"{IMAGE_FOLDER_FPS:g}); videos use their own timestamps."),
+    ]
+    for option in reversed(options):
+        fn = option(fn)
+    return fn
+
+
+def settings_from(detector_name: str = DEFAULT_DETECTOR, model_dir: Path | None = None,
+                  detect_every: int = 1, score: float | None = None, no_tiles: bool = False,
+                  refine: int | None = None, keyframe_s: float = DetectorSettings().keyframe_s,
+                  **kwargs) -> Settings:
+    """The run's :class:`Settings` from the shared options (``kwargs``: other Settings
+    fields, e.g. ``allow_download``)."""
+    detector = DetectorSettings(name=detector_name, model_dir=model_dir, tiles=not no_tiles,
+                                refine=refine, score=score, detect_every=detect_every,
+                                keyframe_s=keyframe_s)
+    return Settings(detector=detector, progress=show_progress(), **kwargs)
