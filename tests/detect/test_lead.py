@@ -7,9 +7,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from vid2sim.detect.lane_track import ego_lane_at, smoothed_curvature
 from vid2sim.detect.lead import assign_lanes_and_lead, lane_indices, lane_offsets, relane
 from vid2sim.detect.ranging import RangingConfig
+from vid2sim.lead import ego_lane_at, smoothed_curvature
 from vid2sim.records import LaneTrack, RangedBox, TrackedBox
 
 CFG = RangingConfig()
@@ -116,7 +116,7 @@ def test_lane_offsets_follow_the_measured_lane_not_the_camera_axis():
     # the camera axis puts it 1.2 m right: in the ego lane of 3.6 m, but 1.2 m off its middle
     _, _, off_axis = assign_lanes_and_lead(boxes, rng, np.full(len(t), lat_on_centre), CFG)
     np.testing.assert_allclose(off_axis, lat_on_centre)
-    names2, lead2, off2 = assign_lanes_and_lead(boxes, rng, np.full(len(t), lat_on_centre),
+    names2, lead2, _off2 = assign_lanes_and_lead(boxes, rng, np.full(len(t), lat_on_centre),
                                                 CFG, track)
     assert set(names2) == {"ego"} and lead2.all()
     # one lane to the left of it is "left"

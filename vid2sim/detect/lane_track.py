@@ -23,12 +23,12 @@ from __future__ import annotations
 import math
 from collections import Counter
 from dataclasses import dataclass
-from typing import NamedTuple
 
 import numpy as np
 
 from vid2sim.defaults import LANE_WIDTH_M
 from vid2sim.detect.lane_geometry import with_yaw_correction
+from vid2sim.lead import gap_to
 from vid2sim.records import LaneBoundary, LaneChange, LaneObservation, LaneTrack, MarkingKind
 
 
@@ -267,7 +267,7 @@ def lane_track(observations: list[LaneObservation], config: LaneTrackConfig | No
     # Far from any accepted measurement the filter only extrapolates: unknown.
     t_acc = t[accepted]
     if t_acc.size:
-        lateral[_gap_to(t, t_acc) > cfg.max_gap_s] = np.nan
+        lateral[gap_to(t, t_acc) > cfg.max_gap_s] = np.nan
     else:
         lateral[:] = np.nan
     std[~np.isfinite(lateral)] = np.nan
@@ -283,14 +283,6 @@ def lane_track(observations: list[LaneObservation], config: LaneTrackConfig | No
         lane_width_m=width, heading_rad=heading, curvature_inv_m=curvature,
         left_kind=left_kind, right_kind=right_kind, lines_left=n_left, lines_right=n_right,
         lane_changes=changes, observations=list(observations))
-
-
-def _gap_to(t: np.ndarray, t_acc: np.ndarray) -> np.ndarray:
-    """Distance [s] from each time to the nearest accepted time (both sorted)."""
-    if len(t_acc) == 1:
-        return np.abs(t - t_acc[0])
-    j = np.clip(np.searchsorted(t_acc, t), 1, len(t_acc) - 1)
-    return np.minimum(np.abs(t - t_acc[j - 1]), np.abs(t_acc[j] - t))
 
 
 def _lanes(t: np.ndarray, lateral: np.ndarray, width: np.ndarray, hysteresis_m: float
@@ -386,88 +378,3 @@ def track_lanes(observations: list[LaneObservation], yaw_correction_rad: float =
     if yaw_correction_rad:
         observations = [with_yaw_correction(o, yaw_correction_rad) for o in observations]
     return lane_track(observations, config)
-
-
-#: The lane's curvature for use far ahead is the median over this window [s]: one frame's
-#: curvature comes from a few metres of paint and scatters by several 1e-3 1/m; the median
-#: over 1 s halves the boundary's error at 20-30 m on KITTI raw 0001 (0.29 -> 0.16 m RMS at
-#: 20 m, ``python benchmarks/bench_lanes.py --kitti``), while a real bend's curvature
-#: changes over several seconds.
-CURVATURE_WINDOW_S = 1.0
-#: Farther than this [s] from a measured frame, the lane model is unknown at a time.
-LANE_AT_MAX_GAP_S = 0.5
-
-
-class EgoLaneAt(NamedTuple):
-    """The ego lane at given times (:func:`ego_lane_at`), arrays of the times' length.
-
-    ``centre_m``: the lane's centre line beside the camera (x = 0) [m, positive left], i.e.
-    minus ``offset_m``, the camera's offset from the lane's middle; ``heading_rad`` and
-    ``curvature_inv_m``: the lane model (curvature over :data:`CURVATURE_WINDOW_S`);
-    ``lane_width_m``; ``lane``: the ego's lane counted as :attr:`LaneTrack.lane`. NaN where
-    unknown (``lane`` is always known: held from the nearest earlier frame).
-    """
-
-    centre_m: np.ndarray
-    offset_m: np.ndarray
-    heading_rad: np.ndarray
-    curvature_inv_m: np.ndarray
-    lane_width_m: np.ndarray
-    lane: np.ndarray
-
-
-def _interp_known(t_q: np.ndarray, t: np.ndarray, v: np.ndarray, max_gap_s: float
-                  ) -> np.ndarray:
-    """Linear interpolation of the finite samples of ``v``; NaN farther than ``max_gap_s``
-    from any of them."""
-    ok = np.isfinite(v)
-    if not ok.any():
-        return np.full(len(t_q), np.nan)
-    tk = t[ok]
-    out = np.interp(t_q, tk, v[ok])
-    out[_gap_to(t_q, tk) > max_gap_s] = np.nan
-    return out
-
-
-def smoothed_curvature(track: LaneTrack, window_s: float = CURVATURE_WINDOW_S) -> np.ndarray:
-    """The track's curvature [1/m] as the median of the finite values within ``window_s``
-    about each frame (NaN where there are none)."""
-    t = np.asarray(track.t_s, dtype=float)
-    k = np.asarray(track.curvature_inv_m, dtype=float)
-    out = np.full(len(t), np.nan)
-    ok = np.isfinite(k)
-    tk, kk = t[ok], k[ok]
-    lo = np.searchsorted(tk, t - window_s / 2.0, side="left")
-    hi = np.searchsorted(tk, t + window_s / 2.0, side="right")
-    for i in np.flatnonzero(hi > lo):
-        out[i] = float(np.median(kk[lo[i]:hi[i]]))
-    return out
-
-
-def ego_lane_at(track: LaneTrack, t_s: np.ndarray, max_gap_s: float = LANE_AT_MAX_GAP_S
-                ) -> EgoLaneAt:
-    """The ego lane of a lane track at times ``t_s`` [s] (e.g. of tracked boxes).
-
-    The continuous lateral position, the heading, the curvature (:func:`smoothed_curvature`)
-    and the width are interpolated between the measured frames; the lane index is the one
-    of the latest frame at or before each time; the camera's offset in the lane follows
-    from them, so a time between two frames of a lane change is placed in the right lane.
-    """
-    t_q = np.asarray(t_s, dtype=float)
-    t = np.asarray(track.t_s, dtype=float)
-    if len(t) == 0:
-        nan = np.full(len(t_q), np.nan)
-        return EgoLaneAt(nan, nan.copy(), nan.copy(), nan.copy(), nan.copy(),
-                         np.zeros(len(t_q), dtype=int))
-    lateral = _interp_known(t_q, t, track.lateral_m, max_gap_s)
-    width = _interp_known(t_q, t, track.lane_width_m, max_gap_s)
-    heading = _interp_known(t_q, t, track.heading_rad, max_gap_s)
-    curvature = _interp_known(t_q, t, smoothed_curvature(track), max_gap_s)
-    # The lane model is known where the position and heading are; an unknown curvature
-    # (lines too short to bend) counts as straight.
-    curvature = np.where(np.isfinite(lateral) & ~np.isfinite(curvature), 0.0, curvature)
-    j = np.clip(np.searchsorted(t, t_q, side="right") - 1, 0, len(t) - 1)
-    lane = np.asarray(track.lane, dtype=int)[j]
-    offset = lateral - lane * width
-    offset = np.where(np.isfinite(heading), offset, np.nan)
-    return EgoLaneAt(-offset, offset, heading, curvature, width, lane)

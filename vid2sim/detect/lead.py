@@ -22,10 +22,10 @@ from typing import Protocol
 
 import numpy as np
 
-from vid2sim.detect.lane_track import ego_lane_at
 from vid2sim.lead import (
     COURSE_JOIN_M,
     MAX_RELATIVE_LANE,
+    ego_lane_at,
     lane_centre_ahead_m,
     lane_index,
     lane_name,

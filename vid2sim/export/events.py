@@ -34,8 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vid2sim.detect.lane_track import ego_lane_at
-from vid2sim.lead import lane_index
+from vid2sim.lead import ego_lane_at, lane_index
 from vid2sim.records import LaneChange, LaneTrack, RangedBox
 from vid2sim.scenario import EGO_ID, Actor, Event, Trajectory
 
