@@ -51,7 +51,7 @@ def run_clip(car: str, seed: int, raw_dir: Path, tracking_dir: Path, model_dir: 
     cut_ins = [e for e in scen["events"] if e["type"] == "cut_in"]
     best = min(cut_ins, key=lambda e: abs(e["t_s"] - truth.t_enter_s), default=None)
     others = [e for e in scen["events"] if e is not best]
-    i = int(round(truth.t_enter_s * cp.DEFAULT_FPS))
+    i = round(truth.t_enter_s * cp.DEFAULT_FPS)
     return {"car": car, "seed": seed, "truth_s": truth.t_enter_s, "event": best,
             "others": others, "range_m": float(truth.lead.range_m[min(i, N_FRAMES - 1)]),
             "build_s": time.perf_counter() - t0}

@@ -44,6 +44,7 @@ from vid2sim.detect.lane_track import lane_track
 from vid2sim.detect.lead import relane
 from vid2sim.detect.pipeline import detect_and_range
 from vid2sim.errors import InputError
+from vid2sim.evaluate.frames import sample_frame_figures
 from vid2sim.evaluate.replay import run_eval
 from vid2sim.evaluate.report import write_report
 from vid2sim.export.assemble import assemble_scenario
@@ -327,8 +328,15 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
                                 outlines=settings.ranging.outlines)
         files["metrics"] = Path("metrics.json")
     else:
+        # Nothing scores the scene: show sampled frames with what the build saw beside the
+        # simulator's view of the same moment, for a person to judge.
+        frames = stages.run("sampled frames", sample_frame_figures,
+                            staging / "figures" / "frames", video, camera_used, ranging.boxes,
+                            ranging.lanes, scenario, info.fps, info.n_frames,
+                            video_fps=inputs.fps, progress=settings.progress)
         stages.run("report", write_report, staging / "report.html", scenario=scenario,
-                   metrics=None, extra_figures=figures, warnings=warnings, inputs=report_inputs)
+                   metrics=None, extra_figures=figures, warnings=warnings, inputs=report_inputs,
+                   frame_images=[(c, p, p.relative_to(staging).as_posix()) for c, p in frames])
     files["report"] = Path("report.html")
 
     lead = lead_summary(ranging, info.n_frames)
