@@ -13,7 +13,7 @@ from vid2sim.app.demo import run_demo
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.settings import DetectorSettings, Settings
 from vid2sim.cli import main
-from vid2sim.evaluate.lanes import ego_cross_error, summary
+from vid2sim.evaluate.lanes import actor_enters_lane_on_road_s, ego_cross_error, summary
 from vid2sim.samples.demo_truth import truth_scenario
 
 QUIET = Settings(progress=False, allow_download=False)
@@ -198,3 +198,24 @@ def test_demo_ego_sits_in_its_lane(demo_result):
     assert lateral.source == "lane markings + map"
     assert (lateral.lane == 0).all() and lateral.lane_changes == []  # the ego holds its lane
     assert lateral.lanes.detection_rate >= 0.8
+
+
+def test_demo_cut_in_event_at_the_true_moment(demo_result):
+    """Issue 19: the demo's cut-in car (overtakes on the left and merges in front) gives a
+    ``cut_in`` event from lane +1 to 0 within 0.5 s of the moment its centre crosses the
+    ego lane's left boundary (the centre line of the true two-lane road; measured -0.13 s),
+    and nothing else in the demo changes lanes."""
+    out, result = demo_result
+    built = scenario_io.load(out / "build" / "scenario.json")
+    truth = truth_scenario(out / "sample" / "truth.json")
+    road = json.loads((out / "sample" / "truth.json").read_text())["road"]
+    assert road["lanes"] == 2  # one lane each way: the ego lane is right of the centre line
+    t_true = actor_enters_lane_on_road_s(truth, "cutin", 0.0, -road["lane_width_m"])
+    assert t_true is not None
+    cut_ins = [e for e in built.events if e.type == "cut_in"]
+    print(f"demo cut-in: truth {t_true:.2f} s, events {built.events}")
+    assert len(cut_ins) == 1 and (cut_ins[0].from_lane, cut_ins[0].to_lane) == (1, 0)
+    assert abs(cut_ins[0].t_s - t_true) <= 0.5
+    assert built.events == cut_ins  # nothing else
+    assert [(e.type, e.actor) for e in result.events] == [("cut_in", cut_ins[0].actor)]
+    assert result.events[0].t_s == pytest.approx(cut_ins[0].t_s, abs=1e-3)  # JSON rounding
