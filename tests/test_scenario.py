@@ -355,3 +355,33 @@ def test_event_damage_gives_scenario_error_only():
             assert ev.from_lane != ev.to_lane
 
     check()
+
+
+_EVENT = st.one_of(
+    st.builds(lambda a, t, k: {"type": "cut_in", "actor": a, "t_s": t, "from_lane": k,
+                               "to_lane": 0},
+              st.just("1"), st.floats(0.0, 5.0), st.sampled_from([-2, -1, 1, 2, 16])),
+    st.builds(lambda a, t, k: {"type": "cut_out", "actor": a, "t_s": t, "from_lane": 0,
+                               "to_lane": k},
+              st.just("1"), st.floats(0.0, 5.0), st.sampled_from([-16, -1, 1, 3])),
+    st.builds(lambda t, k: {"type": "lane_change", "actor": "ego", "t_s": t, "from_lane": 0,
+                            "to_lane": k}, st.floats(0.0, 5.0), st.sampled_from([-1, 1])),
+    st.builds(lambda t, a, b: {"type": "lane_change", "actor": "1", "t_s": t,
+                               "from_lane": a, "to_lane": b},
+              st.floats(0.0, 5.0), st.integers(1, 16), st.integers(-16, -1)))
+
+
+@settings(max_examples=80)
+@given(events=st.lists(_EVENT, max_size=6))
+def test_valid_events_round_trip_through_json(events, tmp_path_factory):
+    """Any valid list of events validates and survives save and load unchanged."""
+    d = valid_dict()
+    d["events"] = events
+    s = sc.from_json(d, "s.json")
+    assert [e.to_json() for e in s.events] == events
+    out = tmp_path_factory.mktemp("ev") / "s.json"
+    sc.save(s, out)
+    back = sc.load(out)
+    assert [(e.type, e.actor, e.from_lane, e.to_lane) for e in back.events] == [
+        (e["type"], e["actor"], e["from_lane"], e["to_lane"]) for e in events]
+    assert [e.t_s for e in back.events] == pytest.approx([e["t_s"] for e in events], abs=1e-4)

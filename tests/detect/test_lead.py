@@ -51,6 +51,17 @@ def test_a_vehicle_keeps_its_road_lane_when_the_ego_changes_lanes():
     assert lane_indices(np.array([np.nan, 3.2, np.nan]), 3.0, 0.3).tolist() == [0, 1, 1]
 
 
+def test_hysteresis_ignores_flicker_along_a_boundary():
+    # A car drives along the ego lane's left boundary (1.75 m of a 3.5 m lane) with 0.2 m of
+    # noise: with 0.3 m of hysteresis its lane never flips; it changes only once its centre
+    # is 0.3 m past the boundary (2.05 m), and then stays until 0.3 m past on the way back.
+    wobble = np.array([1.6, 1.9, 1.7, 1.95, 1.65, 2.0, 1.8, 1.7])
+    assert lane_indices(wobble, 3.5, 0.3).tolist() == [0] * 8
+    assert lane_indices(wobble, 3.5, 0.0).tolist() == [0, 1, 0, 1, 0, 1, 1, 0]
+    crossing = np.array([1.0, 1.9, 2.0, 2.1, 1.9, 1.6, 1.5, 1.4, 1.0])
+    assert lane_indices(crossing, 3.5, 0.3).tolist() == [0, 0, 0, 1, 1, 1, 1, 0, 0]
+
+
 @settings(max_examples=60)
 @given(y=st.lists(st.floats(-12, 12), min_size=1, max_size=40), w=st.floats(2.5, 4.0),
        hyst=st.floats(0.0, 0.6), shift=st.integers(-3, 3))
