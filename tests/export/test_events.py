@@ -89,6 +89,12 @@ def test_ranges_beyond_the_limit_and_parked_or_oncoming_actors_give_no_events():
         [("cut_in", "7")]
     for still in (_actor("7", t, 0.0, 0.0), _actor("7", t, 12.0, np.pi)):  # parked, oncoming
         assert scenario_events(near, None, [still], [], W, ego) == []
+    # a move between lanes +2 and +3 concerns no one; +2 to +1 is kept
+    far = _boxes(t, _min_jerk(t, 4.0, 3.0, 2 * W, 3 * W), range_m=20.0)
+    assert scenario_events(far, None, [moving], [], W, ego) == []
+    nearer = _boxes(t, _min_jerk(t, 4.0, 3.0, 2 * W, W), range_m=20.0)
+    assert [(e.type, e.from_lane, e.to_lane) for e in
+            scenario_events(nearer, None, [moving], [], W, ego)] == [("lane_change", 2, 1)]
 
 
 def test_scenario_events_pick_the_track_piece_and_add_the_ego():
@@ -155,3 +161,4 @@ def test_every_boundary_is_crossed_once_near_its_true_time(start, duration, a, s
 def test_config_defaults_are_named():
     cfg = EventConfig()
     assert cfg.min_dwell_s > 0 and cfg.max_range_m > 0 and cfg.min_speed_mps > 0
+    assert cfg.max_lane >= 1
