@@ -9,6 +9,10 @@ for the car in ``scenario.json`` (the one nearest the truth), the signed timing 
 minus truth; positive = late), the car's range then, and any other events of the clip (the
 drive's parked cars and the tram must give none). Overall: signed mean, median, RMS and max
 |error|, and how many clips found their cut-in within 0.5 s (the acceptance bar of issue 19).
+
+Measured (polo, seeds 0-9, about 20 s a clip): 10 of 10 within 0.5 s, signed error mean
++0.17 s, median +0.19 s, RMS 0.19 s, max 0.25 s (every clip late but seed 3, -0.01 s), no
+other events; ranges 10-23 m at the crossing.
 """
 
 from __future__ import annotations
