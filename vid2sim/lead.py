@@ -40,8 +40,8 @@ LANE_MODEL_REACH_M = 20.0
 #: joined at 15 m, 0.15 / 0.26 / 0.46 and 0.30 / 0.60 / 0.94 m
 #: (``python benchmarks/bench_lanes.py``). Re-measured at issue 19's merge with the boundary
 #: beside the camera (lane track + OXTS) fixed in the world as the reference (``bench_lanes.py
-#: --kitti``, last table): 0.08 / 0.16 / 0.24 / 0.44 m RMS at 10 / 20 / 30 / 40 m with the
-#: course, 0.08 / 0.23 / 0.53 / 0.85 m with the lane model alone.
+#: --kitti``, last table): 0.08 / 0.15 / 0.22 / 0.42 m RMS at 10 / 20 / 30 / 40 m with the
+#: course, 0.08 / 0.23 / 0.53 / 0.86 m with the lane model alone.
 COURSE_JOIN_M = 10.0
 
 #: Largest |lane| relative to the ego lane: a carriageway has at most 16 lanes
@@ -174,6 +174,11 @@ def gap_to(t: np.ndarray, t_acc: np.ndarray) -> np.ndarray:
 #: 20 m, ``python benchmarks/bench_lanes.py --kitti``), while a real bend's curvature
 #: changes over several seconds.
 CURVATURE_WINDOW_S = 1.0
+#: The lane's heading for use far ahead is the median over this window [s]: the lane track's
+#: heading can jump for a frame or two on clutter (0.02 -> 0.125 rad on the generated road
+#: of tests/detect/test_ranging_cli.py: 3 m at 25 m, a car ahead read a lane to the left),
+#: while the ego's yaw in its lane changes over seconds (a lane change takes 3-6 s).
+HEADING_WINDOW_S = 0.5
 #: Farther than this [s] from a measured frame, the lane model is unknown at a time.
 LANE_AT_MAX_GAP_S = 0.5
 
@@ -209,19 +214,25 @@ def _interp_known(t_q: np.ndarray, t: np.ndarray, v: np.ndarray, max_gap_s: floa
     return out
 
 
-def smoothed_curvature(track: LaneTrack, window_s: float = CURVATURE_WINDOW_S) -> np.ndarray:
-    """The track's curvature [1/m] as the median of the finite values within ``window_s``
-    about each frame (NaN where there are none)."""
-    t = np.asarray(track.t_s, dtype=float)
-    k = np.asarray(track.curvature_inv_m, dtype=float)
+def windowed_median(t_s: np.ndarray, values: np.ndarray, window_s: float) -> np.ndarray:
+    """The median of the finite ``values`` within ``window_s`` about each time (NaN where
+    there are none); ``t_s`` increasing."""
+    t = np.asarray(t_s, dtype=float)
+    v = np.asarray(values, dtype=float)
     out = np.full(len(t), np.nan)
-    ok = np.isfinite(k)
-    tk, kk = t[ok], k[ok]
+    ok = np.isfinite(v)
+    tk, vk = t[ok], v[ok]
     lo = np.searchsorted(tk, t - window_s / 2.0, side="left")
     hi = np.searchsorted(tk, t + window_s / 2.0, side="right")
     for i in np.flatnonzero(hi > lo):
-        out[i] = float(np.median(kk[lo[i]:hi[i]]))
+        out[i] = float(np.median(vk[lo[i]:hi[i]]))
     return out
+
+
+def smoothed_curvature(track: LaneTrack, window_s: float = CURVATURE_WINDOW_S) -> np.ndarray:
+    """The track's curvature [1/m] as the median of the finite values within ``window_s``
+    about each frame (NaN where there are none)."""
+    return windowed_median(track.t_s, track.curvature_inv_m, window_s)
 
 
 def ego_lane_at(track: LaneTrack, t_s: np.ndarray, max_gap_s: float = LANE_AT_MAX_GAP_S
@@ -241,7 +252,8 @@ def ego_lane_at(track: LaneTrack, t_s: np.ndarray, max_gap_s: float = LANE_AT_MA
                          np.zeros(len(t_q), dtype=int))
     lateral = _interp_known(t_q, t, track.lateral_m, max_gap_s)
     width = _interp_known(t_q, t, track.lane_width_m, max_gap_s)
-    heading = _interp_known(t_q, t, track.heading_rad, max_gap_s)
+    heading = _interp_known(t_q, t, windowed_median(t, track.heading_rad, HEADING_WINDOW_S),
+                            max_gap_s)
     curvature = _interp_known(t_q, t, smoothed_curvature(track), max_gap_s)
     # The lane model is known where the position and heading are; an unknown curvature
     # (lines too short to bend) counts as straight.

@@ -50,8 +50,8 @@ class EventConfig:
     #: vehicle drives along a boundary
     min_dwell_s: float = 0.5
     #: lanes read farther ahead than this [m] are no evidence of a lane change: the ego
-    #: lane's boundary at a vehicle's range is off by 0.24 / 0.44 m RMS at 30 / 40 m on
-    #: KITTI raw 0001 with the road's course (0.53 / 0.85 m from the lane model alone;
+    #: lane's boundary at a vehicle's range is off by 0.22 / 0.42 m RMS at 30 / 40 m on
+    #: KITTI raw 0001 with the road's course (0.53 / 0.86 m from the lane model alone;
     #: ``python benchmarks/bench_lanes.py --kitti``) and by 0.50 / 0.76 m on the demo's bend
     #: (vid2sim.lead): within a tenth of a lane at 30 m, a sixth or worse beyond (a parked
     #: car 40 m ahead in the demo's bend read as in the ego lane)
