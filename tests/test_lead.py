@@ -9,14 +9,17 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from tests.lane_tracks import make_track
 from vid2sim.lead import (
     COURSE_JOIN_M,
     LANE_MODEL_REACH_M,
     MAX_RELATIVE_LANE,
+    ego_lane_at,
     lane_centre_ahead_m,
     lane_centre_m,
     lane_index,
     lane_name,
+    smoothed_curvature,
 )
 
 
@@ -88,3 +91,41 @@ def test_course_on_the_lane_models_own_curve_changes_nothing_within_the_reach(x,
     bend = 0.0 if x <= j else k * (xr * (x - 0.5 * xr) - jr * (j - 0.5 * jr)) - k * jr * (x - j)
     got = lane_centre_ahead_m(x, off, h, k, bend)
     assert float(got) == pytest.approx(float(lane_centre_m(x, off, h, k)), abs=1e-9)
+
+
+# --------------------------------------------------------------------------- the ego lane at any instant
+
+
+def test_ego_lane_at_interpolates_and_keeps_the_lane_of_the_latest_frame():
+    t = np.arange(0.0, 2.01, 0.1)
+    # a lane change to the left: lateral passes 1.5 m (w = 3 m) at 1.0 s, where the track
+    # puts the new lane (LaneTrack backdates a change to its crossing)
+    lat = np.interp(t, [0.0, 0.5, 1.5, 2.0], [0.0, 0.0, 3.0, 3.0])
+    track = make_track(t, lat, heading_rad=0.02, curvature_inv_m=0.001,
+                       lane=(t >= 1.0 - 1e-9).astype(int))
+    at = ego_lane_at(track, np.array([0.25, 1.04, 1.06, 5.0]))
+    assert at.lane.tolist() == [0, 1, 1, 1]
+    # the camera's offset from its lane's middle: lateral minus lane x width
+    np.testing.assert_allclose(at.offset_m[:3], [0.0, np.interp(1.04, t, lat) - 3.0,
+                                                 np.interp(1.06, t, lat) - 3.0], atol=1e-9)
+    np.testing.assert_allclose(at.centre_m[:3], -at.offset_m[:3])
+    np.testing.assert_allclose(at.heading_rad[:3], 0.02)
+    np.testing.assert_allclose(at.curvature_inv_m[:3], 0.001)
+    assert np.isnan(at.offset_m[3]) and np.isnan(at.lane_width_m[3])  # far from any frame
+
+
+def test_smoothed_curvature_is_the_median_over_a_second():
+    t = np.arange(0.0, 3.0, 0.1)
+    k = np.full(len(t), 0.002)
+    k[10] = 0.05  # one frame's curvature from a shadow
+    k[20] = np.nan
+    track = make_track(t, 0.0, curvature_inv_m=k)
+    np.testing.assert_allclose(smoothed_curvature(track), 0.002)
+
+
+def test_a_heading_spike_of_two_frames_does_not_move_the_lane_far_ahead():
+    t = np.arange(0.0, 3.0, 0.1)
+    h = np.full(len(t), 0.01)
+    h[15:17] = 0.12  # the lane track's heading jumps on clutter for two frames
+    at = ego_lane_at(make_track(t, 0.0, heading_rad=h), t)
+    np.testing.assert_allclose(at.heading_rad, 0.01)  # the median over 0.5 s

@@ -7,28 +7,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from tests.lane_tracks import make_track
 from vid2sim.detect.lead import assign_lanes_and_lead, lane_indices, lane_offsets, relane
 from vid2sim.detect.ranging import RangingConfig
-from vid2sim.lead import ego_lane_at, smoothed_curvature
-from vid2sim.records import LaneTrack, RangedBox, TrackedBox
+from vid2sim.records import RangedBox, TrackedBox
 
 CFG = RangingConfig()
 CAR_HALF_LENGTH_M = CFG.prior_for("car").length_m / 2.0
-
-
-def make_track(t_s, lateral_m, width_m=3.0, heading_rad=0.0, curvature_inv_m=0.0,
-               lane=None) -> LaneTrack:
-    """A lane track with the given continuous lateral position (lanes from it if not given)."""
-    t = np.asarray(t_s, float)
-    n = len(t)
-    lat = np.broadcast_to(np.asarray(lateral_m, float), (n,)).copy()
-    w = np.broadcast_to(np.asarray(width_m, float), (n,)).copy()
-    ln = np.round(lat / w).astype(int) if lane is None else np.asarray(lane, int)
-    return LaneTrack(
-        frame=np.arange(n), t_s=t, found=np.ones(n, bool), ego_offset_raw_m=lat - ln * w,
-        ego_offset_m=lat - ln * w, offset_std_m=np.full(n, 0.05), lateral_m=lat, lane=ln,
-        lane_width_m=w, heading_rad=np.broadcast_to(np.asarray(heading_rad, float), (n,)).copy(),
-        curvature_inv_m=np.broadcast_to(np.asarray(curvature_inv_m, float), (n,)).copy())
 
 
 def box(frame, t, tid=1, category="car") -> TrackedBox:
@@ -80,33 +65,6 @@ def test_lane_indices_properties(y, w, hyst, shift):
 
 
 # --------------------------------------------------------------------------- lane model
-
-
-def test_ego_lane_at_interpolates_and_keeps_the_lane_of_the_latest_frame():
-    t = np.arange(0.0, 2.01, 0.1)
-    # a lane change to the left: lateral passes 1.5 m (w = 3 m) at 1.0 s, where the track
-    # puts the new lane (LaneTrack backdates a change to its crossing)
-    lat = np.interp(t, [0.0, 0.5, 1.5, 2.0], [0.0, 0.0, 3.0, 3.0])
-    track = make_track(t, lat, heading_rad=0.02, curvature_inv_m=0.001,
-                       lane=(t >= 1.0 - 1e-9).astype(int))
-    at = ego_lane_at(track, np.array([0.25, 1.04, 1.06, 5.0]))
-    assert at.lane.tolist() == [0, 1, 1, 1]
-    # the camera's offset from its lane's middle: lateral minus lane x width
-    np.testing.assert_allclose(at.offset_m[:3], [0.0, np.interp(1.04, t, lat) - 3.0,
-                                                 np.interp(1.06, t, lat) - 3.0], atol=1e-9)
-    np.testing.assert_allclose(at.centre_m[:3], -at.offset_m[:3])
-    np.testing.assert_allclose(at.heading_rad[:3], 0.02)
-    np.testing.assert_allclose(at.curvature_inv_m[:3], 0.001)
-    assert np.isnan(at.offset_m[3]) and np.isnan(at.lane_width_m[3])  # far from any frame
-
-
-def test_smoothed_curvature_is_the_median_over_a_second():
-    t = np.arange(0.0, 3.0, 0.1)
-    k = np.full(len(t), 0.002)
-    k[10] = 0.05  # one frame's curvature from a shadow
-    k[20] = np.nan
-    track = make_track(t, 0.0, curvature_inv_m=k)
-    np.testing.assert_allclose(smoothed_curvature(track), 0.002)
 
 
 def test_lane_offsets_follow_the_measured_lane_not_the_camera_axis():
