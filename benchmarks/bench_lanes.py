@@ -13,7 +13,9 @@
    seen (x = 8 m), and the lane track's ego offset (no speed: the streaming stage; with the
    OXTS speed: what ``vid2sim build`` uses), split by frames with both boundaries vs one.
    Cost per frame: best of ``--repeat`` runs over the decoded frames, with the decode time of
-   the same frames in the same process for scale.
+   the same frames in the same process for scale. Far ahead: the ego lane's left boundary
+   10-40 m ahead as the vehicles' lanes use it (camera axis, lane model, lane model continued
+   along the road's course), against the boundary beside the camera fixed in the world.
 2. ``--demo`` (default on): ``vid2sim demo --use-detections`` (or an existing ``--demo-dir``
    with ``sample/`` and ``build/``): the scenario ego's signed lateral error against the true
    ego path, RMS / p95 / bias / max, overall and by regime (straight vs curve at |curvature|
