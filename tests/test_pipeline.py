@@ -15,7 +15,7 @@ from vid2sim.app.inputs import Inputs
 from vid2sim.app.settings import DetectorSettings, Settings
 from vid2sim.cli import main
 from vid2sim.enu import EnuFrame
-from vid2sim.evaluate.lanes import ego_cross_error, summary
+from vid2sim.evaluate.lanes import actor_enters_lane_on_road_s, ego_cross_error, summary
 from vid2sim.lanelayout import BACKWARD, DRIVING, FORWARD, PARKING
 from vid2sim.polyline import signed_offsets
 from vid2sim.samples.demo_truth import truth_scenario
@@ -59,7 +59,7 @@ def test_demo_writes_every_output_and_a_valid_scenario(demo_result):
     assert scen.duration_s == pytest.approx(23.9, abs=0.3)
     header = (build_dir / "tracks.csv").read_text().splitlines()[0]
     assert header == ("frame,t_s,track_id,category,score,x1,y1,x2,y2,range_m,lateral_m,"
-                      "range_rate_mps,range_std_m,is_lead")
+                      "range_rate_mps,range_std_m,is_lead,lane")
     # No staging folders are left beside the output.
     assert not [p for p in out.iterdir() if p.name.startswith(".build.")]
     assert result.lead_share > 0.5
@@ -228,3 +228,24 @@ def test_demo_street_has_its_lanes_and_parking_strip(demo_result):
             np.column_stack((a.trajectory.x, a.trajectory.y)))
         _, d = signed_offsets(road.centerline, EnuFrame(built.origin).to_enu(lat, lon))
         assert e[0] - 0.3 <= float(np.median(d)) <= e[1] + 0.3, a.id
+
+
+def test_demo_cut_in_event_at_the_true_moment(demo_result):
+    """Issue 19: the demo's cut-in car (overtakes on the left and merges in front) gives a
+    ``cut_in`` event from lane +1 to 0 within 0.5 s of the moment its centre crosses the
+    ego lane's left boundary (the centre line of the true two-lane road; measured -0.13 s),
+    and nothing else in the demo changes lanes."""
+    out, result = demo_result
+    built = scenario_io.load(out / "build" / "scenario.json")
+    truth = truth_scenario(out / "sample" / "truth.json")
+    road = json.loads((out / "sample" / "truth.json").read_text())["road"]
+    assert road["lanes"] == 2  # one lane each way: the ego lane is right of the centre line
+    t_true = actor_enters_lane_on_road_s(truth, "cutin", 0.0, -road["lane_width_m"])
+    assert t_true is not None
+    cut_ins = [e for e in built.events if e.type == "cut_in"]
+    print(f"demo cut-in: truth {t_true:.2f} s, events {built.events}")
+    assert len(cut_ins) == 1 and (cut_ins[0].from_lane, cut_ins[0].to_lane) == (1, 0)
+    assert abs(cut_ins[0].t_s - t_true) <= 0.5
+    assert built.events == cut_ins  # nothing else
+    assert [(e.type, e.actor) for e in result.events] == [("cut_in", cut_ins[0].actor)]
+    assert result.events[0].t_s == pytest.approx(cut_ins[0].t_s, abs=1e-3)  # JSON rounding

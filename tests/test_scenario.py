@@ -278,3 +278,110 @@ def test_size_limits_fail_fast(tmp_path, monkeypatch):
     deep.write_text("[" * 100_000 + "]" * 100_000)
     with pytest.raises(InputError, match="nested too deeply"):
         sc.load(deep)
+
+
+# --------------------------------------------------------------------------- events
+
+
+def _with_events() -> dict:
+    d = valid_dict()
+    d["events"] = [{"type": "cut_in", "actor": "1", "t_s": 2.5, "from_lane": 1, "to_lane": 0},
+                   {"type": "lane_change", "actor": "ego", "t_s": 4.0, "from_lane": 0,
+                    "to_lane": -1}]
+    return d
+
+
+def test_events_round_trip_and_old_files_without_them(tmp_path):
+    s = sc.from_json(_with_events())
+    assert s.events == [sc.Event("cut_in", "1", 2.5, 1, 0),
+                        sc.Event("lane_change", "ego", 4.0, 0, -1)]
+    out = tmp_path / "s.json"
+    sc.save(s, out)
+    assert sc.load(out).events == s.events
+    old = valid_dict()
+    del old["events"]
+    assert "events" not in old and sc.from_json(old).events == []
+    # a scenario made without events writes an empty list
+    assert json.loads(sc.dumps_canonical(make_scenario().to_json()))["events"] == []
+
+
+@pytest.mark.parametrize("change,match", [
+    ({"type": "overtake"}, "expected one of"),
+    ({"actor": "42"}, "no actor"),
+    ({"t_s": 9.0}, "outside"),
+    ({"t_s": float("nan")}, "finite"),
+    ({"from_lane": 0}, "must change the lane"),
+    ({"to_lane": 1, "from_lane": 2}, "cut_in ends in the ego lane"),
+    ({"from_lane": 1.0}, "expected int"),
+    ({"from_lane": True}, "expected int"),
+    ({"from_lane": 40}, "more than 16 lanes"),
+    ({"type": "cut_out"}, "cut_out starts in the ego lane"),
+    ({"actor": "ego"}, "the ego's own event"),
+])
+def test_event_validation_names_the_field(change, match):
+    d = _with_events()
+    d["events"][0].update(change)
+    with pytest.raises(ScenarioError, match=match) as e:
+        sc.validate(d, "s.json")
+    assert e.value.field.startswith("events[0].")
+    for bad in ({"events": "x"}, {"events": [5]}):
+        d = _with_events()
+        d.update(bad)
+        with pytest.raises(ScenarioError):
+            sc.validate(d)
+
+
+def test_event_damage_gives_scenario_error_only():
+    from .damage import FUZZ
+
+    @FUZZ
+    @given(data=st.data())
+    def check(data):
+        d = _with_events()
+        paths = [p for p, _ in _paths(d["events"]) if p]
+        for _ in range(data.draw(st.integers(1, 3))):
+            path = data.draw(st.sampled_from(paths))
+            parent = d["events"]
+            for key in path[:-1]:
+                parent = parent[key]
+            parent[path[-1]] = copy.deepcopy(data.draw(st.sampled_from(JUNK_VALUES)))
+            paths = [p for p, _ in _paths(d["events"]) if p]
+        try:
+            loaded = sc.from_json(d, "s.json")
+        except ScenarioError:
+            return
+        for ev in loaded.events:
+            assert ev.type in sc.EVENT_TYPES and math.isfinite(ev.t_s)
+            assert ev.from_lane != ev.to_lane
+
+    check()
+
+
+_EVENT = st.one_of(
+    st.builds(lambda a, t, k: {"type": "cut_in", "actor": a, "t_s": t, "from_lane": k,
+                               "to_lane": 0},
+              st.just("1"), st.floats(0.0, 5.0), st.sampled_from([-2, -1, 1, 2, 16])),
+    st.builds(lambda a, t, k: {"type": "cut_out", "actor": a, "t_s": t, "from_lane": 0,
+                               "to_lane": k},
+              st.just("1"), st.floats(0.0, 5.0), st.sampled_from([-16, -1, 1, 3])),
+    st.builds(lambda t, k: {"type": "lane_change", "actor": "ego", "t_s": t, "from_lane": 0,
+                            "to_lane": k}, st.floats(0.0, 5.0), st.sampled_from([-1, 1])),
+    st.builds(lambda t, a, b: {"type": "lane_change", "actor": "1", "t_s": t,
+                               "from_lane": a, "to_lane": b},
+              st.floats(0.0, 5.0), st.integers(1, 16), st.integers(-16, -1)))
+
+
+@settings(max_examples=80)
+@given(events=st.lists(_EVENT, max_size=6))
+def test_valid_events_round_trip_through_json(events, tmp_path_factory):
+    """Any valid list of events validates and survives save and load unchanged."""
+    d = valid_dict()
+    d["events"] = events
+    s = sc.from_json(d, "s.json")
+    assert [e.to_json() for e in s.events] == events
+    out = tmp_path_factory.mktemp("ev") / "s.json"
+    sc.save(s, out)
+    back = sc.load(out)
+    assert [(e.type, e.actor, e.from_lane, e.to_lane) for e in back.events] == [
+        (e["type"], e["actor"], e["from_lane"], e["to_lane"]) for e in events]
+    assert [e.t_s for e in back.events] == pytest.approx([e["t_s"] for e in events], abs=1e-4)

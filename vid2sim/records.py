@@ -13,7 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from enum import Enum
 from pathlib import Path
-from typing import Self
+from typing import Any, Self
 
 import numpy as np
 
@@ -240,7 +240,10 @@ class RangedBox(TrackedBox):
     :param range_rate_mps: d(range)/dt, negative when closing [m/s]
     :param range_std_m: one-sigma uncertainty of ``range_m`` [m]
     :param width_m: estimated vehicle width [m]
-    :param lane: "ego", "left", "right" (or "left2"/"right2"...) lane assignment
+    :param lane: "ego", "left", "right" (or "left2"/"right2"...) lane relative to the ego lane
+        of the frame ("" where unknown)
+    :param lane_offset_m: the centre's offset from the ego lane's centre line at its range,
+        positive left [m] (NaN where unknown)
     """
 
     range_m: float
@@ -251,6 +254,7 @@ class RangedBox(TrackedBox):
     width_m: float = float("nan")
     lateral_rate_mps: float = float("nan")
     lane: str = ""
+    lane_offset_m: float = float("nan")
 
 
 # --------------------------------------------------------------------------- lane markings
@@ -468,6 +472,36 @@ class RangingResult:
     warnings: list[str] = field(default_factory=list)
     #: the ego lane measured from the lane markings while the frames streamed, if it was
     lanes: LaneTrack | None = None
+    #: tracks that may never be the lead whatever their lane (trams on their own track bed,
+    #: :mod:`vid2sim.detect.rail`); every later lane assignment keeps them out
+    never_lead_tracks: frozenset[int] = frozenset()
+
+
+#: What an event is (scenario.json's ``events``, :mod:`vid2sim.scenario`).
+EVENT_TYPES = ("cut_in", "cut_out", "lane_change")
+#: The ego's id in events.
+EGO_ID = "ego"
+
+
+@dataclass(frozen=True, slots=True)
+class Event:
+    """A lane change seen in the video (the fields are those of scenario.json's ``events``, :mod:`vid2sim.scenario`)."""
+
+    type: str
+    actor: str
+    t_s: float
+    from_lane: int
+    to_lane: int
+
+    def to_json(self) -> dict[str, Any]:
+        return {"type": self.type, "actor": self.actor, "t_s": float(self.t_s),
+                "from_lane": int(self.from_lane), "to_lane": int(self.to_lane)}
+
+    @classmethod
+    def from_json(cls, d: dict[str, Any]) -> Event:
+        return cls(str(d["type"]), str(d["actor"]), float(d["t_s"]), int(d["from_lane"]),
+                   int(d["to_lane"]))
+
 
 
 # --------------------------------------------------------------------------- evaluation

@@ -16,6 +16,13 @@ Every exporter and evaluator reads this file; the field names are a contract:
   frame, ``x``/``y`` ENU metres, ``heading`` radians counter-clockwise from east, ``speed`` m/s
 - ``camera``: the camera record (see :mod:`vid2sim.camera`)
 - ``source``: input names and sha256, tool version, options, assumptions, warnings
+- ``events`` (optional; absent in files written before it, read as none):
+  ``[{type, actor, t_s, from_lane, to_lane}]``, lane changes seen in the video: ``type``
+  ``"cut_in"`` (a vehicle ahead entering the ego lane), ``"cut_out"`` (one ahead leaving
+  it) or ``"lane_change"`` (any other); ``actor`` an actor's id or ``"ego"``; ``t_s`` the
+  moment the vehicle's centre crossed the lane boundary; lanes relative to the ego lane
+  at that moment (0 the ego lane, +1 the next to the left, -1 the next to the right; the
+  ego's own change goes from 0 to +1 or -1)
 
 Validation (:func:`validate`, on load and on save) also enforces physical ranges and the
 size limits (``MAX_*`` below, README "Limits").
@@ -37,7 +44,7 @@ import numpy as np
 from vid2sim.errors import ScenarioError
 from vid2sim.fileio import parse_json, read_input_text, write_text_atomic
 from vid2sim.lanelayout import CrossSection, uniform_cross_section, validate_cross_section
-from vid2sim.records import Origin
+from vid2sim.records import EGO_ID, EVENT_TYPES, Event, Origin
 
 SCHEMA = "vid2sim.scenario"
 #: The format's version. Fields added since version 1 was first written (a road's
@@ -212,6 +219,7 @@ class Scenario:
     actors: list[Actor]
     camera: dict[str, Any]
     source: Source
+    events: list[Event] = field(default_factory=list)
 
     @property
     def duration_s(self) -> float:
@@ -227,6 +235,7 @@ class Scenario:
             "actors": [a.to_json() for a in self.actors],
             "camera": dict(self.camera),
             "source": self.source.to_json(),
+            "events": [e.to_json() for e in self.events],
         }
 
 
@@ -297,6 +306,11 @@ MAX_BOX_M = {"length_m": 60.0, "width_m": 6.0, "height_m": 6.0}
 #: Two consecutive centerline segments turning back by more than this [deg] make a spike
 #: (the lane normals cancel): a digitising error, not a road.
 MAX_TURN_DEG = 179.0
+#: Most events in one scenario: each actor changes lanes a few times at most.
+MAX_EVENTS = 100_000
+#: An event lies within its vehicle's trajectory, give or take this [s] (the crossing is
+#: interpolated between frames; hand-made files round).
+EVENT_TIME_TOLERANCE_S = 0.5
 
 
 def _require(d: Any, key: str, kind: type | tuple[type, ...], where: str, path) -> Any:
@@ -402,6 +416,43 @@ def _validate_centerline(line: Any, where: str, path) -> int:
     return len(line)
 
 
+def _validate_events(events: list, spans: dict[str, tuple[float, float]], path) -> None:
+    """Check ``events``: known types and vehicles, times within the vehicle's trajectory,
+    whole lanes, and a type that fits the lanes (a cut-in ends in the ego lane, a cut-out
+    starts there, the ego leaves lane 0)."""
+    if len(events) > MAX_EVENTS:
+        raise ScenarioError(path, "events", f"{len(events):,} events, more than the "
+                            f"{MAX_EVENTS:,} limit")
+    for i, ev in enumerate(events):
+        w = f"events[{i}]."
+        kind = _require(ev, "type", str, w, path)
+        if kind not in EVENT_TYPES:
+            raise ScenarioError(path, f"{w}type", f"expected one of {', '.join(EVENT_TYPES)}, "
+                                f"got {kind!r}")
+        actor = str(_require(ev, "actor", (str, int), w, path))
+        if actor not in spans:
+            raise ScenarioError(path, f"{w}actor", f"no actor {actor!r} in the scenario")
+        t0, t1 = spans[actor]
+        _number(ev, "t_s", w, path, t0 - EVENT_TIME_TOLERANCE_S, t1 + EVENT_TIME_TOLERANCE_S)
+        lanes = [_require(ev, k, int, w, path) for k in ("from_lane", "to_lane")]
+        for k, v in zip(("from_lane", "to_lane"), lanes, strict=True):
+            if abs(v) > MAX_LANES:
+                raise ScenarioError(path, f"{w}{k}", f"{v} is more than {MAX_LANES} lanes from "
+                                    "the ego lane")
+        a, b = lanes
+        if a == b:
+            raise ScenarioError(path, f"{w}to_lane", "a lane change must change the lane")
+        problem = None
+        if actor == EGO_ID and (kind != "lane_change" or a != 0):
+            problem = "the ego's own event is a lane_change from lane 0"
+        elif kind == "cut_in" and b != 0:
+            problem = "a cut_in ends in the ego lane (to_lane 0)"
+        elif kind == "cut_out" and a != 0:
+            problem = "a cut_out starts in the ego lane (from_lane 0)"
+        if problem:
+            raise ScenarioError(path, f"{w}type", problem)
+
+
 def validate(data: Any, path: str | Path | None = None) -> None:
     """Check a parsed scenario.json; raise :class:`ScenarioError` naming the offending field.
 
@@ -470,6 +521,11 @@ def validate(data: Any, path: str | Path | None = None) -> None:
                                 f"{MAX_TRAJECTORY_POINTS:,} trajectory points (the limit)")
         n_points += _validate_trajectory(traj, f"{w}trajectory", path)
     _require(data, "camera", dict, "", path)
+    if "events" in data:
+        spans = {str(a["id"]): (a["trajectory"][0]["t"], a["trajectory"][-1]["t"])
+                 for a in actors}
+        spans[EGO_ID] = (ego["trajectory"][0]["t"], ego["trajectory"][-1]["t"])
+        _validate_events(_require(data, "events", list, "", path), spans, path)
     src = _require(data, "source", dict, "", path)
     for key, kind in (("inputs", list), ("tool_version", str), ("options", dict),
                       ("assumptions", list), ("warnings", list)):
@@ -501,6 +557,7 @@ def from_json(data: dict[str, Any], path: str | Path | None = None) -> Scenario:
                       options=dict(src.get("options", {})),
                       assumptions=list(src.get("assumptions", [])),
                       warnings=list(src.get("warnings", []))),
+        events=[Event.from_json(e) for e in data.get("events", [])],
     )
 
 

@@ -83,10 +83,10 @@ def test_a_tram_on_its_own_bed_is_never_the_lead():
     # is marked as running on its own bed
     boxes = [_box(1, 0, 30.0, 0.0, 3.4, 2.6, "tram"), _box(2, 0, 50.0, 0.0, 1.5, 1.8, "car")]
     rng, lat = np.array([30.0, 50.0]), np.array([0.0, 0.0])
-    _, lead = assign_lanes_and_lead(boxes, rng, lat, RangingConfig())
+    _, lead, _ = assign_lanes_and_lead(boxes, rng, lat, RangingConfig())
     assert lead.tolist() == [True, False]
-    _, lead = assign_lanes_and_lead(boxes, rng, lat, RangingConfig(),
-                                    never_lead=np.array([True, False]))
+    _, lead, _ = assign_lanes_and_lead(boxes, rng, lat, RangingConfig(),
+                                       never_lead=np.array([True, False]))
     assert lead.tolist() == [False, True]
 
 

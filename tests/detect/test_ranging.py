@@ -517,12 +517,13 @@ def test_tracks_csv_round_trip(tmp_path):
     write_tracks_csv(res.boxes, path)
     header = path.read_text().splitlines()[0]
     assert header == ("frame,t_s,track_id,category,score,x1,y1,x2,y2,range_m,lateral_m,"
-                      "range_rate_mps,range_std_m,is_lead")
+                      "range_rate_mps,range_std_m,is_lead,lane")
     back = read_tracks_csv(path)
     assert len(back) == len(res.boxes)
     for a, b in zip(back, res.boxes, strict=True):
         assert (a.frame, a.track_id, a.is_lead) == (b.frame, b.track_id, b.is_lead)
         assert a.range_m == pytest.approx(b.range_m, abs=0.006)
+        assert a.lane == b.lane == "ego"
 
 
 def test_tracks_csv_bad_input(tmp_path):

@@ -52,7 +52,7 @@ def test_track_command_writes_tracks_csv_and_plots(clip, tmp_path, capsys):
     with open(out, newline="") as fh:
         header = next(csv.reader(fh))
     assert header == ["frame", "t_s", "track_id", "category", "score", "x1", "y1", "x2", "y2",
-                      "range_m", "lateral_m", "range_rate_mps", "range_std_m", "is_lead"]
+                      "range_m", "lateral_m", "range_rate_mps", "range_std_m", "is_lead", "lane"]
     boxes = read_tracks_csv(out)
     assert len(boxes) >= N_FRAMES - 3  # the tracker may confirm the track a frame or two late
     err = [abs(b.range_m - _lead_range_m(b.frame)) / _lead_range_m(b.frame) for b in boxes]

@@ -359,3 +359,45 @@ def test_nearby_lane_matches_highway_envs_closest_lane(s_m, lat_m, start):
     index, lane = nearby_lane_index(net, ("road0:start", "road0:end", start), point)
     assert lane is net.get_lane(index)
     assert index == net.get_closest_lane_index(point)
+
+
+def _lane_change_scenario(t_change_s: float = 4.5):
+    """A straight two-lane road; the logged ego moves from the right lane to the left one
+    between 3 and 6 s (minimum-jerk across 3.5 m), crossing the line at ``t_change_s``, with
+    its ``lane_change`` event."""
+    from vid2sim.scenario import Event
+
+    sc = straight_scenario(with_actors=False, duration_s=10.0)
+    traj = sc.ego.trajectory
+    u = np.clip((traj.t - (t_change_s - 1.5)) / 3.0, 0.0, 1.0)
+    traj.y = traj.y + 3.5 * u ** 3 * (10 - 15 * u + 6 * u ** 2)
+    sc.events = [Event("lane_change", "ego", t_change_s, 0, 1)]
+    return sc
+
+
+@pytest.mark.parametrize("ego_path", ["lane", "log"])
+def test_policy_ego_changes_lane_when_the_logged_ego_did(ego_path):
+    sc = _lane_change_scenario()
+    env = ReplayEnv(sc, config={"ego_path": ego_path})
+    _, info = env.reset(seed=0)
+    assert info["ego_lane"] == 0
+    lanes, speeds = {}, []
+    for _ in range(env.n_steps):
+        # the policy brakes gently: the longitudinal control stays the policy's
+        _, _, terminated, _, info = env.step(np.array([-0.05], np.float32))
+        assert not terminated
+        lanes[round(info["t_s"], 1)] = info["ego_lane"]
+        speeds.append(info["ego_speed_mps"])
+    assert all(v == 0 for t, v in lanes.items() if t <= 4.0)  # right lane before the event
+    assert all(v == 1 for t, v in lanes.items() if t >= 7.0)  # left lane after it
+    assert abs(info["lane_offset_m"]) < 0.3  # settled in the left lane
+    log_speed = float(sc.ego.trajectory.speed[-1])
+    assert speeds[-1] < log_speed - 2.0  # slower than the log: the policy braked
+    # without the event, the lane follower keeps its lane
+    if ego_path == "lane":
+        sc.events = []
+        env = ReplayEnv(sc, config={"ego_path": "lane"})
+        env.reset(seed=0)
+        for _ in range(env.n_steps):
+            *_, info = env.step(np.array([-0.05], np.float32))
+        assert info["ego_lane"] == 0

@@ -41,19 +41,26 @@ from vid2sim.app.loaders import (
 from vid2sim.app.settings import Settings
 from vid2sim.camera import Camera
 from vid2sim.detect.lane_track import lane_track
+from vid2sim.detect.lead import relane
 from vid2sim.detect.pipeline import detect_and_range
 from vid2sim.errors import InputError
+from vid2sim.evaluate.frames import sample_frame_figures
 from vid2sim.evaluate.replay import run_eval
 from vid2sim.evaluate.report import write_report
 from vid2sim.export.assemble import assemble_scenario
+from vid2sim.export.events import scenario_events
 from vid2sim.export.openscenario import write_openscenario
 from vid2sim.export.scenelayout import SceneLayout, lay_out_scene
 from vid2sim.fileio import staged_folder, write_text_atomic
 from vid2sim.geo import roads as geo_roads
+from vid2sim.geo.course import road_course
 from vid2sim.geo.lateral import fuse_lateral
 from vid2sim.records import EgoLateral, EgoTrack, Note, NoteKind, Origin, VideoInfo, notes_of
-from vid2sim.scenario import Source, dumps_canonical
+from vid2sim.scenario import Event, Source, dumps_canonical
 from vid2sim.tables import write_tracks_csv
+
+#: Events listed one by one in the summary; more are counted.
+MAX_SUMMARY_EVENTS = 8
 
 
 @dataclass(slots=True)
@@ -74,6 +81,8 @@ class BuildResult:
     lateral: EgoLateral | None = None
     #: the road's cross-section and the parked cars placed on it
     scene: SceneLayout | None = None
+    #: the scenario's lane-change events (cut-ins, cut-outs, lane changes)
+    events: list[Event] = field(default_factory=list)
 
     def summary(self) -> str:
         lines = [(f"scenario: {self.duration_s:.1f} s, ego distance {self.distance_m:.0f} m, "
@@ -84,6 +93,12 @@ class BuildResult:
                          f"min {lo:.1f} / median {med:.1f} / max {hi:.1f} m")
         else:
             lines.append("no lead vehicle seen")
+        if self.events:
+            lines.append("events: " + ", ".join(
+                f"{e.type} {e.actor} at {e.t_s:.1f} s ({e.from_lane:+d} -> {e.to_lane:+d})"
+                for e in self.events[:MAX_SUMMARY_EVENTS])
+                + (f" and {len(self.events) - MAX_SUMMARY_EVENTS} more"
+                   if len(self.events) > MAX_SUMMARY_EVENTS else ""))
         if self.metrics:
             m = self.metrics
             lines.append(f"keyframes {m['keyframes']}: precision {m['precision']:.3f}, recall "
@@ -264,6 +279,12 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
                              track.observations, settings.lanes, speed_mps=speed))
     ego = lateral.ego
     notes.extend(lateral.notes)
+    if inputs.gps is not None:
+        # With a trajectory the road's course ahead is where the ego drove: lanes (and the
+        # lead) beyond the lane model's reach follow it.
+        ranging.boxes = stages.run("lanes of the vehicles", relane, ranging.boxes,
+                                   settings.ranging, ranging.lanes, road_course(lateral),
+                                   ranging.never_lead_tracks)
     warnings = notes_of(notes, NoteKind.WARNING)
     assumptions = [n for n in notes if getattr(n, "kind", None) in (NoteKind.ASSUMPTION,
                                                                      NoteKind.ESTIMATE)]
@@ -286,6 +307,11 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
     scenario.source.assumptions.extend(str(n) for n in scene.notes
                                        if getattr(n, "kind", None) is not NoteKind.WARNING)
     scenario.source.warnings = [str(w) for w in warnings]
+    # ---- lane-change events: the actors' (lanes counted from the ego lane the ranging
+    # used) and the ego's own
+    scenario.events = stages.run("lane-change events", scenario_events, ranging.boxes,
+                                 ranging.lanes, scenario.actors, lateral.lane_changes,
+                                 settings.ranging.lane_width_m, scenario.ego.trajectory)
 
     # ---- write into the staging folder (moved into place by the caller)
     files = stages.run("write scenario and tables", _write_tables, staging, scenario, ranging,
@@ -312,8 +338,15 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
                                 outlines=settings.ranging.outlines)
         files["metrics"] = Path("metrics.json")
     else:
+        # Nothing scores the scene: show sampled frames with what the build saw beside the
+        # simulator's view of the same moment, for a person to judge.
+        frames = stages.run("sampled frames", sample_frame_figures,
+                            staging / "figures" / "frames", video, camera_used, ranging.boxes,
+                            ranging.lanes, scenario, info.fps, info.n_frames,
+                            video_fps=inputs.fps, progress=settings.progress)
         stages.run("report", write_report, staging / "report.html", scenario=scenario,
-                   metrics=None, extra_figures=figures, warnings=warnings, inputs=report_inputs)
+                   metrics=None, extra_figures=figures, warnings=warnings, inputs=report_inputs,
+                   frame_images=[(c, p, p.relative_to(staging).as_posix()) for c, p in frames])
     files["report"] = Path("report.html")
 
     lead = lead_summary(ranging, info.n_frames)
@@ -324,5 +357,5 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
         duration_s=scenario.duration_s, distance_m=path_length_m(ego),
         n_actors=len(scenario.actors), lead_share=lead["lead_share"], lead_range_m=lead_range,
         metrics=metrics, warnings=warnings, stage_seconds=stages.seconds, lateral=lateral,
-        scene=scene)
+        scene=scene, events=list(scenario.events))
 

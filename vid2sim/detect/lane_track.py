@@ -28,6 +28,7 @@ import numpy as np
 
 from vid2sim.defaults import LANE_WIDTH_M
 from vid2sim.detect.lane_geometry import with_yaw_correction
+from vid2sim.lead import gap_to
 from vid2sim.records import LaneBoundary, LaneChange, LaneObservation, LaneTrack, MarkingKind
 
 
@@ -266,7 +267,7 @@ def lane_track(observations: list[LaneObservation], config: LaneTrackConfig | No
     # Far from any accepted measurement the filter only extrapolates: unknown.
     t_acc = t[accepted]
     if t_acc.size:
-        lateral[_gap_to(t, t_acc) > cfg.max_gap_s] = np.nan
+        lateral[gap_to(t, t_acc) > cfg.max_gap_s] = np.nan
     else:
         lateral[:] = np.nan
     std[~np.isfinite(lateral)] = np.nan
@@ -282,14 +283,6 @@ def lane_track(observations: list[LaneObservation], config: LaneTrackConfig | No
         lane_width_m=width, heading_rad=heading, curvature_inv_m=curvature,
         left_kind=left_kind, right_kind=right_kind, lines_left=n_left, lines_right=n_right,
         lane_changes=changes, observations=list(observations))
-
-
-def _gap_to(t: np.ndarray, t_acc: np.ndarray) -> np.ndarray:
-    """Distance [s] from each time to the nearest accepted time (both sorted)."""
-    if len(t_acc) == 1:
-        return np.abs(t - t_acc[0])
-    j = np.clip(np.searchsorted(t_acc, t), 1, len(t_acc) - 1)
-    return np.minimum(np.abs(t - t_acc[j - 1]), np.abs(t_acc[j] - t))
 
 
 def _lanes(t: np.ndarray, lateral: np.ndarray, width: np.ndarray, hysteresis_m: float

@@ -252,12 +252,14 @@ def detect_and_range(video: Path, camera: Camera, *, detector, detections=None,
             notes.append(Note.warning(
                 f"lane markings point {yaw - camera.yaw_deg:+.1f} deg off the camera axis: "
                 "implausible for a mounting, yaw not changed"))
+    # The ego lane first: vehicles' lanes (and so the lead) are counted from it.
+    lanes = track_lanes(lane_obs, math.radians(camera.yaw_deg - yaw_before))
+
     def rerange(tracked: list[TrackedBox]) -> RangingResult:
         return range_tracks(tracked, camera, horizon_hints_px=horizon_est.rows_px,
-                            horizon_hint_frames=horizon_est.frames, config=config)
+                            horizon_hint_frames=horizon_est.frames, config=config, lanes=lanes)
 
     result = rerange(boxes)
-    result.lanes = track_lanes(lane_obs, math.radians(camera.yaw_deg - yaw_before))
     # trams: the detector's, and tall vehicles beyond the kerb (ranged again as trams)
     result, rail_notes = with_rail_vehicles(boxes, result, camera, rerange,
                                             config or RangingConfig())

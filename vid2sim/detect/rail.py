@@ -31,13 +31,12 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from vid2sim.camera import Camera
-from vid2sim.detect.lead import LaneSettings, assign_lanes_and_lead
+from vid2sim.detect.lead import LaneSettings, relane
 from vid2sim.records import (
     RAIL_CATEGORIES,
     LaneTrack,
     MarkingKind,
     Note,
-    RangedBox,
     RangingResult,
     TrackedBox,
 )
@@ -217,11 +216,6 @@ def relabel(boxes: list[TrackedBox], tracks: set[int]) -> list[TrackedBox]:
             else b for b in boxes]
 
 
-def never_lead_mask(boxes: list[RangedBox], own_bed: set[int]) -> np.ndarray:
-    """True for the boxes of trams on their own bed (they are never the lead)."""
-    return np.array([int(b.track_id) in own_bed for b in boxes], bool)
-
-
 def with_rail_vehicles(boxes: list[TrackedBox], result: RangingResult, camera: Camera,
                        rerange: Callable[[list[TrackedBox]], RangingResult],
                        lane_settings: LaneSettings, config: RailConfig | None = None
@@ -246,11 +240,7 @@ def with_rail_vehicles(boxes: list[TrackedBox], result: RangingResult, camera: C
         result = rerange(relabel(boxes, rail.relabelled))
         result.lanes = lanes
     if rail.own_bed:
-        ranged = result.boxes
-        names, is_lead = assign_lanes_and_lead(
-            ranged, np.array([b.range_m for b in ranged], float),
-            np.array([b.lateral_m for b in ranged], float), lane_settings,
-            never_lead_mask(ranged, rail.own_bed))
-        result.boxes = [replace(b, lane=name, is_lead=bool(lead))
-                        for b, name, lead in zip(ranged, names, is_lead, strict=True)]
+        result.never_lead_tracks = frozenset(rail.own_bed)
+        result.boxes = relane(result.boxes, lane_settings, result.lanes,
+                              never_lead_tracks=result.never_lead_tracks)
     return result, notes

@@ -13,6 +13,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from shapely.geometry import LineString, Point
 
 from vid2sim.camera import parse_kitti_calib
 from vid2sim.enu import EnuFrame
@@ -188,4 +189,38 @@ def actor_enters_lane_s(truth: Scenario, actor_id: str, half_lane_m: float) -> f
     ahead = dx * np.cos(e["heading"]) + dy * np.sin(e["heading"])
     lateral = -dx * np.sin(e["heading"]) + dy * np.cos(e["heading"])
     inside = (np.abs(lateral) <= half_lane_m) & (ahead > 0)
+    return float(t[np.argmax(inside)]) if inside.any() else None
+
+
+def offset_from_centerline_m(centerline: np.ndarray, x_m: np.ndarray, y_m: np.ndarray
+                             ) -> np.ndarray:
+    """Signed distance [m, positive left of the direction of travel] of ENU points from a
+    road's centerline polyline (N, 2), measured across the road at each point's nearest
+    point on it (shapely's projection)."""
+    line = LineString(np.asarray(centerline, dtype=float))
+    out = np.empty(len(x_m))
+    for k, (x, y) in enumerate(zip(np.asarray(x_m, float), np.asarray(y_m, float),
+                                   strict=True)):
+        s = line.project(Point(x, y))
+        a = line.interpolate(max(s - 0.25, 0.0))
+        b = line.interpolate(min(s + 0.25, line.length))
+        q = line.interpolate(s)
+        tx, ty = b.x - a.x, b.y - a.y
+        out[k] = ((x - q.x) * -ty + (y - q.y) * tx) / max(np.hypot(tx, ty), 1e-9)
+    return out
+
+
+def actor_enters_lane_on_road_s(truth: Scenario, actor_id: str, lane_left_m: float,
+                                lane_right_m: float, step_s: float = 0.001) -> float | None:
+    """First time [s] the actor's centre lies between two offsets from the true road's
+    centerline (the ego lane's boundaries, :func:`offset_from_centerline_m`), measured along
+    the road, so a bend ahead does not move it (:func:`actor_enters_lane_s` measures across
+    the ego's heading, which a bend 15 m ahead shifts by curvature x 15^2 / 2)."""
+    actor = next((a for a in truth.actors if a.id == actor_id), None)
+    if actor is None or not truth.roads:
+        return None
+    t = np.arange(actor.trajectory.t[0], actor.trajectory.t[-1], step_s)
+    s = actor.trajectory.state_at(t)
+    off = offset_from_centerline_m(truth.roads[0].centerline, s["x"], s["y"])
+    inside = (off <= lane_left_m) & (off >= lane_right_m)
     return float(t[np.argmax(inside)]) if inside.any() else None

@@ -57,6 +57,7 @@ figcaption{font-size:12px;color:#4a5468;margin-top:3px}
 code,pre{font-family:ui-monospace,Menlo,Consolas,monospace;font-size:12px}
 pre{background:#f3f4f7;padding:8px;overflow-x:auto;white-space:pre-wrap}
 .small{font-size:12px;color:#4a5468}
+.frames{display:grid;grid-template-columns:1fr;gap:14px}
 """
 
 
@@ -220,6 +221,30 @@ def _figure_html(title: str, img: ImageLike, photo: bool = False) -> str:
             f"<figcaption>{_e(title)}</figcaption></figure>")
 
 
+def _linked_figure_html(title: str, img: Path, href: str) -> str:
+    """A photo embedded small (JPEG) that opens the full-size file ``href`` on click."""
+    data, mime = _as_jpeg(*_image_bytes(img))
+    b64 = base64.b64encode(data).decode("ascii")
+    return (f'<figure><a href="{_e(href)}" target="_blank"><img alt="{_e(title)}" '
+            f'src="data:{mime};base64,{b64}"></a><figcaption>{_e(title)} '
+            f'(click for full size)</figcaption></figure>')
+
+
+def _events_html(scenario: Scenario) -> str:
+    """The scenario's events with the video frame of each (frame rate from the source)."""
+    if not scenario.events:
+        return ""
+    fps = scenario.source.options.get("fps")
+    fps = float(fps) if isinstance(fps, (int, float)) and not isinstance(fps, bool) else None
+    rows = "".join(
+        f"<tr><td class='l'>{_e(e.type)}</td><td class='l'>{_e(e.actor)}</td>"
+        f"<td>{e.t_s:.2f}</td><td>{round(e.t_s * fps) if fps else 'n/a'}</td>"
+        f"<td>{e.from_lane:+d} &rarr; {e.to_lane:+d}</td></tr>" for e in scenario.events)
+    return ("<section><h2>Events (lanes relative to the ego lane: 0 the ego lane, +1 left, "
+            "-1 right)</h2><table><tr><th class='l'>type</th><th class='l'>actor</th>"
+            "<th>t [s]</th><th>frame</th><th>lanes</th></tr>" + rows + "</table></section>")
+
+
 def _num(x: Any, spec: str = ".3f") -> str:
     if x is None:
         return "n/a"
@@ -337,7 +362,8 @@ def render_report(*, scenario: Scenario, metrics: dict | None,
                   keyframe_images: Sequence[tuple[str, ImageLike]] = (),
                   extra_figures: Sequence[tuple[str, ImageLike]] = (),
                   warnings: Sequence[str] = (), inputs: Any = None,
-                  title: str = "vid2sim scenario report") -> str:
+                  title: str = "vid2sim scenario report",
+                  frame_images: Sequence[tuple[str, Path, str]] = ()) -> str:
     """The report's HTML text (see :func:`write_report`)."""
     parts = ["<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>",
              "<meta name='viewport' content='width=device-width, initial-scale=1'>",
@@ -357,6 +383,15 @@ def render_report(*, scenario: Scenario, metrics: dict | None,
                      "(magenta), ignore regions (grey)</h2><div class='grid'>"
                      + "".join(_figure_html(t, img, photo=True) for t, img in keyframe_images)
                      + "</div></section>")
+    parts.append(_events_html(scenario))
+    if frame_images:
+        parts.append("<section><h2>Sampled frames: tracked boxes (#id, lane L relative to the "
+                     "ego lane, range; orange the ego lane, blue left, green right, grey other "
+                     "or unknown, the lead thicker), the ego lane's boundaries (yellow), and the "
+                     "simulator at the same moment (right; ego in green)</h2><div "
+                     "class='frames'>" + "".join(_linked_figure_html(t, img, href)
+                                                 for t, img, href in frame_images)
+                     + "</div></section>")
     parts.append("<section><h2>Map and lead vehicle</h2><div class='grid'>"
                  + _figure_html("Roads, ego and actor trajectories", map_figure(scenario))
                  + _figure_html("Lead range and speeds", lead_figure(scenario))
@@ -373,7 +408,8 @@ def write_report(path: str | Path, *, scenario: Scenario, metrics: dict | None,
                  keyframe_images: Sequence[tuple[str, ImageLike]] = (),
                  extra_figures: Sequence[tuple[str, ImageLike]] = (),
                  warnings: Sequence[str] = (), inputs: Any = None,
-                 title: str = "vid2sim scenario report") -> None:
+                 title: str = "vid2sim scenario report",
+                 frame_images: Sequence[tuple[str, Path, str]] = ()) -> None:
     """Write one self-contained HTML report atomically.
 
     Parameters
@@ -392,8 +428,11 @@ def write_report(path: str | Path, *, scenario: Scenario, metrics: dict | None,
         Shown first.
     inputs : dict or list, optional
         What this run was given (file names, options).
+    frame_images : sequence of (title, image path, link relative to the report)
+        Sampled frames (:mod:`vid2sim.evaluate.frames`), embedded small, opening the file
+        at full size on click.
     """
     text = render_report(scenario=scenario, metrics=metrics, keyframe_images=keyframe_images,
                          extra_figures=extra_figures, warnings=warnings, inputs=inputs,
-                         title=title)
+                         title=title, frame_images=frame_images)
     write_text_atomic(path, text)

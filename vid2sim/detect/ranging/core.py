@@ -42,7 +42,7 @@ from vid2sim.detect.ranging.scalefilter import (
     log_width_var,
 )
 from vid2sim.detect.ranging.smoother import smooth_track
-from vid2sim.records import Note, NoteKind, RangedBox, RangingResult, TrackedBox
+from vid2sim.records import LaneTrack, Note, NoteKind, RangedBox, RangingResult, TrackedBox
 
 # The absolute-cue fit leaves the width free with this spread [m]: its sides then say where
 # the vehicle is laterally but nothing about its range (that is the filter's scale cue).
@@ -118,7 +118,8 @@ def _size_from_track(values_m: np.ndarray, var_m2: np.ndarray, white_var_m2: np.
 def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
                  horizon_hints_px: list[float] | None = None,
                  horizon_hint_frames: list[int] | None = None,
-                 config: RangingConfig | None = None) -> RangingResult:
+                 config: RangingConfig | None = None,
+                 lanes: LaneTrack | None = None) -> RangingResult:
     """Range, lateral offset and range rate of every tracked box.
 
     Parameters
@@ -134,6 +135,9 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
         (:func:`lane_horizon_offsets`); without, all frames share the hints' median.
     config : RangingConfig, optional
         Priors and noise settings.
+    lanes : LaneTrack, optional
+        The ego lane from the lane markings: lanes and the lead are counted from it (else
+        from the camera's axis); kept in the result.
 
     Returns
     -------
@@ -145,7 +149,7 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
     if not boxes:
         h = camera.horizon_y_px()
         return RangingResult([], camera.pitch_deg, h, "camera file", {},
-                             [Note.warning("no boxes to range")])
+                             [Note.warning("no boxes to range")], lanes=lanes)
     unknown = sorted({b.category for b in boxes} - set(config.priors))
     if unknown:
         warnings.append(Note.warning(f"no size prior for {', '.join(unknown)}: used the car "
@@ -320,14 +324,16 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
                 out_rate[piece] = fr.range_rate_mps
                 out_lat_rate[piece] = sm.lateral_rate_mps
 
-    lanes, is_lead = assign_lanes_and_lead(boxes, out_range, out_lat, config)
+    lane_names, is_lead, lane_offset = assign_lanes_and_lead(boxes, out_range, out_lat, config,
+                                                             lanes)
     ranged = [
         RangedBox(frame=b.frame, t_s=b.t_s, track_id=b.track_id, category=b.category,
                   score=b.score, x1=b.x1, y1=b.y1, x2=b.x2, y2=b.y2,
                   range_m=float(out_range[i]), lateral_m=float(out_lat[i]),
                   range_rate_mps=float(out_rate[i]), range_std_m=float(out_std[i]),
                   is_lead=bool(is_lead[i]), width_m=float(w_track[i]),
-                  lateral_rate_mps=float(out_lat_rate[i]), lane=lanes[i])
+                  lateral_rate_mps=float(out_lat_rate[i]), lane=lane_names[i],
+                  lane_offset_m=float(lane_offset[i]))
         for i, b in enumerate(boxes)]
     return RangingResult(ranged, pitch, horizon, source, width_by_track, warnings + [
-        n for n in notes if n.kind is not NoteKind.WARNING])
+        n for n in notes if n.kind is not NoteKind.WARNING], lanes=lanes)

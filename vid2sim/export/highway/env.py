@@ -29,7 +29,7 @@ from vid2sim.export.highway.vehicles import (
     conflict,
     set_box,
 )
-from vid2sim.scenario import Scenario
+from vid2sim.scenario import EGO_ID, Scenario
 
 ENV_ID = "vid2sim/Replay-v0"
 EGO_MODES = ("policy", "log")
@@ -196,6 +196,9 @@ class ReplayEnv(AbstractEnv):
     def _reset(self) -> None:
         self.t_s = self._ego_track.t0
         self._policy_steps = 0
+        # the logged ego's lane changes, to repeat in lane mode (see _follow_logged_lanes)
+        self._ego_lane_events = sorted((e for e in self.scenario.events if e.actor == EGO_ID),
+                                       key=lambda e: e.t_s)
         self._info_key = None  # invalidate the per-step caches
         self._traffic_key = None
         self.handovers = []
@@ -304,6 +307,7 @@ class ReplayEnv(AbstractEnv):
             # time. The time comes from the step count, not a running sum, so it does not drift.
             t_next = self._ego_track.t0 + (self.steps + 1) * dt
             self._place_actors(t_next)
+            self._follow_logged_lanes(t_next)
             if self.ego_mode == "policy":
                 self.vehicle.act(self.action_type.get_action(self.action_type.last_action))
             for v in self.road.vehicles:
@@ -326,6 +330,22 @@ class ReplayEnv(AbstractEnv):
         self._prev_speed, self._prev_heading = float(self.vehicle.speed), float(self.vehicle.heading)
         self._policy_steps += 1
         self.enable_auto_render = False
+
+    def _follow_logged_lanes(self, t_s: float) -> None:
+        """A policy's ego that follows its map lane (``ego_path="lane"``) changes lanes when
+        the logged ego did: at each of the scenario's ego ``lane_change`` events its target
+        lane moves one lane to the event's side; the policy keeps the longitudinal control.
+        (On the logged path, ``ego_path="log"``, the lane changes are in the path itself.)"""
+        while self._ego_lane_events and self._ego_lane_events[0].t_s <= t_s:
+            ev = self._ego_lane_events.pop(0)
+            ego = self.vehicle
+            if self.ego_mode != "policy" or not isinstance(ego, LaneFollowingEgo):
+                continue
+            start, end, index = ego.target_lane_index
+            n_lanes = len(self.road.network.graph[start][end])
+            # highway-env counts lanes from the left, events count +1 to the left
+            new = min(max(index - (ev.to_lane - ev.from_lane), 0), n_lanes - 1)
+            ego.target_lane_index = (start, end, new)
 
     def _collided_with(self) -> str:
         """Id of the vehicle the ego hit: the nearest one highway-env marked as crashed."""
