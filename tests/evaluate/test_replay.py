@@ -332,15 +332,15 @@ def test_image_folder_without_fps_assumes_ten_and_says_so(tmp_path, visible_scen
 
 def test_demo_sample_truth_scores_perfectly(tmp_path):
     """The demo generator's true scenario replayed against its own keyframes: conventions of
-    both sides (ego pose, camera, occlusion, what annotators skip) agree. The demo draws its
-    vehicles as boxes, so they are replayed as 3D boxes (``outlines=None``)."""
+    both sides (ego pose, camera, occlusion, what annotators skip) agree. The keyframe boxes
+    are the drawn vehicles' outlines and the replay projects the outline model's, two
+    different car shapes, so the boxes agree closely but not to the pixel."""
     demo = pytest.importorskip("vid2sim.samples.demo_sample")
     sample = demo.generate_demo_sample(tmp_path / "sample", duration_s=4.0, width=480,
                                        height=270)
     sc_path = tmp_path / "truth_scenario.json"
     save(demo.truth_scenario(sample.truth), sc_path)
-    m, _ = run_eval(sc_path, sample.keyframes, video=sample.video, out_dir=tmp_path / "out",
-                    outlines=None)
+    m, _ = run_eval(sc_path, sample.keyframes, video=sample.video, out_dir=tmp_path / "out")
     assert m["keyframes"] == sample.n_keyframes >= 3
     assert m["tp"] >= 4 and m["fp"] == 0 and m["fn"] == 0
-    assert m["mean_iou"] > 0.99
+    assert m["mean_iou"] > 0.93

@@ -26,7 +26,6 @@ from vid2sim.camera import Camera
 from vid2sim.samples.vehicle_model import (
     GLASS_BGR,
     GLASS_SIDE_BGR,
-    box_faces,
     outward_normal,
     shade,
     vehicle_model,
@@ -115,8 +114,9 @@ class DrawnVehicle:
 class VehicleView:
     """What the camera sees of one vehicle in one frame.
 
-    :param box_px: (x1, y1, x2, y2) of the projected full 3D box (near-clipped), clipped to the
-        image; None when nothing of it is in front of the camera and inside the image
+    :param box_px: (x1, y1, x2, y2) of the drawn vehicle's projected outline (near-clipped),
+        clipped to the image; None when nothing of it is in front of the camera and inside
+        the image
     :param visible_fraction: share of its in-image silhouette not hidden by nearer vehicles
     :param in_image_fraction: share of its silhouette inside the image (1 = not truncated)
     :param range_m: longitudinal distance from the camera's ground point to its nearest
@@ -406,16 +406,19 @@ class SceneRenderer:
 
     def _silhouette_px(self, v: DrawnVehicle, ego_xy, ego_heading
                        ) -> tuple[np.ndarray | None, bool]:
-        """Projected vertices of the vehicle's full 3D box after near clipping (None if
-        nothing is in front), and whether the whole box is in front of the camera."""
+        """Projected vertices of the polygons drawn for the vehicle (its tyres, body and
+        cabin: the outline a camera and an annotator see, not its 3D bounding box) after near
+        clipping (None if nothing is in front), and whether its whole 3D box is in front of
+        the camera."""
+        quads, _, _ = self._model(v)
         hx, hy = v.length_m / 2.0, v.width_m / 2.0
-        faces = box_faces(-hx, hx, -hy, hy, 0.0, v.height_m)
+        corners = np.array([[x, y, z] for x in (-hx, hx) for y in (-hy, hy)
+                            for z in (0.0, v.height_m)])
+        box_cam = self._enu_to_cam(self._body_to_enu(v, corners), ego_xy, ego_heading)
+        whole = bool((box_cam[:, 2] >= NEAR_M).all())
         pts = []
-        whole = True
-        for _, corners, _ in faces:
-            cam = self._enu_to_cam(self._body_to_enu(v, corners), ego_xy, ego_heading)
-            whole = whole and bool((cam[:, 2] >= NEAR_M).all())
-            cam = _clip_near(cam)
+        for quad in quads:
+            cam = _clip_near(self._enu_to_cam(self._body_to_enu(v, quad), ego_xy, ego_heading))
             if len(cam):
                 pts.append(self._project(cam))
         return (np.vstack(pts) if pts else None), whole
