@@ -394,10 +394,22 @@ class Tracker:
         free = step.free(self._tracks)
         confirmed = [t for t in free if t.confirmed]
         tentative = [t for t in free if not t.confirmed]
-        # Stage 1: confident detections against all confirmed tracks, tracked or lost.
-        pairs, free_tracks, free_high = self._associate(confirmed, high, cfg.iou_high)
-        for ti, di in pairs:
-            self._hit(step, confirmed[ti], high[di])
+        # Stage 1: confident detections against the confirmed tracks, those seen on the
+        # previous detected frame first, then the lost ones (the matching cascade of DeepSORT,
+        # Wojke et al. 2017): a lost track's prediction is wide, so pooled with the others it
+        # can take the box of a visible car that hid it (a lead passing a parked car).
+        free_tracks: list[int] = []
+        free_high = list(range(len(high)))
+        for state in (TRACKED, LOST):
+            idx = [i for i, t in enumerate(confirmed) if t.state == state]
+            dets = [high[i] for i in free_high]
+            pairs, free_t, free_d = self._associate([confirmed[i] for i in idx], dets,
+                                                    cfg.iou_high)
+            for ti, di in pairs:
+                self._hit(step, confirmed[idx[ti]], dets[di])
+            free_tracks.extend(idx[i] for i in free_t)
+            free_high = [free_high[i] for i in free_d]
+        free_tracks.sort()
         # Stage 2: weak detections against tracks seen on the previous detected frame;
         # a weak box revives a lost track only after a short gap and on a close overlap.
         remaining = [confirmed[i] for i in free_tracks if confirmed[i].state == TRACKED]
