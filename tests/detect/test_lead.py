@@ -13,7 +13,6 @@ from vid2sim.detect.ranging import RangingConfig
 from vid2sim.records import RangedBox, TrackedBox
 
 CFG = RangingConfig()
-CAR_HALF_LENGTH_M = CFG.prior_for("car").length_m / 2.0
 
 
 def box(frame, t, tid=1, category="car") -> TrackedBox:
@@ -69,12 +68,12 @@ def test_lane_indices_properties(y, w, hyst, shift):
 
 def test_lane_offsets_follow_the_measured_lane_not_the_camera_axis():
     # The camera sits 0.6 m left of its lane's middle (lane 3 m wide) and the lane bends
-    # right at 1/250 m: a car on the lane's centre line 15 m ahead (its rear; its centre
-    # half a car length farther) is at lateral -0.6 - x^2 / 500.
+    # right at 1/250 m: a car on the lane's centre line whose rear (the face its box shows)
+    # is 15 m ahead is at lateral -0.6 - x^2 / 500.
     t = np.arange(0.0, 1.0, 0.1)
     track = make_track(t, 0.6, curvature_inv_m=-1 / 250)
-    x_c = 15.0 + CAR_HALF_LENGTH_M
-    lat_on_centre = -0.6 - x_c ** 2 / 500.0
+    x_rear = 15.0
+    lat_on_centre = -0.6 - x_rear ** 2 / 500.0
     boxes = [box(i, t[i]) for i in range(len(t))]
     rng = np.full(len(t), 15.0)
     offset, width, ego_lane = lane_offsets(boxes, rng, np.full(len(t), lat_on_centre), CFG,
@@ -106,10 +105,9 @@ def test_unknown_positions_have_no_lane_and_are_never_the_lead():
 
 
 class _StraightThenLeft:
-    """A course straight for 30 m ahead, then bending left: 2 m at a car's centre 40 m ahead
-    (its rear)."""
+    """A course straight for 30 m ahead, then bending left: 2 m at 40 m ahead."""
 
-    rate = 2.0 / (40.0 + CAR_HALF_LENGTH_M - 30.0)
+    rate = 2.0 / (40.0 - 30.0)
 
     def bend_m(self, t_s, ahead_m, join_m):
         return np.maximum(np.asarray(ahead_m, float) - 30.0, 0.0) * self.rate

@@ -60,9 +60,6 @@ class LaneSettings(Protocol):
     lead_switch_frames: int
     max_range_m: float
 
-    def prior_for(self, category: str):  # -> a size prior with ``length_m``
-        ...
-
 # A rival must be nearer than the current lead by this much to count as nearer at all
 # [m]: two cars in one lane are a car length apart, so this only ignores range noise.
 LEAD_SWITCH_MARGIN_M = 0.5
@@ -119,16 +116,15 @@ def lane_offsets(boxes: list[TrackedBox], range_m: np.ndarray, lateral_m: np.nda
     ----------
     boxes : the boxes (any order)
     range_m, lateral_m : range to the rear and lateral offset of each box's centre [m]
-    config : lane width (where the markings give none) and size priors (a vehicle's centre
-        is half its class's length beyond its rear)
+    config : lane width (where the markings give none)
     lanes : the ego lane from the lane markings; None: the camera axis is the lane's centre
     course : the road's course ahead (where the ego drove): beyond
         :data:`vid2sim.lead.COURSE_JOIN_M` the lane's centre line follows it
 
     Returns
     -------
-    offset_m : the centre's offset from the ego lane's centre line at its range [m, positive
-        left] (NaN where the range or lateral offset is unknown)
+    offset_m : the box centre's offset from the ego lane's centre line at its rear's range
+        [m, positive left] (NaN where the range or lateral offset is unknown)
     width_m : the ego lane's width at the box's time [m]
     ego_lane : the ego's lane on the road at the box's time (:attr:`LaneTrack.lane`; 0
         without lanes)
@@ -140,8 +136,11 @@ def lane_offsets(boxes: list[TrackedBox], range_m: np.ndarray, lateral_m: np.nda
     if lanes is None or len(lanes) == 0 or n == 0:
         return lateral.copy(), width, ego_lane
     at = ego_lane_at(lanes, np.array([b.t_s for b in boxes], dtype=float))
-    length = np.array([config.prior_for(b.category).length_m for b in boxes], dtype=float)
-    x_c = np.asarray(range_m, dtype=float) + length / 2.0
+    # The lateral offset is the visible box's centre, on the vehicle's rear face: it is
+    # compared with the lane's centre line at the rear's range. Half a car length further,
+    # where a bend has already moved the line, a car in the ego lane read a lane to the right
+    # in the demo's left bend (29 m ahead, 0.8 m).
+    x_c = np.asarray(range_m, dtype=float)
     known = np.isfinite(at.offset_m) & np.isfinite(at.lane_width_m)
     t = np.array([b.t_s for b in boxes], dtype=float)
     bend = (np.full(n, np.nan) if course is None

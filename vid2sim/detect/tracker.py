@@ -1,10 +1,10 @@
 """Multi-object tracking of vehicle boxes: a Kalman filter per track, ByteTrack-style association.
 
 Association follows ByteTrack (Zhang et al., ECCV 2022): detections are split by score; the
-confident ones are matched first to every live track (tracked or recently lost), then the
-weak ones (which are often partly occluded vehicles) are matched to the tracks still
-unmatched, so a vehicle fading behind another keeps its track instead of spawning false
-ones. Matching is a min-cost assignment on 1 - IoU (scipy's Hungarian solver) with a gate.
+confident ones are matched first to the live tracks (those seen on the last detected frame,
+then the recently lost), then the weak ones (often partly occluded vehicles) to the tracks
+still unmatched, so a vehicle fading behind another keeps its track instead of spawning
+false ones. Matching is a min-cost assignment on 1 - IoU (Hungarian) with a gate.
 
 Sparse input (a 2 frames/s video, ``--detect-every`` with long gaps, a track lost for a
 while) breaks IoU: a car 8 m away beside a camera moving at 10 m/s doubles in size and
@@ -29,8 +29,8 @@ shifted by one car. Three additions handle it:
   already have left the view). A track born in sparse input, or on the last detected frame
   of the video, that is never seen again is thus kept with its one confident box.
 
-Assignments price an unmatched track or detection at half the gate, so a pair is made only
-when it beats leaving both alone and pairs beyond the gate never steer the solution.
+Assignments price an unmatched track or detection at half the gate: a pair is made only
+when it beats leaving both alone, and pairs beyond the gate never steer the solution.
 
 The Kalman state is (cx, cy, a, h, vcx, vcy, va, vh): box centre [px], aspect w/h, height
 [px] and their rates per frame, with noise proportional to the box height (as in SORT and
@@ -252,8 +252,7 @@ class Tracker:
         self._all: dict[int, Track] = {}  # every track ever started, by id (for finalize)
         self._next_id = 1
         self._last_detect_t_s: float | None = None
-        # last frame on which tracks were measured (detected, or carried by optical flow)
-        self._last_measured_t_s: float | None = None
+        self._last_measured_t_s: float | None = None  # detected, or carried by optical flow
 
     # ----------------------------------------------------------------- public
 
@@ -349,8 +348,7 @@ class Tracker:
         return [t.track_id for t in shown], boxes
 
     def tracks(self) -> list[Track]:
-        """The alive tracks (tracked or lost), for schedules that look at their state."""
-        return list(self._tracks)
+        return list(self._tracks)  # alive (tracked or lost), for schedules to look at
 
     # ----------------------------------------------------------------- the steps of update
 
@@ -362,11 +360,10 @@ class Tracker:
             if t.state != TRACKED:
                 continue
             box = measured.get(t.track_id)
-            if box is None:
-                box = t.kf.box_px
-            else:
+            if box is not None:
                 box = np.asarray(box, dtype=float)
                 t.kf.update(box)
+            box = t.kf.box_px if box is None else box
             t.shown_box_px = box
             rows.append(t.row(frame, t_s, box, t.score))
         if measured:
@@ -374,8 +371,7 @@ class Tracker:
         return rows
 
     def _predict(self, frame: int) -> None:
-        """Every alive track's filter predicted to ``frame``."""
-        for track in self._tracks:
+        for track in self._tracks:  # every alive track's filter predicted to ``frame``
             track.kf.predict(frame - track.frame)
             track.frame = frame
 
@@ -394,10 +390,19 @@ class Tracker:
         free = step.free(self._tracks)
         confirmed = [t for t in free if t.confirmed]
         tentative = [t for t in free if not t.confirmed]
-        # Stage 1: confident detections against all confirmed tracks, tracked or lost.
-        pairs, free_tracks, free_high = self._associate(confirmed, high, cfg.iou_high)
-        for ti, di in pairs:
-            self._hit(step, confirmed[ti], high[di])
+        # Stage 1: confident detections, tracks seen on the last detected frame before the
+        # lost (DeepSORT's cascade): a lost car's wide prediction took the lead that hid it.
+        free_tracks: list[int] = []
+        free_high = list(range(len(high)))
+        for state in (TRACKED, LOST):
+            idx = [i for i, t in enumerate(confirmed) if t.state == state]
+            dets = [high[i] for i in free_high]
+            pairs, free_t, free_d = self._associate([confirmed[i] for i in idx], dets,
+                                                    cfg.iou_high)
+            for ti, di in pairs:
+                self._hit(step, confirmed[idx[ti]], dets[di])
+            free_tracks += [idx[i] for i in free_t]
+            free_high = [free_high[i] for i in free_d]
         # Stage 2: weak detections against tracks seen on the previous detected frame;
         # a weak box revives a lost track only after a short gap and on a close overlap.
         remaining = [confirmed[i] for i in free_tracks if confirmed[i].state == TRACKED]
