@@ -8,6 +8,7 @@ import math
 import pytest
 from hypothesis import given
 
+from vid2sim.errors import InputError
 from vid2sim.geo.osm import load_network
 from vid2sim.records import Origin
 
@@ -38,3 +39,17 @@ def test_osm_damage_gives_input_error_only(tmp_path, name):
             assert all(math.isfinite(v) for v in net.bbox_lonlat)
 
     check()
+
+
+@pytest.mark.parametrize("field", ["way", "node"])
+def test_an_id_beyond_64_bits_is_an_input_error(tmp_path, field):
+    """Found by the damage test above: a way id of 26 digits overflowed numpy's int64."""
+    big = "9" * 26
+    data = _small_map().decode()
+    data = (data.replace('<way id="100"', f'<way id="{big}"') if field == "way"
+            else data.replace('node id="1"', f'node id="{big}"').replace('ref="1"',
+                                                                      f'ref="{big}"'))
+    path = tmp_path / "map.osm"
+    path.write_text(data)
+    with pytest.raises(InputError, match="64 bits"):
+        load_network(path, ORIGIN)

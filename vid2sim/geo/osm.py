@@ -321,12 +321,17 @@ def drivable_map(ways: _WaySegments, source: str = "") -> DrivableMap:
     if not pieces:
         raise InputError(source or None, "no drivable roads in this map",
                          "highway=* ways open to cars are needed")
-    node_id = np.array(sorted({n for _, p in pieces for n in p}), dtype=np.int64)
-    flat = np.array([n for _, p in pieces for n in p], dtype=np.int64)
+    try:
+        node_id = np.array(sorted({n for _, p in pieces for n in p}), dtype=np.int64)
+        flat = np.array([n for _, p in pieces for n in p], dtype=np.int64)
+        way_id = np.array([w for w, _ in pieces], dtype=np.int64)
+    except OverflowError:
+        raise InputError(source or None, "an OSM node or way id does not fit in 64 bits",
+                         "OSM ids are 64-bit integers: is the file damaged?") from None
     return DrivableMap(
         node_id=node_id,
         node_lonlat=np.array([ways.node_lonlat[int(n)] for n in node_id], dtype=np.float64),
-        piece_way=np.array([w for w, _ in pieces], dtype=np.int64),
+        piece_way=way_id,
         piece_ptr=np.concatenate([[0], np.cumsum([len(p) for _, p in pieces])]).astype(np.int64),
         piece_node=np.searchsorted(node_id, flat).astype(np.int64),
         way_tags={w: dict(ways.tags.get(w, {})) for w in sorted({w for w, _ in pieces})},
