@@ -27,7 +27,7 @@ LAZY_IMPORTS_ALLOWED = {
 LAYERS = (
     ("errors", "fileio", "defaults"),
     ("records", "camera", "scenario", "tables", "videofile", "lead", "outline", "enu",
-     "boxes", "lanelayout", "polyline"),
+     "boxes", "htmlpage", "lanelayout", "polyline"),
     STAGES := ("geo", "detect", "export"),
     # consumers of the stages: evaluation (replay, scoring, truth readers), policy testing
     # on the exported environment, generators of samples

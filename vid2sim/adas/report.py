@@ -7,15 +7,12 @@ report. Figures use matplotlib's object API (no pyplot state).
 
 from __future__ import annotations
 
-import base64
 import html
-import io
 import math
 from pathlib import Path
 
 import matplotlib
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import ListedColormap
 from matplotlib.figure import Figure
 
@@ -24,6 +21,7 @@ from vid2sim.adas.metrics import COLUMNS as METRIC_COLUMNS
 from vid2sim.adas.registry import describe
 from vid2sim.adas.variations import PARAMETERS, label
 from vid2sim.fileio import write_text_atomic
+from vid2sim.htmlpage import BASE_CSS, figure_png, png_base64
 
 TTC_PLOT_MAX_S = 10.0
 """TTC above this is drawn at the top of the plots [s] (beyond it nothing is urgent)."""
@@ -31,29 +29,15 @@ HEAT_TTC_MAX_S = 5.0
 """Colour scale of the minimum-TTC heat map [s]: red at 0, green from this value on."""
 MAX_TABLE_ROWS = 500
 
-_CSS = """
-body{font-family:system-ui,-apple-system,Segoe UI,Roboto,Helvetica,Arial,sans-serif;margin:0;
- color:#1d2330;background:#f6f7f9;line-height:1.45}
-header{background:#1d2330;color:#fff;padding:18px 28px}
-header h1{margin:0;font-size:22px} header p{margin:4px 0 0;color:#c9d1e0;font-size:13px}
-main{padding:8px 28px 40px;max-width:1500px}
-section{background:#fff;border:1px solid #dde1e8;border-radius:6px;margin:18px 0;padding:14px 18px}
+_CSS = BASE_CSS + """
 h2{font-size:17px;margin:0 0 10px} h3{font-size:14px;margin:12px 0 6px}
-table{border-collapse:collapse;font-size:13px;margin:6px 0}
-th,td{border:1px solid #dde1e8;padding:4px 8px;text-align:right;vertical-align:top}
-th{background:#eef1f5} td.l,th.l{text-align:left}
 tr.bad td{background:#fde8e8} tr.skip td{color:#8a93a6}
 .grid{display:grid;grid-template-columns:repeat(auto-fill,minmax(520px,1fr));gap:12px}
 .wide{display:grid;grid-template-columns:repeat(auto-fill,minmax(860px,1fr));gap:12px}
 .scroll{overflow-x:auto}
 figure{margin:0;min-width:0}
 figure img{width:100%;height:auto;border:1px solid #dde1e8;display:block}
-figcaption{font-size:12px;color:#4a5468;margin-top:3px}
-.kpi{display:flex;flex-wrap:wrap;gap:10px;margin-bottom:8px}
-.kpi div{background:#eef1f5;border-radius:5px;padding:8px 14px;font-size:13px}
-.kpi b{display:block;font-size:20px}
 dt{font-weight:600;margin-top:6px} dd{margin:2px 0 0 18px;font-size:13px}
-.small{font-size:12px;color:#4a5468}
 """
 
 _METRIC_TEXT = {
@@ -76,10 +60,7 @@ _METRIC_TEXT = {
 
 
 def _png(fig: Figure) -> str:
-    buf = io.BytesIO()
-    FigureCanvasAgg(fig)
-    fig.savefig(buf, format="png", dpi=100)
-    return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
+    return "data:image/png;base64," + png_base64(figure_png(fig, dpi=100, tight=False))
 
 
 def _fmt(value, digits: int = 2) -> str:

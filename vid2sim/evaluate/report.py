@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import base64
 import html
-import io
 import json
 import math
 from collections.abc import Sequence
@@ -19,13 +18,13 @@ from typing import Any
 import cv2
 import matplotlib
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from vid2sim import __version__
 from vid2sim.defaults import LANE_WIDTH_M
 from vid2sim.errors import InputError
 from vid2sim.fileio import write_text_atomic
+from vid2sim.htmlpage import BASE_CSS, figure_png
 from vid2sim.lead import in_ego_corridor
 from vid2sim.scenario import Scenario
 
@@ -34,29 +33,15 @@ LEAD_SAMPLE_HZ = 10.0
 
 ImageLike = bytes | str | Path
 
-_CSS = """
-body{font-family:system-ui,-apple-system,Segoe UI,Roboto,Helvetica,Arial,sans-serif;margin:0;
- color:#1d2330;background:#f6f7f9;line-height:1.45}
-header{background:#1d2330;color:#fff;padding:18px 28px}
-header h1{margin:0;font-size:22px} header p{margin:4px 0 0;color:#c9d1e0;font-size:13px}
-main{padding:8px 28px 40px;max-width:1500px}
-section{background:#fff;border:1px solid #dde1e8;border-radius:6px;margin:18px 0;padding:14px 18px}
+_CSS = BASE_CSS + """
 h2{font-size:17px;margin:0 0 10px}
-table{border-collapse:collapse;font-size:13px;margin:6px 0}
-th,td{border:1px solid #dde1e8;padding:4px 8px;text-align:right;vertical-align:top}
-th{background:#eef1f5} td.l,th.l{text-align:left}
 .warn{background:#fff6e0;border-color:#f0c36d}
 .warn li{margin:3px 0}
 .grid{display:grid;grid-template-columns:repeat(auto-fill,minmax(380px,1fr));gap:12px}
 figure{margin:0;min-width:0}
 figure img{width:100%;height:auto;border:1px solid #dde1e8;display:block}
-figcaption{font-size:12px;color:#4a5468;margin-top:3px}
-.kpi{display:flex;flex-wrap:wrap;gap:10px;margin-bottom:8px}
-.kpi div{background:#eef1f5;border-radius:5px;padding:8px 14px;font-size:13px}
-.kpi b{display:block;font-size:20px}
 code,pre{font-family:ui-monospace,Menlo,Consolas,monospace;font-size:12px}
 pre{background:#f3f4f7;padding:8px;overflow-x:auto;white-space:pre-wrap}
-.small{font-size:12px;color:#4a5468}
 .frames{display:grid;grid-template-columns:1fr;gap:14px}
 """
 
@@ -65,10 +50,7 @@ pre{background:#f3f4f7;padding:8px;overflow-x:auto;white-space:pre-wrap}
 
 
 def _png(fig: Figure) -> bytes:
-    FigureCanvasAgg(fig)
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
-    return buf.getvalue()
+    return figure_png(fig, dpi=110)
 
 
 def map_figure(scenario: Scenario) -> bytes:

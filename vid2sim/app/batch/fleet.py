@@ -9,9 +9,7 @@ report, so it opens offline from any copy of the batch folder.
 
 from __future__ import annotations
 
-import base64
 import html
-import io
 import math
 from collections import Counter
 from datetime import UTC, datetime
@@ -24,6 +22,7 @@ from vid2sim.app.batch.index import STATUSES, read_index_records
 from vid2sim.app.batch.manifest import FLEET_HTML, INDEX_PARQUET
 from vid2sim.app.batch.storage import Where
 from vid2sim.errors import InputError
+from vid2sim.htmlpage import BASE_CSS, figure_png, png_base64
 
 #: Rows shown in the per-video table (failed rows first); the full list is index.csv. A
 #: 100,000-row table would make a page of tens of MB that browsers render slowly.
@@ -31,24 +30,10 @@ TABLE_MAX_ROWS = 1000
 #: Commonest error lines listed.
 TOP_ERRORS = 10
 
-_CSS = """
-body{font-family:system-ui,-apple-system,Segoe UI,Roboto,Helvetica,Arial,sans-serif;margin:0;
- color:#1d2330;background:#f6f7f9;line-height:1.45}
-header{background:#1d2330;color:#fff;padding:18px 28px}
-header h1{margin:0;font-size:22px} header p{margin:4px 0 0;color:#c9d1e0;font-size:13px}
-main{padding:8px 28px 40px;max-width:1500px}
-section{background:#fff;border:1px solid #dde1e8;border-radius:6px;margin:18px 0;padding:14px 18px}
+_CSS = BASE_CSS + """
 h2{font-size:17px;margin:0 0 10px}
-table{border-collapse:collapse;font-size:13px;margin:6px 0}
-th,td{border:1px solid #dde1e8;padding:4px 8px;text-align:right;vertical-align:top}
-th{background:#eef1f5} td.l,th.l{text-align:left}
 tr.failed td{background:#fff1f0}
-.kpi{display:flex;flex-wrap:wrap;gap:10px;margin-bottom:8px}
-.kpi div{background:#eef1f5;border-radius:5px;padding:8px 14px;font-size:13px}
-.kpi b{display:block;font-size:20px}
 figure{margin:0} figure img{max-width:100%;height:auto;border:1px solid #dde1e8}
-figcaption{font-size:12px;color:#4a5468;margin-top:3px}
-.small{font-size:12px;color:#4a5468}
 """
 
 
@@ -69,13 +54,7 @@ def _values(records: list[dict], column: str) -> np.ndarray:
 
 
 def _png(fig) -> str:
-    # matplotlib (0.5 s to import) only when a page is drawn, not by every batch command
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-
-    FigureCanvasAgg(fig)
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=100, bbox_inches="tight")
-    return base64.b64encode(buf.getvalue()).decode("ascii")
+    return png_base64(figure_png(fig, dpi=100))
 
 
 def distributions_png(records: list[dict]) -> str:
