@@ -19,8 +19,13 @@ from vid2sim.detect.flow import FlowConfig, MedianFlow
 from vid2sim.detect.lane_markings import LaneMarkingDetector
 from vid2sim.detect.lane_track import track_lanes
 from vid2sim.detect.lanes import HorizonEstimator, yaw_for_vanishing_column
-from vid2sim.detect.rail import with_rail_vehicles
-from vid2sim.detect.ranging import RangingConfig, range_tracks
+from vid2sim.detect.rail import find_rail_tracks, keep_trams_from_lead, relabel
+from vid2sim.detect.ranging import (
+    RangingConfig,
+    choose_horizon,
+    pitch_for_horizon,
+    range_tracks,
+)
 from vid2sim.detect.schedule import KeyframeSchedule, ScheduleConfig
 from vid2sim.detect.tracker import Tracker, TrackerConfig
 from vid2sim.detect.video import folder_frame_steps, iter_frames, prefetch, video_info
@@ -255,13 +260,16 @@ def detect_and_range(video: Path, camera: Camera, *, detector, detections=None,
     # The ego lane first: vehicles' lanes (and so the lead) are counted from it.
     lanes = track_lanes(lane_obs, math.radians(camera.yaw_deg - yaw_before))
 
-    def rerange(tracked: list[TrackedBox]) -> RangingResult:
-        return range_tracks(tracked, camera, horizon_hints_px=horizon_est.rows_px,
-                            horizon_hint_frames=horizon_est.frames, config=config, lanes=lanes)
-
-    result = rerange(boxes)
-    # trams: the detector's, and tall vehicles beyond the kerb (ranged again as trams)
-    result, rail_notes = with_rail_vehicles(boxes, result, camera, rerange,
-                                            config or RangingConfig())
+    config = config or RangingConfig()
+    # Trams first (the detector's, and tall vehicles beyond the kerb), at the pitch the
+    # ranging will estimate, so that each is ranged once with the tram's size.
+    horizon_px, _, _ = choose_horizon(boxes, camera, config, horizon_est.rows_px)
+    rail = find_rail_tracks(boxes, lanes, camera.with_pitch(pitch_for_horizon(camera,
+                                                                              horizon_px)))
+    if rail.relabelled:
+        boxes = relabel(boxes, rail.relabelled)
+    result = range_tracks(boxes, camera, horizon_hints_px=horizon_est.rows_px,
+                          horizon_hint_frames=horizon_est.frames, config=config, lanes=lanes)
+    result, rail_notes = keep_trams_from_lead(result, rail, config)
     notes.extend(rail_notes)
     return result, camera, notes

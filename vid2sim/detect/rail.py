@@ -25,7 +25,6 @@ Pure functions on records: boxes and the lane track in, track ids out.
 from __future__ import annotations
 
 from collections import defaultdict
-from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -216,29 +215,21 @@ def relabel(boxes: list[TrackedBox], tracks: set[int]) -> list[TrackedBox]:
             else b for b in boxes]
 
 
-def with_rail_vehicles(boxes: list[TrackedBox], result: RangingResult, camera: Camera,
-                       rerange: Callable[[list[TrackedBox]], RangingResult],
-                       lane_settings: LaneSettings, config: RailConfig | None = None
-                       ) -> tuple[RangingResult, list[Note]]:
-    """The ranging result with its trams found (:func:`find_rail_tracks`): tracks the
-    detector called something else ranged again as trams (``rerange``: the ranging of a
-    list of boxes, the caller's), and trams on their own bed kept from being the lead.
+def keep_trams_from_lead(result: RangingResult, rail: RailTracks,
+                         lane_settings: LaneSettings) -> tuple[RangingResult, list[Note]]:
+    """The ranging result with the trams of ``rail`` (:func:`find_rail_tracks`) named in
+    notes, and those on their own track bed kept from being the lead.
 
-    ``result`` is the ranging of ``boxes`` (same order), with the lane track in
-    ``result.lanes``; ``camera`` the camera it ranged with (its pitch is replaced by the
-    estimated one).
+    ``result`` is the ranging of the boxes with the trams relabelled (:func:`relabel`), so
+    that a tram the detector called a truck was ranged with the tram's size prior: find the
+    trams before ranging (with the pitch :func:`vid2sim.detect.ranging.choose_horizon`
+    gives, which is the one the ranging estimates) and range once.
     """
-    rail = find_rail_tracks(boxes, result.lanes,
-                            camera.with_pitch(result.pitch_deg_estimated), config)
     if not rail.trams:
         return result, []
     notes = [Note.estimate(f"track {t}: a tram ({rail.reasons[t]})"
                            + (", on its own track bed: never the lead" if t in rail.own_bed
                               else "")) for t in sorted(rail.trams)]
-    if rail.relabelled:
-        lanes = result.lanes
-        result = rerange(relabel(boxes, rail.relabelled))
-        result.lanes = lanes
     if rail.own_bed:
         result.never_lead_tracks = frozenset(rail.own_bed)
         result.boxes = relane(result.boxes, lane_settings, result.lanes,
