@@ -336,12 +336,15 @@ def fit_boxes(camera: Camera, ba: BoxArrays, width_m: np.ndarray, width_std_m: n
         return np.nan_to_num(np.concatenate([r_edges, r_prior], axis=1), nan=0.0)
 
     def jacobian(th: np.ndarray, i: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        r0 = residuals(th, i)
-        jac = np.zeros((len(i), 4 + 4, n_par))
+        # The base point and its n_par forward steps in one residuals call (one outline
+        # projection of 7 n boxes instead of 7 of n: a third of the fit's time on KITTI).
+        m = len(i)
+        th_all = np.tile(th, (n_par + 1, 1))
         for k in range(n_par):
-            th_k = th.copy()
-            th_k[:, k] += steps[k]
-            jac[:, :, k] = -(residuals(th_k, i) - r0) / steps[k]
+            th_all[(k + 1) * m:(k + 2) * m, k] += steps[k]
+        r_all = residuals(th_all, np.tile(i, n_par + 1)).reshape(n_par + 1, m, 4 + 4)
+        r0 = r_all[0]
+        jac = np.moveaxis(-(r_all[1:] - r0) / steps[:, None, None], 0, -1)
         return r0, jac
 
     # Gauss-Newton; boxes leave the active set once converged (most need 3-5 steps).
