@@ -60,6 +60,15 @@ own category, replayed on its own track (:mod:`vid2sim.detect.rail`)."""
 
 DEFAULT_DETECTOR = models.DEFAULT_DETECTOR
 
+ORT_SPINNING = False
+"""Whether onnxruntime's worker threads spin (busy-wait) between runs, its default. They spin
+for a while after every run, and the frames' other work (decoding in the prefetch thread,
+optical flow, lane markings, OpenCV's own threads) then waits for the CPU they burn: on this
+2-core machine with a second process busy, ``detect_and_range`` on KITTI raw 0001 took
+9.9-10.7 s wall and 9.3-10.6 s CPU spinning against 5.0-5.7 s and 5.1-6.3 s not (4 runs
+each, alternating; the quiet-machine figures are in benchmarks/bench_speed.py's output).
+A batch worker shares its machine with other workers: spinning steals from them too."""
+
 CROSS_CLASS_IOU = 0.7
 """IoU above which boxes of different vehicle classes are taken for one vehicle."""
 
@@ -282,6 +291,8 @@ class OnnxDetector:
         options = ort.SessionOptions()
         options.intra_op_num_threads = int(threads)
         options.inter_op_num_threads = 1
+        if not ORT_SPINNING:
+            options.add_session_config_entry("session.intra_op.allow_spinning", "0")
         # PicoDet exports list initializers as inputs; ORT warns about each one (harmless).
         options.log_severity_level = 3
         try:
