@@ -7,7 +7,7 @@ tracker, lane markings, ranging) one frame at a time.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import replace
 from pathlib import Path
 
@@ -61,8 +61,11 @@ def run_detect(source: Path, *, detector: Detector | None,
     progress : bool
         Show a tqdm bar on stderr.
     on_frame : callable, optional
-        Called with every decoded frame (image present) before detection, e.g. to estimate
-        the horizon from lane markings.
+        Called with every decoded frame (image present), in frame order, in the decoding
+        thread (:func:`~vid2sim.detect.video.prefetch`), e.g. to measure lane markings: it
+        works on the next frames while the detector and the tracker work on this one, so it
+        must keep to its own state until this function returns (by then every frame has been
+        shown to it). Its errors are raised here.
     tracker_config : TrackerConfig, optional
         Tracker thresholds.
     fps : float, optional
@@ -110,13 +113,14 @@ def run_detect(source: Path, *, detector: Detector | None,
     n_seen = n_detected = 0
     # Imported boxes need no pixels: decode only if someone looks at the image.
     decode_every = detect_every if (detector is not None or on_frame is not None) else 0
-    frames = prefetch(iter_frames(source, every=decode_every or 1_000_000_000, fps=fps,
-                                  skipped=skipped_frames))
+    frames = iter_frames(source, every=decode_every or 1_000_000_000, fps=fps,
+                         skipped=skipped_frames)
+    if on_frame is not None:
+        frames = _observed(frames, on_frame)
+    frames = prefetch(frames)
     with tqdm(total=info.n_frames or None, unit="frame", desc="detect",
               disable=not progress) as bar:
         for frame in frames:
-            if frame.image_bgr is not None and on_frame is not None:
-                on_frame(frame)
             shown_t_s = frame.t_s
             if clock is not None:
                 frame = replace(frame, t_s=float(clock[frame.index]))
@@ -148,6 +152,14 @@ def run_detect(source: Path, *, detector: Detector | None,
                          f"frames (boxes on 0-based frames {min(box_frames)}.."
                          f"{max(box_frames)})", "is the detections file for this video?")
     return tracker.finalize(rows)
+
+
+def _observed(frames: Iterator[Frame], on_frame: Callable[[Frame], None]) -> Iterator[Frame]:
+    """``frames``, each decoded one shown to ``on_frame`` first (in the decoding thread)."""
+    for frame in frames:
+        if frame.image_bgr is not None:
+            on_frame(frame)
+        yield frame
 
 
 def _scheduled_step(frame: Frame, detector: Detector, tracker: Tracker,
