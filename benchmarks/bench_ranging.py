@@ -38,9 +38,9 @@ from pathlib import Path
 
 import numpy as np
 
-from vid2sim.app.commands import run_track
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.settings import DetectorSettings, Settings
+from vid2sim.app.tracking import run_track
 from vid2sim.camera import Camera, fit_camera_to_frames, load_camera
 from vid2sim.detect.detector import load_detector
 from vid2sim.detect.external import read_kitti_tracking_labels

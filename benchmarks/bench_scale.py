@@ -48,9 +48,9 @@ def raw_detections(raw: Path, work: Path, model_dir: Path | None) -> Path:
     out = work / "kitti_raw_0001_detections.csv"
     if out.exists():
         return out
-    from vid2sim.app.commands import run_detect_command
     from vid2sim.app.inputs import Inputs
     from vid2sim.app.settings import DetectorSettings, Settings
+    from vid2sim.app.tracking import run_detect_command
 
     if model_dir is None:
         raise SystemExit("no detector weights: pass --detections FILE or set VID2SIM_MODEL_DIR")

@@ -50,10 +50,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from vid2sim.app.commands import run_track
 from vid2sim.app.demo import run_demo
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.settings import DetectorSettings, Settings
+from vid2sim.app.tracking import run_track
 from vid2sim.boxes import iou_matrix
 from vid2sim.camera import fit_camera_to_frames, load_camera
 from vid2sim.detect import pipeline

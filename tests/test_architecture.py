@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import ast
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 from tests.conftest import REPO
@@ -23,6 +26,13 @@ LAZY_IMPORTS_ALLOWED = {
     # resuming a finished manifest starts in a second.
     "vid2sim.app.batch.worker",
 }
+#: Packages the video-only commands (`vid2sim detect`, `vid2sim track`) must not load: the road,
+#: export, evaluation and plotting stacks (0.1-0.5 s each to import, about 2 s together before
+#: the first frame when the commands imported them, issue 15). pyproj is only needed once a GPS
+#: fix is converted (vid2sim.enu loads it then).
+NOT_FOR_VIDEO_COMMANDS = ("matplotlib", "highway_env", "pygame", "pandas", "networkx", "shapely",
+                          "osmnx", "geopandas", "pyrosm", "scenariogeneration", "pyproj",
+                          "sklearn", "ray", "pyarrow")
 #: The layers, lowest first: a module may import its own layer and the layers below.
 LAYERS = (
     ("errors", "fileio", "defaults"),
@@ -148,3 +158,17 @@ def test_no_test_imports_a_benchmark_and_no_benchmark_a_test():
                         else [])
                 bad = [x for x in mods if x == other or x.startswith(other + ".")]
                 assert not bad, f"{path.relative_to(REPO)} imports {bad}"
+
+
+def test_the_video_commands_load_only_the_detection_stack():
+    """What `vid2sim track` / `detect` import before the first frame (the CLI and their
+    application module), in a fresh interpreter: none of the heavy stacks they do not use."""
+    code = ("import sys, vid2sim.cli, vid2sim.app.tracking; "
+            "print(' '.join(sorted({m.split('.')[0] for m in sys.modules})))")
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
+                          cwd=REPO, timeout=300, check=False)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    loaded = set(proc.stdout.split())
+    assert {"vid2sim", "numpy", "cv2"} <= loaded, "the probe did not import the command"
+    assert not loaded & set(NOT_FOR_VIDEO_COMMANDS), sorted(loaded & set(NOT_FOR_VIDEO_COMMANDS))

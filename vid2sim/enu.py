@@ -13,20 +13,30 @@ from __future__ import annotations
 
 import math
 from functools import lru_cache
+from typing import TYPE_CHECKING
 
 import numpy as np
-from pyproj import Transformer
 
 from vid2sim.records import Origin
+
+if TYPE_CHECKING:
+    from pyproj import Transformer
 
 
 @lru_cache(maxsize=1)
 def _geodetic_to_ecef() -> Transformer:
+    # pyproj on the first conversion (50-90 ms to import after numpy, measured in-process):
+    # the settings of every command import this module; `vid2sim track` / `detect` never
+    # convert a coordinate.
+    from pyproj import Transformer
+
     return Transformer.from_crs("EPSG:4979", "EPSG:4978", always_xy=True)
 
 
 @lru_cache(maxsize=1)
 def _ecef_to_geodetic() -> Transformer:
+    from pyproj import Transformer  # see _geodetic_to_ecef
+
     return Transformer.from_crs("EPSG:4978", "EPSG:4979", always_xy=True)
 
 

@@ -6,7 +6,8 @@
   camera, detections, keyframes, and the GPS time base) and its validation;
 - :mod:`vid2sim.app.loaders`: the one place each shared thing is loaded (camera fitted to the
   frames, detector, imported boxes, GPS trace with its offset);
-- :mod:`vid2sim.app.commands`, :mod:`vid2sim.app.build`, :mod:`vid2sim.app.batch`: what each
+- :mod:`vid2sim.app.tracking` (``detect``, ``track``: the detection stack only),
+  :mod:`vid2sim.app.commands`, :mod:`vid2sim.app.build`, :mod:`vid2sim.app.batch`: what each
   CLI command runs.
 
 Imports run one way: ``cli -> app -> geo/detect/export/evaluate -> scenario, camera, records,

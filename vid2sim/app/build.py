@@ -26,7 +26,7 @@ import numpy as np
 
 from vid2sim import __version__
 from vid2sim import scenario as scenario_io
-from vid2sim.app.commands import lead_summary, match_road
+from vid2sim.app.commands import match_road
 from vid2sim.app.figures import stage_figures
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.loaders import (
@@ -39,6 +39,7 @@ from vid2sim.app.loaders import (
     smooth_trace,
 )
 from vid2sim.app.settings import Settings
+from vid2sim.app.tracking import lead_summary
 from vid2sim.camera import Camera
 from vid2sim.detect.lane_track import lane_track
 from vid2sim.detect.lead import relane

@@ -1,5 +1,6 @@
-"""The single-stage commands (``trace``, ``road``, ``detect``, ``track``, ``export``,
-``eval``): slices of ``build``.
+"""The single-stage commands ``trace``, ``road``, ``export`` and ``eval``: slices of ``build``
+(``detect`` and ``track`` are in :mod:`vid2sim.app.tracking`, which loads only the detection
+stack).
 
 Each takes the run's :class:`~vid2sim.app.inputs.Inputs` and
 :class:`~vid2sim.app.settings.Settings` (or the scenario it works on), loads what it needs
@@ -11,27 +12,14 @@ file renamed into place, or a folder staged and moved into place
 
 from __future__ import annotations
 
-import time
-from collections import Counter
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from vid2sim import scenario as scenario_io
 from vid2sim.app.inputs import Inputs
-from vid2sim.app.loaders import (
-    load_boxes,
-    load_camera_for,
-    load_keyframes_for,
-    load_trace,
-    load_video_info,
-    need_video,
-    smooth_trace,
-)
+from vid2sim.app.loaders import load_keyframes_for, load_trace, smooth_trace
 from vid2sim.app.settings import Settings
-from vid2sim.detect.pipeline import detect_and_range, run_detect
-from vid2sim.detect.plots import plot_lead, plot_topdown
 from vid2sim.errors import InputError
 from vid2sim.evaluate.replay import run_eval
 from vid2sim.export import FORMATS, replay_script
@@ -45,10 +33,9 @@ from vid2sim.fileio import (
 )
 from vid2sim.geo import roads as geo_roads
 from vid2sim.geo import trace as geo_trace
-from vid2sim.records import RangingResult
 from vid2sim.scenario import dumps_canonical
-from vid2sim.tables import write_detections_csv, write_ego_csv, write_tracks_csv
-from vid2sim.videofile import skipped_frames_note, video_info
+from vid2sim.tables import write_ego_csv
+from vid2sim.videofile import video_info
 
 # --------------------------------------------------------------------------- trace, road
 
@@ -86,129 +73,6 @@ def run_road(inputs: Inputs, out_path: Path, settings: Settings | None = None,
     if plot_path is not None:
         geo_roads.plot_road(result, trace, ego, plot_path)
     return geo_roads.format_summary(result, Path(out_path))
-
-
-# --------------------------------------------------------------------------- detect
-
-
-@dataclass(slots=True)
-class DetectSummary:
-    """What ``vid2sim detect`` did (printed by the CLI)."""
-
-    source: Path
-    out_path: Path
-    n_frames: int
-    elapsed_s: float
-    n_rows: int
-    n_tracks: int
-    tracks_per_category: dict[str, int] = field(default_factory=dict)
-    detector: str = ""
-    skipped_frames: list[int] = field(default_factory=list)
-
-    @property
-    def fps(self) -> float:
-        """Frames processed per second of wall time."""
-        return self.n_frames / self.elapsed_s if self.elapsed_s > 0 else float("nan")
-
-    def __str__(self) -> str:
-        cats = ", ".join(f"{k} {v}" for k, v in sorted(self.tracks_per_category.items()))
-        return (f"{self.source}: {self.n_frames} frames in {self.elapsed_s:.1f} s "
-                f"({self.fps:.1f} frames/s) with {self.detector}; {self.n_tracks} tracks"
-                f"{' (' + cats + ')' if cats else ''}, {self.n_rows} rows -> {self.out_path}"
-                + (f"\nwarning: {skipped_frames_note(self.skipped_frames)}"
-                   if self.skipped_frames else ""))
-
-
-def run_detect_command(inputs: Inputs, out_path: Path,
-                       settings: Settings | None = None) -> DetectSummary:
-    """``vid2sim detect``: detect (or import) and track vehicles, write ``detections.csv``."""
-    settings = settings or Settings()
-    settings.check()
-    inputs.check()
-    source = need_video(inputs)
-    # The video first: a mistyped path should not be reported as missing weights.
-    n_frames = load_video_info(inputs).n_frames
-    detector, imported, label = load_boxes(inputs, settings)
-    check_output_file(out_path)
-    start = time.perf_counter()
-    skipped: list[int] = []
-    boxes = run_detect(source, detector=detector, detections=imported,
-                       detect_every=settings.detector.detect_every, progress=settings.progress,
-                       tracker_config=settings.tracker_config(), fps=inputs.fps,
-                       schedule=settings.detector.schedule(), capture_clock=True,
-                       skipped_frames=skipped)
-    elapsed = time.perf_counter() - start
-    write_detections_csv(boxes, out_path)
-    per_track = {b.track_id: b.category for b in boxes}
-    return DetectSummary(source=source, out_path=Path(out_path), n_frames=n_frames,
-                         elapsed_s=elapsed, n_rows=len(boxes), n_tracks=len(per_track),
-                         tracks_per_category=dict(Counter(per_track.values())), detector=label,
-                         skipped_frames=skipped)
-
-
-# --------------------------------------------------------------------------- track
-
-
-def lead_summary(result: RangingResult, n_frames: int) -> dict[str, float]:
-    """Figures for the summary: tracks, lead presence share, lead range min/median/max [m]."""
-    lead = [b for b in result.boxes if b.is_lead and np.isfinite(b.range_m)]
-    rng = np.array([b.range_m for b in lead])
-    lead_frames = {b.frame for b in lead}
-    return {
-        "tracks": len({b.track_id for b in result.boxes}),
-        "lead_share": len(lead_frames) / n_frames if n_frames else float("nan"),
-        "lead_tracks": len({b.track_id for b in lead}),
-        "lead_range_min_m": float(rng.min()) if rng.size else float("nan"),
-        "lead_range_median_m": float(np.median(rng)) if rng.size else float("nan"),
-        "lead_range_max_m": float(rng.max()) if rng.size else float("nan"),
-    }
-
-
-def run_track(inputs: Inputs, out_path: Path, settings: Settings | None = None,
-              plot_dir: Path | None = None) -> str:
-    """``vid2sim track``: detect and track vehicles, range them, write ``tracks.csv``.
-
-    Returns a few lines of summary: tracks, frames, lead presence, horizon and its source,
-    lead range figures, notes.
-    """
-    settings = settings or Settings()
-    settings.check()
-    inputs.check()
-    video = need_video(inputs)
-    info = load_video_info(inputs)
-    camera, notes = load_camera_for(inputs, info)
-    detector, imported, source = load_boxes(inputs, settings)
-    check_output_file(out_path)
-    if plot_dir is not None:
-        check_output_folder(plot_dir)
-    result, camera, stage_notes = detect_and_range(
-        video, camera, detector=detector, detections=imported,
-        detect_every=settings.detector.detect_every, fps=inputs.fps,
-        progress=settings.progress, config=settings.ranging,
-        tracker_config=settings.tracker_config(), schedule=settings.detector.schedule())
-    notes += stage_notes
-    write_tracks_csv(result.boxes, out_path)
-    lines = [f"{video}: {info.n_frames} frames, boxes from {source}"]
-    lines += notes
-    s = lead_summary(result, info.n_frames)
-    lines.append(f"{s['tracks']} tracks, {len(result.boxes)} rows -> {out_path}")
-    lines.append(f"horizon {result.horizon_y_px:.1f} px (pitch {result.pitch_deg_estimated:+.2f} "
-                 f"deg) from {result.horizon_source}; camera file said "
-                 f"{camera.horizon_y_px():.1f} px (pitch {camera.pitch_deg:+.2f} deg)")
-    if np.isfinite(s["lead_range_median_m"]):
-        lines.append(f"lead present on {100 * s['lead_share']:.0f}% of frames "
-                     f"({s['lead_tracks']} lead vehicles); lead range min/median/max "
-                     f"{s['lead_range_min_m']:.1f}/{s['lead_range_median_m']:.1f}/"
-                     f"{s['lead_range_max_m']:.1f} m")
-    else:
-        lines.append("no lead vehicle in the ego lane")
-    if plot_dir is not None:
-        plot_dir = Path(plot_dir)
-        p1 = plot_lead(result.boxes, plot_dir / "lead.png")
-        p2 = plot_topdown(result.boxes, plot_dir / "topdown.png", settings.ranging.lane_width_m)
-        lines.append(f"plots: {p1}, {p2}")
-    lines += [f"note: {w}" for w in result.warnings]
-    return "\n".join(lines)
 
 
 # --------------------------------------------------------------------------- export, eval

@@ -86,7 +86,7 @@ def road(gps_file: Path, map_path: Path | None, out_path: Path, plot_path: Path 
 def detect(source: Path, detections_path: Path | None, fps: float | None, out_path: Path,
            **detector) -> None:
     """Detect and track vehicles in a video or image folder."""
-    from vid2sim.app.commands import run_detect_command
+    from vid2sim.app.tracking import run_detect_command
 
     check_out_file(out_path, "detections.csv")
     inputs = Inputs(video=source, detections=detections_path, fps=fps)
@@ -110,7 +110,7 @@ def detect(source: Path, detections_path: Path | None, fps: float | None, out_pa
 def track(video: Path, camera_path: Path | None, detections_path: Path | None,
           fps: float | None, plot_dir: Path | None, out_path: Path, **detector) -> None:
     """Track vehicles and measure their range, lateral offset and range rate (no GPS needed)."""
-    from vid2sim.app.commands import run_track
+    from vid2sim.app.tracking import run_track
 
     check_out_file(out_path, "tracks.csv")
     if plot_dir is not None:
