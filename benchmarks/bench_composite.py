@@ -51,7 +51,6 @@ import json
 import sys
 import tempfile
 import time
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -64,7 +63,7 @@ from vid2sim.detect.pipeline import detect_and_range
 from vid2sim.detect.video import video_info
 from vid2sim.records import Detection
 from vid2sim.samples import composite as cp
-from vid2sim.samples.cutin import EgoLaneWorld, measure_ego_lane
+from vid2sim.samples.cutin import EgoLaneWorld, in_lane, measure_ego_lane
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared"
 N_FRAMES = 108
@@ -99,14 +98,6 @@ def detections_for(clip: cp.CompositeClip, cache: Path, model_dir: Path
     cache.write_text(json.dumps({k: [[list(d.box_px), d.score, d.category] for d in v]
                                  for k, v in out.items()}))
     return out
-
-
-def in_lane(truth: cp.LeadTruth, lane: EgoLaneWorld) -> cp.LeadTruth:
-    """The profile's lateral offsets taken from the middle of the drive's real ego lane (as
-    measured without the car, :func:`vid2sim.samples.cutin.measure_ego_lane`) at the car's
-    rear, instead of from the camera's axis."""
-    middle = np.array([lane.centre_in_frame(i, float(r)) for i, r in enumerate(truth.range_m)])
-    return replace(truth, lateral_m=truth.lateral_m + middle)
 
 
 def run_clip(car: str, seed: int, raw_dir: Path, tracking_dir: Path, model_dir: Path,
