@@ -65,9 +65,10 @@ ORT_SPINNING = False
 for a while after every run, and the frames' other work (decoding in the prefetch thread,
 optical flow, lane markings, OpenCV's own threads) then waits for the CPU they burn: on this
 2-core machine with a second process busy, ``detect_and_range`` on KITTI raw 0001 took
-9.9-10.7 s wall and 9.3-10.6 s CPU spinning against 5.0-5.7 s and 5.1-6.3 s not (4 runs
-each, alternating; the quiet-machine figures are in benchmarks/bench_speed.py's output).
-A batch worker shares its machine with other workers: spinning steals from them too."""
+9.9-10.7 s wall and 9.3-10.6 s CPU spinning against 5.0-5.7 s and 5.1-6.3 s not; with the
+machine quiet 5.5 s against 4.8 s mean wall, 10.3 s against 7.2 s CPU (4-5 runs each,
+alternating). A batch worker shares its machine with other workers: spinning steals from
+them too."""
 
 CROSS_CLASS_IOU = 0.7
 """IoU above which boxes of different vehicle classes are taken for one vehicle."""
