@@ -121,6 +121,30 @@ def test_vehicle_states_at_other_time_in_log_mode():
     assert states["9"].length_m == 8.0 and states["9"].height_m == 3.2
 
 
+def test_show_logged_puts_the_road_where_stepping_does():
+    # Jumping to a time (for pictures) gives the vehicles stepping there gives, and only the
+    # actors whose logs span that time; a policy's ego has no log to be put on.
+    sc = straight_scenario()
+    stepped = ReplayEnv(sc, ego_mode="log")
+    stepped.reset(seed=0)
+    for _ in range(50):
+        stepped.step(ZERO)
+    jumped = ReplayEnv(sc, ego_mode="log")
+    jumped.reset(seed=0)
+    jumped.show_logged(stepped.t_s)
+    a = {s.id: s for s in stepped.vehicle_states()}
+    b = {s.id: s for s in jumped.vehicle_states()}
+    assert a.keys() == b.keys() and "9" in a
+    for vid, s in a.items():
+        assert (b[vid].x_m, b[vid].y_m) == pytest.approx((s.x_m, s.y_m), abs=1e-6), vid
+    jumped.show_logged(1.0)
+    assert "9" not in {s.id for s in jumped.vehicle_states()}
+    policy = ReplayEnv(sc, ego_mode="policy")
+    policy.reset(seed=0)
+    with pytest.raises(ValueError):
+        policy.show_logged(2.0)
+
+
 def test_info_lead_gap_ttc_headway():
     env = ReplayEnv(straight_scenario(), ego_mode="log")
     _, info = env.reset(seed=0)

@@ -118,7 +118,8 @@ def gym_renders(scenario: Scenario, times_s: list[float], fps: float,
                 config: FrameSampleConfig | None = None) -> dict[float, np.ndarray]:
     """BGR renders of the scenario in highway-env (the logged ego) at ``times_s``, turned so
     the ego drives up the picture like the camera looks, its vehicles labelled with their
-    ids. The environment steps at the video's frame rate, so frame times fall on its steps.
+    ids. Every vehicle is put on its log at each time (:meth:`ReplayEnv.show_logged`), the
+    environment configured at the video's frame rate.
 
     highway-env draws the world north up with the ego in the middle; the square render is
     turned about the ego by its heading and cut to :attr:`FrameSampleConfig.render_behind_m`
@@ -134,12 +135,9 @@ def gym_renders(scenario: Scenario, times_s: list[float], fps: float,
     out: dict[float, np.ndarray] = {}
     try:
         env.reset(seed=0)
-        action = np.zeros(env.action_space.shape, dtype=env.action_space.dtype)
-        done = False
         for t in sorted(set(times_s)):
-            while not done and env.t_s + 0.5 / fps < t:
-                _, _, terminated, truncated, _ = env.step(action)
-                done = terminated or truncated
+            # the logged world at t directly: stepping there is a step per video frame
+            env.show_logged(t)
             out[t] = _ego_up(env, cv2.cvtColor(env.render(), cv2.COLOR_RGB2BGR), cfg)
     finally:
         env.close()
