@@ -184,19 +184,26 @@ def track_crossings(boxes: list[RangedBox], lanes: LaneTrack | None, lane_width_
         if (lane_index(b.lane) is not None and math.isfinite(b.lane_offset_m)
                 and 0.0 < b.range_m <= cfg.max_range_m):
             by_track[b.track_id].append(b)
-    out: dict[int, list[Crossing]] = {}
+    tracks = []
     for tid, rows in sorted(by_track.items()):
         rows.sort(key=lambda b: (b.t_s, b.frame))
         t = np.array([b.t_s for b in rows], dtype=float)
         keep = np.r_[True, np.diff(t) > 0]  # one row per time
-        rows = [b for b, k in zip(rows, keep, strict=True) if k]
-        t = t[keep]
+        tracks.append((tid, [b for b, k in zip(rows, keep, strict=True) if k], t[keep]))
+    # The ego lane at every track's times in one call: it smooths the whole lane track's
+    # heading and curvature each time (per track, that was 3.7 s on a 60 s 720p clip).
+    at = (ego_lane_at(lanes, np.concatenate([t for _, _, t in tracks]))
+          if lanes is not None and len(lanes) and tracks else None)
+    out: dict[int, list[Crossing]] = {}
+    start = 0
+    for tid, rows, t in tracks:
         width = np.full(len(rows), float(lane_width_m))
         ego_lane = np.zeros(len(rows), dtype=int)
-        if lanes is not None and len(lanes):
-            at = ego_lane_at(lanes, t)
-            width = np.where(np.isfinite(at.lane_width_m), at.lane_width_m, width)
-            ego_lane = at.lane.astype(int)
+        if at is not None:
+            part = slice(start, start + len(t))
+            width = np.where(np.isfinite(at.lane_width_m[part]), at.lane_width_m[part], width)
+            ego_lane = at.lane[part].astype(int)
+        start += len(t)
         found = lane_crossings(t, np.array([lane_index(b.lane) for b in rows]),
                                np.array([b.lane_offset_m for b in rows]), width, ego_lane,
                                np.array([b.range_m for b in rows]), cfg.min_dwell_s)
