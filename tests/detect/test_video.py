@@ -46,6 +46,19 @@ def test_every_skips_decoding_but_keeps_time_base(tmp_path):
     assert frames[4].t_s == pytest.approx(0.4, abs=1e-3)
 
 
+def test_only_decodes_the_given_frames_on_the_same_clock(tmp_path):
+    video = _write_video(tmp_path / "v.mp4", n=10, fps=10.0)
+    every = list(iter_frames(video))
+    some = list(iter_frames(video, only={2, 7}))
+    assert [f.index for f in some if f.image_bgr is not None] == [2, 7]
+    assert [f.t_s for f in some] == pytest.approx([f.t_s for f in every])
+    assert np.array_equal(some[7].image_bgr, every[7].image_bgr)
+    for i in (0, 1, 2):
+        cv2.imwrite(str(tmp_path / f"{i:06d}.png"), np.full((8, 16, 3), 50 * i, np.uint8))
+    folder = [f for f in iter_frames(tmp_path, only=[1]) if f.image_bgr is not None]
+    assert [(f.index, int(f.image_bgr.mean())) for f in folder] == [(1, 50)]
+
+
 def test_image_folder_sorted_by_name_at_given_fps(tmp_path):
     for i in (2, 0, 1):
         cv2.imwrite(str(tmp_path / f"{i:06d}.png"), np.full((8, 16, 3), 50 * i, np.uint8))

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import queue
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Collection, Iterator
 from pathlib import Path
 
 import cv2
@@ -53,7 +53,8 @@ __all__ = ["folder_frame_steps", "frame_numbers", "iter_frames", "prefetch", "vi
 
 
 def iter_frames(path: Path, every: int = 1, fps: float | None = None,
-                skipped: list[int] | None = None) -> Iterator[Frame]:
+                skipped: list[int] | None = None,
+                only: Collection[int] | None = None) -> Iterator[Frame]:
     """Stream the frames of a video file or image folder, decoding only every N-th one.
 
     Every frame of the source is yielded in order, so the caller sees the full time base;
@@ -79,6 +80,9 @@ def iter_frames(path: Path, every: int = 1, fps: float | None = None,
         Receives the indices of frames that could not be read (corrupt bytes, a decoder that
         stopped early, an unreadable image); they are not yielded, the stream goes on after
         them (see :func:`vid2sim.videofile.resume_after`).
+    only : collection of int, optional
+        Decode these frames (0-based) instead of every N-th: the others are grabbed (or not
+        read) as above, so the timestamps stay the container's.
 
     Raises
     ------
@@ -91,18 +95,24 @@ def iter_frames(path: Path, every: int = 1, fps: float | None = None,
         raise InputError(None, f"--detect-every must be >= 1, got {every}")
     info = video_info(path, fps=fps)
     lost = skipped if skipped is not None else []
+    wanted = frozenset(int(i) for i in only) if only is not None else None
+
+    def decode(index: int) -> bool:
+        return index in wanted if wanted is not None else index % every == 0
+
     if path.is_dir():
-        yield from _iter_folder(path, every, info.fps, (info.width, info.height), lost)
+        yield from _iter_folder(path, decode, info.fps, (info.width, info.height), lost)
     else:
-        yield from _iter_video(path, every, info.fps, info.n_frames, lost)
+        yield from _iter_video(path, decode, info.fps, info.n_frames, lost)
 
 
-def _iter_folder(folder: Path, every: int, fps: float, size: tuple[int, int],
-                 skipped: list[int]) -> Iterator[Frame]:
-    n_read = 0
+def _iter_folder(folder: Path, decode: Callable[[int], bool], fps: float,
+                 size: tuple[int, int], skipped: list[int]) -> Iterator[Frame]:
+    n_read = n_tried = 0
     for index, file in enumerate(image_files(folder)):
         image = None
-        if index % every == 0:
+        if decode(index):
+            n_tried += 1
             image = cv2.imread(str(file), cv2.IMREAD_COLOR)
             if image is None:
                 skipped.append(index)
@@ -113,11 +123,11 @@ def _iter_folder(folder: Path, every: int, fps: float, size: tuple[int, int],
                                  "the frames of one video share one size")
             n_read += 1
         yield Frame(index=index, t_s=index / fps, image_bgr=image)
-    if n_read == 0:
+    if n_read == 0 and n_tried > 0:
         raise InputError(folder, "none of the folder's images can be decoded")
 
 
-def _iter_video(path: Path, every: int, fps: float, n_declared: int,
+def _iter_video(path: Path, decode: Callable[[int], bool], fps: float, n_declared: int,
                 skipped: list[int]) -> Iterator[Frame]:
     cap = open_capture(path)
     try:
@@ -143,7 +153,7 @@ def _iter_video(path: Path, every: int, fps: float, n_declared: int,
             if not np.isfinite(t_s) or (n_yielded > 0 and t_s <= last_t_s):
                 t_s = index / fps
             image = None
-            if index % every == 0:
+            if decode(index):
                 ok, image = cap.retrieve()
                 if not ok:
                     skipped.append(index)

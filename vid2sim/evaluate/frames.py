@@ -214,7 +214,8 @@ def sample_frame_figures(out_dir: Path, video: Path, camera: Camera, boxes: list
             by_frame[b.frame].append(b)
     images: dict[int, tuple[float, np.ndarray]] = {}
     last = max(picks)
-    for frame in tqdm(iter_frames(video, fps=video_fps), total=last + 1, unit="frame",
+    # only the picked frames are converted; the others are grabbed (decoded, not copied)
+    for frame in tqdm(iter_frames(video, fps=video_fps, only=picks), total=last + 1, unit="frame",
                       desc="sampled frames", disable=not progress, leave=False):
         if frame.index in picks and frame.image_bgr is not None:
             images[frame.index] = (frame.t_s, frame.image_bgr)
