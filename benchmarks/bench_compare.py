@@ -70,7 +70,7 @@ def export(commit: str | None, into: Path) -> Path:
                        check=True)
     else:
         subprocess.run(["git", "archive", "-o", str(into / "t.tar"), commit, "vid2sim"],
-                       cwd=REPO, check=True)
+                       cwd=REPO, check=True, stderr=subprocess.DEVNULL)
     subprocess.run(["tar", "xf", "t.tar"], cwd=into, check=True)
     return into
 
@@ -102,8 +102,13 @@ def main(argv: list[str] | None = None) -> int:
     best: dict[tuple[str, str], list[float]] = {}
     names = {"base": args.base, "new": args.new or "working tree"}
     with tempfile.TemporaryDirectory() as tmp:
-        trees = {"base": export(args.base, Path(tmp) / "base"),
-                 "new": export(args.new, Path(tmp) / "new")}
+        try:
+            trees = {"base": export(args.base, Path(tmp) / "base"),
+                     "new": export(args.new, Path(tmp) / "new")}
+        except subprocess.CalledProcessError:
+            print(f"error: {args.base} / {names['new']}: not a commit of {REPO} "
+                  "(see `git log --oneline`)", file=sys.stderr)
+            return 2
         for r in range(args.rounds):
             for key, tree in trees.items():
                 out = subprocess.run([sys.executable, "-c", IN_PROCESS, str(raw), str(models)],
