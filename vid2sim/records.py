@@ -475,6 +475,9 @@ class RangingResult:
     #: tracks that may never be the lead whatever their lane (trams on their own track bed,
     #: :mod:`vid2sim.detect.rail`); every later lane assignment keeps them out
     never_lead_tracks: frozenset[int] = frozenset()
+    #: the time of every frame the detection streamed (0-based index -> s, the container's
+    #: clock; skipped frames absent), when it was recorded
+    frame_times_s: dict[int, float] | None = None
 
 
 #: What an event is (scenario.json's ``events``, :mod:`vid2sim.scenario`).

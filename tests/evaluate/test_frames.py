@@ -109,3 +109,35 @@ def test_render_and_figures_of_a_scenario(tmp_path):
                          frame_images=[(c, p, f"figures/frames/{p.name}") for c, p in figs])
     assert "Sampled frames" in html and 'href="figures/frames/frame_000015.png"' in html
     assert "Events" in html and "lane_change" in html
+
+
+def test_sampled_frames_by_seeking_equal_the_streamed_ones(tmp_path):
+    # A clip long enough that the picks lie more than read_frames' seek gap apart, coded with
+    # predicted frames (mp4v): the frames found by seeking, timed from the detection stage's
+    # table, give the same pictures as decoding the whole video up to the last pick.
+    sc = make_scenario()
+    n = 701
+    fps = (n - 1) / sc.duration_s
+    video = tmp_path / "long.mp4"
+    wr = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"mp4v"), fps, (160, 64))
+    assert wr.isOpened()
+    for i in range(n):
+        img = np.full((64, 160, 3), 40, np.uint8)
+        cv2.putText(img, str(i), (5, 50), cv2.FONT_HERSHEY_SIMPLEX, 1.5, (255, 255, 255), 3)
+        wr.write(img)
+    wr.release()
+    cfg = FrameSampleConfig(n_even=3)
+    streamed = sample_frame_figures(tmp_path / "a", video, CAMERA, [], None, sc, fps, n,
+                                    config=cfg)
+    times = {i: i / fps for i in range(n)}
+    sought = sample_frame_figures(tmp_path / "b", video, CAMERA, [], None, sc, fps, n,
+                                  config=cfg, frame_times_s=times)
+    assert [p.name for _, p in streamed] == ["frame_000000.png", "frame_000350.png",
+                                             "frame_000700.png"]
+    assert [c for c, _ in sought] == [c for c, _ in streamed]
+    for (_, a), (_, b) in zip(streamed, sought, strict=True):
+        assert np.array_equal(cv2.imread(str(a)), cv2.imread(str(b)))
+    # a frame the table lacks (not streamed): the stage decodes the video as before
+    partial = sample_frame_figures(tmp_path / "c", video, CAMERA, [], None, sc, fps, n,
+                                   config=cfg, frame_times_s={0: 0.0})
+    assert [c for c, _ in partial] == [c for c, _ in streamed]

@@ -163,7 +163,8 @@ def write_outputs(staging: Path, out_dir: Path, inputs: Inputs, settings: Settin
         frames = stages.run("sampled frames", sample_frame_figures,
                             staging / "figures" / "frames", video, camera_used, ranging.boxes,
                             ranging.lanes, scenario, info.fps, info.n_frames,
-                            video_fps=inputs.fps, progress=settings.progress)
+                            video_fps=inputs.fps, progress=settings.progress,
+                            frame_times_s=ranging.frame_times_s)
         stages.run("report", write_report, staging / "report.html", scenario=scenario,
                    metrics=None, extra_figures=figures, warnings=warnings, inputs=report_inputs,
                    frame_images=[(c, p, p.relative_to(staging).as_posix()) for c, p in frames])

@@ -40,7 +40,8 @@ def run_detect(source: Path, *, detector: Detector | None,
                tracker_config: TrackerConfig | None = None, fps: float | None = None,
                schedule: ScheduleConfig | None = None, flow: FlowConfig | None = None,
                stats: dict | None = None, capture_clock: bool = False,
-               skipped_frames: list[int] | None = None) -> list[TrackedBox]:
+               skipped_frames: list[int] | None = None,
+               frame_times: dict[int, float] | None = None) -> list[TrackedBox]:
     """Detect and track vehicles through a video, one frame in memory at a time.
 
     Parameters
@@ -85,6 +86,9 @@ def run_detect(source: Path, *, detector: Detector | None,
     skipped_frames : list of int, optional
         Receives the indices of corrupt or missing frames, skipped (the tracker predicts
         across them).
+    frame_times : dict, optional
+        Receives every streamed frame's time (0-based index -> ``t_s`` [s], the container's
+        clock), so later stages can decode a few frames by seeking and still know their time.
 
     Returns
     -------
@@ -122,6 +126,8 @@ def run_detect(source: Path, *, detector: Detector | None,
               disable=not progress) as bar:
         for frame in frames:
             shown_t_s = frame.t_s
+            if frame_times is not None:
+                frame_times[frame.index] = shown_t_s
             if clock is not None:
                 frame = replace(frame, t_s=float(clock[frame.index]))
             before = len(rows)
@@ -248,10 +254,11 @@ def detect_and_range(video: Path, camera: Camera, *, detector, detections=None,
         lane_obs.append(markings.measure(frame.image_bgr, frame.index, frame.t_s))
 
     skipped: list[int] = []
+    frame_times: dict[int, float] = {}
     boxes = run_detect(video, detector=detector, detections=detections,
                        detect_every=detect_every, progress=progress, fps=fps,
                        tracker_config=tracker_config, schedule=schedule, stats=stats,
-                       on_frame=on_frame, skipped_frames=skipped)
+                       on_frame=on_frame, skipped_frames=skipped, frame_times=frame_times)
     if skipped:
         notes.append(Note.warning(f"{Path(video).name}: {skipped_frames_note(skipped)}"))
     yaw_before = camera.yaw_deg
@@ -283,5 +290,6 @@ def detect_and_range(video: Path, camera: Camera, *, detector, detections=None,
     result = range_tracks(boxes, camera, horizon_hints_px=horizon_est.rows_px,
                           horizon_hint_frames=horizon_est.frames, config=config, lanes=lanes)
     result, rail_notes = keep_trams_from_lead(result, rail, config)
+    result.frame_times_s = frame_times
     notes.extend(rail_notes)
     return result, camera, notes

@@ -12,6 +12,7 @@ smaller copy that links to it.
 from __future__ import annotations
 
 from collections import defaultdict
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -26,6 +27,7 @@ from vid2sim.fileio import write_bytes_atomic
 from vid2sim.lead import ego_lane_at, lane_centre_m, lane_index
 from vid2sim.records import LaneTrack, RangedBox
 from vid2sim.scenario import Event, Scenario
+from vid2sim.videofile import read_frames
 
 
 @dataclass(frozen=True, slots=True)
@@ -187,7 +189,8 @@ def side_by_side(camera_bgr: np.ndarray, render_bgr: np.ndarray) -> np.ndarray:
 def sample_frame_figures(out_dir: Path, video: Path, camera: Camera, boxes: list[RangedBox],
                          lanes: LaneTrack | None, scenario: Scenario, fps: float,
                          n_frames: int, video_fps: float | None = None,
-                         config: FrameSampleConfig | None = None, progress: bool = False
+                         config: FrameSampleConfig | None = None, progress: bool = False,
+                         frame_times_s: Mapping[int, float] | None = None
                          ) -> list[tuple[str, Path]]:
     """Draw the sampled frames (module docstring) into ``out_dir``; (caption, PNG path) each.
 
@@ -203,6 +206,10 @@ def sample_frame_figures(out_dir: Path, video: Path, camera: Camera, boxes: list
     n_frames : frames in the video
     video_fps : the frame rate of an image folder (videos carry their own)
     progress : a progress bar over the frames read (stderr)
+    frame_times_s : every frame's time (index -> s), as the detection stage streamed them:
+        with it the picked frames are decoded by seeking over long gaps
+        (:func:`vid2sim.videofile.read_frames`) instead of decoding the video up to the last
+        pick, and timed from it
     """
     cfg = config or FrameSampleConfig()
     picks = dict(pick_frames(n_frames, fps, scenario.events, cfg))
@@ -213,14 +220,19 @@ def sample_frame_figures(out_dir: Path, video: Path, camera: Camera, boxes: list
         if b.frame in picks:
             by_frame[b.frame].append(b)
     images: dict[int, tuple[float, np.ndarray]] = {}
-    last = max(picks)
-    # only the picked frames are converted; the others are grabbed (decoded, not copied)
-    for frame in tqdm(iter_frames(video, fps=video_fps, only=picks), total=last + 1, unit="frame",
-                      desc="sampled frames", disable=not progress, leave=False):
-        if frame.index in picks and frame.image_bgr is not None:
-            images[frame.index] = (frame.t_s, frame.image_bgr)
-        if frame.index >= last:
-            break
+    if frame_times_s is not None and all(i in frame_times_s for i in picks):
+        # a long clip's last pick is minutes in: seek there rather than decode every frame
+        images = {i: (frame_times_s[i], img) for i, img in read_frames(video, list(picks)).items()}
+    else:
+        last = max(picks)
+        # only the picked frames are converted; the others are grabbed (decoded, not copied)
+        for frame in tqdm(iter_frames(video, fps=video_fps, only=picks), total=last + 1,
+                          unit="frame", desc="sampled frames", disable=not progress,
+                          leave=False):
+            if frame.index in picks and frame.image_bgr is not None:
+                images[frame.index] = (frame.t_s, frame.image_bgr)
+            if frame.index >= last:
+                break
     renders = gym_renders(scenario, [t for t, _ in images.values()], fps, cfg)
     out_dir.mkdir(parents=True, exist_ok=True)
     figures = []
