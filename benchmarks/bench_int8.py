@@ -37,6 +37,23 @@ inputs; for Percentile/Entropy padded to the full 416x416 letterbox canvas, sinc
 histogram calibrators take one input shape); none of these frames is used for the accuracy
 figures.
 Figures depend on the machine and its load (2 shared cores): quote the ratios.
+
+Measured 2026-12-02 (onnxruntime 1.32.0, onnx 1.23.2, 2 AVX-512 VNNI cores shared with other
+sessions; ``python benchmarks/bench_int8.py``), per keyframe from the medians, x FP32:
+FP32 ALL 1.00 (52.5 ms), EXTENDED 0.67, BASIC 0.59; dyn-u8 0.52; s8 activations 0.30-0.36
+(onnxruntime fuses no QLinearConv for QInt8 activations on x86: the graph keeps 682
+DequantizeLinear, 336 QuantizeLinear and float Convs); u8 activations, all ops 1.00-1.05
+(QLinearConv 8.9 ms against FP32 Conv 13.9 ms at 416x416, but each SiLU becomes QLinearSigmoid
++ QLinearMul, 8.1 ms against FP32's fused QuickGelu 5.7 ms); u8, Conv only 0.72 (a
+Quantize/Dequantize pair about every conv). Accuracy: every variant quantising the stem is
+nearly blind (recall 0.00-0.40 against FP32's 0.92 on the six KITTI frames): the first conv
+sees the unnormalised 0-255 input, its SiLU output spans 0-105 while the detail lies in a few
+units, and quantising that one tensor alone cost the top-20 objectness 0.48 on average (a
+scratch sensitivity run on KITTI raw 0001 frame 60). Keeping the first two convs and their
+SiLUs FP32 ("stem2", MinMax) brings recall 0.88 / precision 0.75 (13 false of 52 against 7 of
+48), matched boxes median |edge diff| 0.86-2.15 px, bottom-edge signed median +0.06 to +0.08
+px, at 1.03x. No variant meets the bar of issue 15 (>= 1.3x per keyframe with recall and
+precision within 0.02 of FP32): the detector stays FP32.
 """
 
 from __future__ import annotations
