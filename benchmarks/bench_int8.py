@@ -104,7 +104,7 @@ class Variant:
     method: str = "minmax"  # "minmax", "percentile", "entropy"
     ops: tuple[str, ...] | None = None  # op types to quantise (None: all the tool knows)
     # node groups kept FP32 (see head_nodes): "tail", "head_convs", "first_conv", "stem",
-    # "depthwise"
+    # "stem2", "depthwise"
     exclude: tuple[str, ...] = ("tail",)
     opt_level: str = "all"  # session graph optimisation level
     extra: dict = field(default_factory=dict, hash=False, compare=False)
