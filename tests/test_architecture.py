@@ -22,9 +22,6 @@ LAZY_IMPORTS_ALLOWED = {
     "vid2sim.evaluate.replay",
     # highway-env (and pygame) only for the highway-env export's preview picture.
     "vid2sim.app.commands",
-    # the build's second half (export, evaluation and plotting stacks) is imported in a
-    # background thread while the video is detected (issue 15).
-    "vid2sim.app.build",
     # the whole pipeline is loaded by the first row a batch worker builds, so that a driver
     # resuming a finished manifest starts in a second.
     "vid2sim.app.batch.worker",

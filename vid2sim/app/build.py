@@ -17,15 +17,17 @@ an earlier build's files; a successful one replaces all of an earlier build's ou
 
 from __future__ import annotations
 
-import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
+from vid2sim import __version__
+from vid2sim import scenario as scenario_io
+from vid2sim.app.commands import match_road
+from vid2sim.app.figures import stage_figures
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.loaders import (
     load_boxes,
@@ -36,18 +38,27 @@ from vid2sim.app.loaders import (
     need_video,
     smooth_trace,
 )
-from vid2sim.app.road import match_road
 from vid2sim.app.settings import Settings
 from vid2sim.app.tracking import lead_summary
 from vid2sim.camera import Camera
+from vid2sim.detect.lane_track import lane_track
+from vid2sim.detect.lead import relane
 from vid2sim.detect.pipeline import detect_and_range
 from vid2sim.errors import InputError
-from vid2sim.fileio import staged_folder
-from vid2sim.records import EgoLateral, EgoTrack, Note, Origin, VideoInfo
-from vid2sim.scenario import Event
-
-if TYPE_CHECKING:
-    from vid2sim.export.scenelayout import SceneLayout
+from vid2sim.evaluate.frames import sample_frame_figures
+from vid2sim.evaluate.replay import run_eval
+from vid2sim.evaluate.report import write_report
+from vid2sim.export.assemble import assemble_scenario
+from vid2sim.export.events import scenario_events
+from vid2sim.export.openscenario import write_openscenario
+from vid2sim.export.scenelayout import SceneLayout, lay_out_scene
+from vid2sim.fileio import staged_folder, write_text_atomic
+from vid2sim.geo import roads as geo_roads
+from vid2sim.geo.course import road_course
+from vid2sim.geo.lateral import fuse_lateral
+from vid2sim.records import EgoLateral, EgoTrack, Note, NoteKind, Origin, VideoInfo, notes_of
+from vid2sim.scenario import Event, Source, dumps_canonical
+from vid2sim.tables import write_tracks_csv
 
 #: Events listed one by one in the summary; more are counted.
 MAX_SUMMARY_EVENTS = 8
@@ -143,45 +154,6 @@ def path_length_m(ego: EgoTrack) -> float:
     return float(np.hypot(np.diff(ego.x_m), np.diff(ego.y_m)).sum()) if len(ego.t_s) > 1 else 0.0
 
 
-def _import_outputs():
-    """The second half of the build (:mod:`vid2sim.app.outputs`), imported on demand."""
-    from vid2sim.app import outputs  # see _Preload
-
-    return outputs
-
-
-class _Preload:
-    """:mod:`vid2sim.app.outputs` imported in a background thread while the video is detected.
-
-    Its export, evaluation and plotting stacks take 1.5-2.5 s to import on the 2-core
-    reference machine, a quarter of a short clip's build, while the detection stage leaves
-    the interpreter free whenever onnxruntime, OpenCV's decoder or its optical flow run (they
-    release the GIL): imported beside it, most of that time disappears from the build's wall
-    time. The thread starts only once the stages before detection have done their own
-    imports (the road stage's), so no module is imported by two threads at once, and the
-    main thread waits for it before the later stages; an import error is raised there.
-    """
-
-    def __init__(self) -> None:
-        self._module = None
-        self._error: BaseException | None = None
-        self._thread = threading.Thread(target=self._load, name="vid2sim-preload", daemon=True)
-        self._thread.start()
-
-    def _load(self) -> None:
-        try:
-            self._module = _import_outputs()
-        except BaseException as exc:  # noqa: BLE001 - re-raised in the main thread
-            self._error = exc
-
-    def result(self):
-        """The imported module (waits for the thread; raises what the import raised)."""
-        self._thread.join()
-        if self._error is not None:
-            raise self._error
-        return self._module
-
-
 class _Stages:
     """Times each stage and prints its name (progress per stage)."""
 
@@ -199,6 +171,19 @@ class _Stages:
 
 
 # --------------------------------------------------------------------------- build
+
+
+def _write_tables(staging: Path, scenario, ranging, road_result) -> dict[str, Path]:
+    """scenario.json, tracks.csv and (with GPS) road.json into ``staging``; their names."""
+    files = {"scenario": Path("scenario.json"), "tracks": Path("tracks.csv")}
+    scenario_io.save(scenario, staging / "scenario.json")
+    write_tracks_csv(ranging.boxes, staging / "tracks.csv")
+    if road_result is not None:
+        # The road stage's own output, as `vid2sim road` writes it (matches per fix).
+        write_text_atomic(staging / "road.json",
+                          dumps_canonical(geo_roads.road_json(road_result)))
+        files["road"] = Path("road.json")
+    return files
 
 
 #: Every output `vid2sim build` may write into its folder. A build owns them: a rebuild
@@ -276,8 +261,7 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
             "m/s from an arbitrary origin (lat 0, lon 0)"
             + (" (a camera-relative scenario)" if inputs.ego_speed_mps == 0 else "")))
 
-    # ---- detect, track, range (the later stages' code loads meanwhile)
-    stages_after = _Preload()
+    # ---- detect, track, range
     ranging, camera, ranging_notes = stages.run(
         "detect, track and range", detect_and_range, video, camera, detector=detector,
         detections=imported, detect_every=settings.detector.detect_every, fps=inputs.fps,
@@ -289,19 +273,91 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
         f"horizon at row {ranging.horizon_y_px:.1f} px (pitch {ranging.pitch_deg_estimated:.2f} "
         f"deg) from {ranging.horizon_source}"))
     camera_used = camera.with_pitch(ranging.pitch_deg_estimated)
-    out = stages_after.result().write_outputs(
-        staging, out_dir, inputs, settings, stages, info=info, video=video, ego=ego,
-        roads=roads, road_result=road_result, trace=trace, ranging=ranging,
-        camera_used=camera_used, notes=notes, ego_noise_m=ego_noise_m, boxes_label=boxes_label,
-        detector_used=detector is not None)
+    # ---- the ego's lateral position from the lane markings (GPS keeps the along-track one)
+    lateral = stages.run("ego lateral position", fuse_lateral, ego, ranging.lanes, road_result,
+                         speed_known=inputs.gps is not None,
+                         refilter=lambda track, speed: lane_track(
+                             track.observations, settings.lanes, speed_mps=speed))
+    ego = lateral.ego
+    notes.extend(lateral.notes)
+    if inputs.gps is not None:
+        # With a trajectory the road's course ahead is where the ego drove: lanes (and the
+        # lead) beyond the lane model's reach follow it.
+        ranging.boxes = stages.run("lanes of the vehicles", relane, ranging.boxes,
+                                   settings.ranging, ranging.lanes, road_course(lateral),
+                                   ranging.never_lead_tracks)
+    warnings = notes_of(notes, NoteKind.WARNING)
+    assumptions = [n for n in notes if getattr(n, "kind", None) in (NoteKind.ASSUMPTION,
+                                                                     NoteKind.ESTIMATE)]
+
+    # ---- assemble
+    options = {**inputs.recorded(), **settings.recorded(detector_used=detector is not None),
+               "detector_used": boxes_label,
+               "fps": info.fps}
+    source = Source(inputs=inputs.fingerprints(), tool_version=__version__, options=options,
+                    assumptions=[str(a) for a in assumptions])
+    scenario, assemble_warnings = stages.run("assemble scenario", assemble_scenario, ego, roads,
+                                             ranging.boxes, camera_used, source=source,
+                                             config=settings.assemble,
+                                             ego_noise_m=ego_noise_m)
+    warnings.extend(assemble_warnings)
+    # ---- the street: the road's lanes from the video (and map), parked cars on their strip
+    scene = stages.run("road cross-section", lay_out_scene, scenario, lateral)
+    scenario = scene.scenario
+    warnings.extend(notes_of(scene.notes, NoteKind.WARNING))
+    scenario.source.assumptions.extend(str(n) for n in scene.notes
+                                       if getattr(n, "kind", None) is not NoteKind.WARNING)
+    scenario.source.warnings = [str(w) for w in warnings]
+    # ---- lane-change events: the actors' (lanes counted from the ego lane the ranging
+    # used) and the ego's own
+    scenario.events = stages.run("lane-change events", scenario_events, ranging.boxes,
+                                 ranging.lanes, scenario.actors, lateral.lane_changes,
+                                 settings.ranging.lane_width_m, scenario.ego.trajectory)
+
+    # ---- write into the staging folder (moved into place by the caller)
+    files = stages.run("write scenario and tables", _write_tables, staging, scenario, ranging,
+                       road_result)
+    xosc, xodr = stages.run("export OpenSCENARIO/OpenDRIVE", write_openscenario, scenario,
+                            staging)
+    files["openscenario"] = Path(xosc.name)
+    files["opendrive"] = Path(xodr.name)
+    figures = stages.run("figures", stage_figures, staging / "figures", road_result, trace, ego,
+                         ranging.boxes)
+    report_inputs = {**inputs.labelled_paths(), "output folder": str(out_dir)}
+    metrics = None
+    if inputs.keyframes is not None:
+        # run_eval writes metrics.json, the keyframe overlays and the one report.html,
+        # with this build's figures, warnings and inputs added.
+        metrics, _ = stages.run("replay evaluation", run_eval, staging / "scenario.json",
+                                inputs.keyframes, video=video, out_dir=staging,
+                                fps=inputs.fps, extra_figures=figures,
+                                extra_warnings=warnings, report_inputs=report_inputs,
+                                # the staging folder's random name would make metrics.json
+                                # differ between identical builds
+                                scenario_label=str(out_dir / "scenario.json"),
+                                # actors drawn with the outlines the ranging read
+                                outlines=settings.ranging.outlines)
+        files["metrics"] = Path("metrics.json")
+    else:
+        # Nothing scores the scene: show sampled frames with what the build saw beside the
+        # simulator's view of the same moment, for a person to judge.
+        frames = stages.run("sampled frames", sample_frame_figures,
+                            staging / "figures" / "frames", video, camera_used, ranging.boxes,
+                            ranging.lanes, scenario, info.fps, info.n_frames,
+                            video_fps=inputs.fps, progress=settings.progress,
+                            frame_times_s=ranging.frame_times_s)
+        stages.run("report", write_report, staging / "report.html", scenario=scenario,
+                   metrics=None, extra_figures=figures, warnings=warnings, inputs=report_inputs,
+                   frame_images=[(c, p, p.relative_to(staging).as_posix()) for c, p in frames])
+    files["report"] = Path("report.html")
+
     lead = lead_summary(ranging, info.n_frames)
     lead_range = (None if not np.isfinite(lead["lead_range_median_m"]) else
                   (lead["lead_range_min_m"], lead["lead_range_median_m"], lead["lead_range_max_m"]))
     return BuildResult(
-        out_dir=out_dir, files={k: out_dir / v for k, v in out.files.items()},
-        duration_s=out.scenario.duration_s, distance_m=path_length_m(out.lateral.ego),
-        n_actors=len(out.scenario.actors), lead_share=lead["lead_share"],
-        lead_range_m=lead_range, metrics=out.metrics, warnings=out.warnings,
-        stage_seconds=stages.seconds, lateral=out.lateral, scene=out.scene,
-        events=list(out.scenario.events))
+        out_dir=out_dir, files={k: out_dir / v for k, v in files.items()},
+        duration_s=scenario.duration_s, distance_m=path_length_m(ego),
+        n_actors=len(scenario.actors), lead_share=lead["lead_share"], lead_range_m=lead_range,
+        metrics=metrics, warnings=warnings, stage_seconds=stages.seconds, lateral=lateral,
+        scene=scene, events=list(scenario.events))
 

@@ -19,7 +19,6 @@ import numpy as np
 from vid2sim import scenario as scenario_io
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.loaders import load_keyframes_for, load_trace, smooth_trace
-from vid2sim.app.road import match_road
 from vid2sim.app.settings import Settings
 from vid2sim.errors import InputError
 from vid2sim.evaluate.replay import run_eval
@@ -50,6 +49,13 @@ def run_trace(inputs: Inputs, out_path: Path, settings: Settings | None = None) 
     ego, stats = smooth_trace(trace, inputs, settings)
     write_ego_csv(ego, out_path)
     return geo_trace.format_summary(stats, out_path)
+
+
+def match_road(trace, ego, inputs: Inputs, settings: Settings):
+    """The road stage on the run's GPS time base (shared by ``road`` and ``build``)."""
+    return geo_roads.build_road(
+        trace, ego, inputs.map, allow_download=settings.allow_download,
+        cache_dir=settings.osm_cache_dir, gps_offset_s=inputs.gps_offset_s)
 
 
 def run_road(inputs: Inputs, out_path: Path, settings: Settings | None = None,
