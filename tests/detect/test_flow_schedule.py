@@ -48,6 +48,32 @@ def test_median_flow_follows_a_shift_and_a_growth():
     assert moved[0] == pytest.approx(box1, abs=1.5)
 
 
+def test_median_flow_prepared_ahead_in_another_thread_carries_the_same():
+    # The grey images made ahead (as the decoding thread does) give the same carry as those
+    # made in carry(); an image prepared for a frame that was never carried is dropped.
+    import threading
+
+    rng = np.random.default_rng(3)
+    background, patch = textured_scene(rng)
+    frames = [paste(background, patch, 300.0 + 4 * k, 180.0 + k, 1.0 + 0.03 * k)
+              for k in range(4)]
+    inline, ahead = MedianFlow(), MedianFlow()
+    worker = threading.Thread(target=lambda: [ahead.prepare(k, f) for k, (f, _) in
+                                              enumerate(frames)])
+    worker.start()
+    worker.join()
+    assert sorted(ahead._ready) == [0, 1, 2, 3]
+    inline.carry(frames[0][0], np.zeros((0, 4)))
+    ahead.carry(frames[0][0], np.zeros((0, 4)), 0)
+    for k in (1, 3):  # frame 2 is skipped: its prepared image goes with the next carry
+        box = frames[k - 1][1][None]
+        a, ok_a = inline.carry(frames[k][0], box)
+        b, ok_b = ahead.carry(frames[k][0], box, k)
+        assert ok_a[0] and ok_b[0]
+        assert np.array_equal(a, b)
+    assert ahead._ready == {}
+
+
 def test_median_flow_refuses_a_box_without_texture_and_needs_a_previous_frame():
     rng = np.random.default_rng(2)
     background, patch = textured_scene(rng)

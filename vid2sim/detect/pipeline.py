@@ -119,8 +119,13 @@ def run_detect(source: Path, *, detector: Detector | None,
     decode_every = detect_every if (detector is not None or on_frame is not None) else 0
     frames = iter_frames(source, every=decode_every or 1_000_000_000, fps=fps,
                          skipped=skipped_frames)
+    # the optical flow's grey image is made in the decoding thread, ahead of its carry
+    observers = ([lambda frame: carrier.prepare(frame.index, frame.image_bgr)]
+                 if carrier is not None else [])
     if on_frame is not None:
-        frames = _observed(frames, on_frame)
+        observers.append(on_frame)
+    if observers:
+        frames = _observed(frames, observers)
     frames = prefetch(frames)
     with tqdm(total=info.n_frames or None, unit="frame", desc="detect",
               disable=not progress) as bar:
@@ -160,11 +165,13 @@ def run_detect(source: Path, *, detector: Detector | None,
     return tracker.finalize(rows)
 
 
-def _observed(frames: Iterator[Frame], on_frame: Callable[[Frame], None]) -> Iterator[Frame]:
-    """``frames``, each decoded one shown to ``on_frame`` first (in the decoding thread)."""
+def _observed(frames: Iterator[Frame], observers: list[Callable[[Frame], None]]
+              ) -> Iterator[Frame]:
+    """``frames``, each decoded one shown to every observer first (in the decoding thread)."""
     for frame in frames:
         if frame.image_bgr is not None:
-            on_frame(frame)
+            for observe in observers:
+                observe(frame)
         yield frame
 
 
@@ -174,11 +181,11 @@ def _scheduled_step(frame: Frame, detector: Detector, tracker: Tracker,
     if keys.is_keyframe(frame.t_s):
         found = detector.detect(frame.image_bgr)
         out = tracker.update(frame.index, frame.t_s, found)
-        carrier.carry(frame.image_bgr, [])  # keeps this frame for the next carry
+        carrier.carry(frame.image_bgr, [], frame.index)  # keeps this frame for the next carry
         keys.after_keyframe(tracker, frame.t_s)
         return out
     ids, boxes = tracker.shown_boxes()
-    moved, ok = carrier.carry(frame.image_bgr, boxes)
+    moved, ok = carrier.carry(frame.image_bgr, boxes, frame.index)
     out = tracker.update(frame.index, frame.t_s, None,
                          measured={tid: moved[i] for i, tid in enumerate(ids) if ok[i]})
     keys.after_carry(tracker, {tid: bool(ok[i]) for i, tid in enumerate(ids)})
