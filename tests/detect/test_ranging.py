@@ -27,6 +27,7 @@ from vid2sim.detect.ranging import (
     DEFAULT_PRIORS,
     BoxArrays,
     RangingConfig,
+    choose_horizon,
     colored_noise_factor,
     cuboid_config,
     fit_boxes,
@@ -366,6 +367,25 @@ def test_lane_hints_win_over_camera_file():
     assert res.horizon_y_px == pytest.approx(true_cam.horizon_y_px(), abs=2.0)
     rel, _ = _errors(res, truth)
     assert np.median(rel) < 0.03
+
+
+def test_a_horizon_chosen_beforehand_gives_the_same_ranging():
+    # detect_and_range chooses the horizon before ranging (for the trams' pitch) and hands
+    # it over; the result must be the one range_tracks finds by itself.
+    true_cam = CAM.with_pitch(-1.0)
+    boxes, _ = simulate(true_cam, [Vehicle(1, lambda t: 25.0, lambda t: 0.0, lambda t: 0.0),
+                                   Vehicle(2, lambda t: 40.0 - 3 * t, lambda t: 3.5,
+                                           lambda t: 0.0)], duration_s=2.0)
+    hints = list(true_cam.horizon_y_px() + np.random.default_rng(1).normal(0, 2, 30))
+    config = RangingConfig()
+    own = range_tracks(boxes, CAM, horizon_hints_px=hints, config=config)
+    chosen = choose_horizon(boxes, CAM, config, hints)
+    handed = range_tracks(boxes, CAM, horizon_hints_px=hints, config=config, horizon=chosen)
+    assert handed.horizon_y_px == own.horizon_y_px
+    assert handed.horizon_source == own.horizon_source
+    assert [b.range_m for b in handed.boxes] == [b.range_m for b in own.boxes]
+    assert [b.range_rate_mps for b in handed.boxes] == pytest.approx(
+        [b.range_rate_mps for b in own.boxes], nan_ok=True, rel=0, abs=0)
 
 
 def test_parked_cars_on_lower_ground_do_not_move_the_vehicle_horizon():

@@ -289,13 +289,15 @@ def detect_and_range(video: Path, camera: Camera, *, detector, detections=None,
     config = config or RangingConfig()
     # Trams first (the detector's, and tall vehicles beyond the kerb), at the pitch the
     # ranging will estimate, so that each is ranged once with the tram's size.
-    horizon_px, _, _ = choose_horizon(boxes, camera, config, horizon_est.rows_px)
+    chosen = choose_horizon(boxes, camera, config, horizon_est.rows_px)
     rail = find_rail_tracks(boxes, lanes, camera.with_pitch(pitch_for_horizon(camera,
-                                                                              horizon_px)))
+                                                                              chosen[0])))
     if rail.relabelled:
-        boxes = relabel(boxes, rail.relabelled)
+        # the trams' sizes change the vehicles' horizon: ranging chooses it again
+        boxes, chosen = relabel(boxes, rail.relabelled), None
     result = range_tracks(boxes, camera, horizon_hints_px=horizon_est.rows_px,
-                          horizon_hint_frames=horizon_est.frames, config=config, lanes=lanes)
+                          horizon_hint_frames=horizon_est.frames, config=config, lanes=lanes,
+                          horizon=chosen)
     result, rail_notes = keep_trams_from_lead(result, rail, config)
     result.frame_times_s = frame_times
     notes.extend(rail_notes)

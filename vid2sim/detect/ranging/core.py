@@ -119,7 +119,8 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
                  horizon_hints_px: list[float] | None = None,
                  horizon_hint_frames: list[int] | None = None,
                  config: RangingConfig | None = None,
-                 lanes: LaneTrack | None = None) -> RangingResult:
+                 lanes: LaneTrack | None = None,
+                 horizon: tuple[float, str, list[Note]] | None = None) -> RangingResult:
     """Range, lateral offset and range rate of every tracked box.
 
     Parameters
@@ -138,6 +139,9 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
     lanes : LaneTrack, optional
         The ego lane from the lane markings: lanes and the lead are counted from it (else
         from the camera's axis); kept in the result.
+    horizon : tuple, optional
+        What :func:`choose_horizon` returns for these boxes, hints and camera, when the
+        caller has it already (it costs a second on a minute of 720p video); else computed.
 
     Returns
     -------
@@ -155,7 +159,8 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
         warnings.append(Note.warning(f"no size prior for {', '.join(unknown)}: used the car "
                                      "prior"))
 
-    horizon, source, notes = choose_horizon(boxes, camera, config, horizon_hints_px)
+    horizon, source, notes = (horizon if horizon is not None
+                              else choose_horizon(boxes, camera, config, horizon_hints_px))
     warnings.extend(n for n in notes if n.kind is NoteKind.WARNING)
     pitch = pitch_for_horizon(camera, horizon)
     cam = camera.with_pitch(pitch)
