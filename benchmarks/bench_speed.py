@@ -2,6 +2,13 @@
 
     python benchmarks/bench_speed.py [--shared ../shared] [--repeat 3] [--no-accuracy]
                                      [--no-speed] [--no-720p] [--quick-720p] [--seeds 0 1 ...]
+    python benchmarks/bench_speed.py --options [--repeat 2]
+
+``--options`` measures what each speed option of ``track``/``build`` (``OPTIONS``: longer
+keyframe intervals, no tiles, the detector on every frame) buys and costs on KITTI raw 0001,
+and prints one table: speed in-process, ``vid2sim detect`` recall/precision on the six
+labelled frames, the composite clips' lead (as item 5 below), and the parked cars' range rate
+against OXTS (as ``benchmarks/bench_parked_schedule.py``).
 
 Speed (best of ``--repeat`` runs; the machine is shared, so every figure is also given as a
 ratio to decoding the same video in the same process and run):
@@ -39,6 +46,7 @@ import argparse
 import csv
 import functools
 import os
+import re
 import resource
 import subprocess
 import sys
@@ -53,12 +61,13 @@ import numpy as np
 
 from vid2sim.app.demo import run_demo
 from vid2sim.app.inputs import Inputs
+from vid2sim.app.loaders import load_detector_for
 from vid2sim.app.settings import DetectorSettings, Settings
 from vid2sim.app.tracking import run_track
 from vid2sim.boxes import iou_matrix
 from vid2sim.camera import fit_camera_to_frames, load_camera
 from vid2sim.detect import pipeline
-from vid2sim.detect.detector import OnnxDetector, load_detector
+from vid2sim.detect.detector import OnnxDetector
 from vid2sim.detect.external import (
     MatchCounts,
     read_kitti_tracking_labels,
@@ -68,6 +77,7 @@ from vid2sim.detect.flow import MedianFlow
 from vid2sim.detect.lanes import HorizonEstimator
 from vid2sim.detect.tracker import Tracker
 from vid2sim.detect.video import iter_frames, video_info
+from vid2sim.evaluate.ranging.static import ego_motion, evaluate_parked
 from vid2sim.records import Detection
 from vid2sim.samples import composite as cp
 from vid2sim.samples.cutin import in_lane, measure_ego_lane
@@ -116,14 +126,31 @@ def decode_seconds(video: Path) -> float:
     return time.perf_counter() - t0
 
 
-def settings_for(model_dir: Path, keyframe_s: float | None) -> Settings:
-    d = DetectorSettings(model_dir=model_dir)
-    if keyframe_s is not None:
-        d = replace(d, keyframe_s=keyframe_s)
+def settings_for(model_dir: Path, options: dict | None = None) -> Settings:
+    """The default settings with the detector options in ``options`` (DetectorSettings
+    fields) changed."""
+    d = replace(DetectorSettings(model_dir=model_dir), **(options or {}))
     return Settings(detector=d, progress=False, allow_download=False)
 
 
-CONFIGS = (("default (keyframes)", None), ("every frame", 0.0))
+def cli_flags(options: dict) -> list[str]:
+    """The ``vid2sim detect/track`` flags of ``options``."""
+    flags = []
+    if "keyframe_s" in options:
+        flags += ["--keyframe-s", str(options["keyframe_s"])]
+    if options.get("tiles") is False:
+        flags.append("--no-tiles")
+    return flags
+
+
+CONFIGS = (("default (keyframes)", {}), ("every frame", {"keyframe_s": 0.0}))
+#: What a user can trade for speed (``--options``): the flags of ``track``/``build``.
+OPTIONS = (("default", {}), ("--keyframe-s 0.6", {"keyframe_s": 0.6}),
+           ("--no-tiles", {"tiles": False}),
+           ("--no-tiles --keyframe-s 0.6", {"tiles": False, "keyframe_s": 0.6}),
+           ("--keyframe-s 0 (every frame)", {"keyframe_s": 0.0}))
+#: The figures of each option, for the summary table of ``--options``.
+SUMMARY: dict[str, dict[str, str]] = defaultdict(dict)
 
 
 def speed(label: str, video: Path, camera: Path | None, model_dir: Path, repeat: int,
@@ -134,7 +161,7 @@ def speed(label: str, video: Path, camera: Path | None, model_dir: Path, repeat:
           f"{info.fps:g} fps, {duration:.1f} s")
     dec = min(decode_seconds(video) for _ in range(repeat))
     print(f"  decode only: {dec:.2f} s = {duration / dec:.1f}x real time")
-    for name, keyframe_s in configs:
+    for name, options in configs:
         best = None
         for _ in range(repeat):
             STAGE_TIMES.clear()
@@ -150,7 +177,7 @@ def speed(label: str, video: Path, camera: Path | None, model_dir: Path, repeat:
             with tempfile.TemporaryDirectory() as tmp:
                 t0, c0 = time.perf_counter(), time.process_time()
                 run_track(Inputs(video=video, camera=camera), Path(tmp) / "tracks.csv",
-                          settings_for(model_dir, keyframe_s))
+                          settings_for(model_dir, options))
                 wall, cpu = time.perf_counter() - t0, time.process_time() - c0
             pipeline.run_detect = original
             dec_again = decode_seconds(video)
@@ -166,6 +193,8 @@ def speed(label: str, video: Path, camera: Path | None, model_dir: Path, repeat:
               f"{calls.get('onnx', 0) / info.n_frames:.2f}; keyframes "
               f"{stats.get('keyframes', 0)}/{stats.get('frames', 0)} "
               f"{stats.get('keyframe_reasons', {})}")
+        SUMMARY[name]["speed"] = (f"{wall:.2f} s = {duration / wall:.1f}x real time, "
+                                  f"{ratio:.0f}x decode, CPU {cpu:.1f} s")
 
 
 def cli_runs(raw: Path, model_dir: Path, repeat: int) -> None:
@@ -234,7 +263,7 @@ def read_rows(path: Path) -> list[dict]:
         return list(csv.DictReader(fh))
 
 
-def sparse_folders(tracking: Path, model_dir: Path, keyframe_s: float) -> None:
+def sparse_folders(tracking: Path, model_dir: Path, name: str, options: dict) -> None:
     """vid2sim detect and track on each labelled folder: recall/precision, range error."""
     counts = MatchCounts(0, 0, 0, 0)
     errors: list[tuple[float, float]] = []  # (true rear distance, relative error)
@@ -244,10 +273,10 @@ def sparse_folders(tracking: Path, model_dir: Path, keyframe_s: float) -> None:
             labels = read_kitti_tracking_labels(tracking / "label_02" / f"{seq}.txt")
             pngs = sorted(folder.glob("*.png"))
             det_csv, trk_csv = Path(tmp) / f"d{seq}.csv", Path(tmp) / f"t{seq}.csv"
-            run_cli(["detect", str(folder), "--keyframe-s", str(keyframe_s),
-                     "--out", str(det_csv)], model_dir)
+            run_cli(["detect", str(folder), *cli_flags(options), "--out", str(det_csv)],
+                    model_dir)
             run_cli(["track", str(folder), "--camera", str(tracking / "camera_0001.yaml"),
-                     "--keyframe-s", str(keyframe_s), "--out", str(trk_csv)], model_dir)
+                     *cli_flags(options), "--out", str(trk_csv)], model_dir)
             dets, trks = read_rows(det_csv), read_rows(trk_csv)
             for i, png in enumerate(pngs):
                 frame_labels = labels.get(int(png.stem), [])
@@ -276,10 +305,11 @@ def sparse_folders(tracking: Path, model_dir: Path, keyframe_s: float) -> None:
         return (f"|rel| {100 * np.median(np.abs(a[:, 1])):.1f} %, bias "
                 f"{100 * np.median(a[:, 1]):+.1f} % ({len(a)})")
 
-    print(f"  keyframe {keyframe_s:g} s: detect on the 6 labelled frames recall "
+    print(f"  {name}: detect on the 6 labelled frames recall "
           f"{counts.recall:.2f} precision {counts.precision:.2f} ({counts.n_found}/"
           f"{counts.n_targets}, {counts.n_false}/{counts.n_detections} false); track range: "
           f"all {fmt(e)}; < 20 m {fmt(near)}; >= 20 m {fmt(far)}")
+    SUMMARY[name]["detect"] = f"{counts.recall:.2f} / {counts.precision:.2f}"
 
 
 class FrameCache:
@@ -299,12 +329,10 @@ class FrameCache:
             self.images[f.image_bgr.tobytes()[:: 9973]] = f.index
 
 
-def composite(shared: Path, model_dir: Path, seeds: list[int]) -> None:
+def composite(shared: Path, model_dir: Path, seeds: list[int], configs=CONFIGS) -> None:
     data = shared / "data"
     raw, tracking = data / "kitti_raw_0001", data / "kitti_tracking"
     cutout = cp.load_cutout(tracking, "polo")
-    detector = load_detector("yolox-nano", model_dir,
-                             score_threshold=Settings().tracker_config().low_score)
     info = video_info(raw / "video.mp4")
     camera, _ = fit_camera_to_frames(load_camera(raw / "camera.yaml"), info.width, info.height)
     lane = measure_ego_lane(raw, camera, 108)
@@ -313,17 +341,28 @@ def composite(shared: Path, model_dir: Path, seeds: list[int]) -> None:
         for seed in seeds:
             # in the drive's measured lane, as benchmarks/bench_composite.py (not --on-axis)
             truth = in_lane(cp.lead_profile(seed, 108), lane)
-            clip = cp.write_composite_clip(raw, cutout, truth, Path(tmp) / f"c{seed}.mp4")
-            cache = FrameCache(detector, clip.video)
-            cache.learn(clip.video)
-            clips.append((truth, clip, cache))
-        for keyframe_s in (DetectorSettings().keyframe_s, 0.0):
-            composite_score(raw, clips, seeds, keyframe_s, model_dir)
+            clips.append((truth, cp.write_composite_clip(raw, cutout, truth,
+                                                         Path(tmp) / f"c{seed}.mp4")))
+        caches: dict[tuple, list[FrameCache]] = {}
+        for name, options in configs:
+            settings = settings_for(model_dir, options)
+            d = settings.detector
+            key = (d.tiles, d.refine)  # what the detector's boxes depend on
+            if key not in caches:
+                detector = load_detector_for(settings)
+                caches[key] = []
+                for _, clip in clips:
+                    cache = FrameCache(detector, clip.video)
+                    cache.learn(clip.video)
+                    caches[key].append(cache)
+            composite_score(raw, [(t, c, k) for (t, c), k in zip(clips, caches[key],
+                                                                   strict=True)],
+                            seeds, name, settings)
 
 
-def composite_score(raw: Path, clips: list, seeds: list[int], keyframe_s: float,
-                    model_dir: Path) -> None:
-    schedule = settings_for(model_dir, keyframe_s).detector.schedule()
+def composite_score(raw: Path, clips: list, seeds: list[int], name: str,
+                    settings: Settings) -> None:
+    schedule = settings.detector.schedule()
     rel, sign, rate, present = [], [], [], []
     for truth, clip, cache in clips:
         info = video_info(clip.video)
@@ -343,18 +382,43 @@ def composite_score(raw: Path, clips: list, seeds: list[int], keyframe_s: float,
                 sign.append(err)
                 if np.isfinite(b.range_rate_mps):
                     rate.append(b.range_rate_mps - truth.range_rate_mps[i])
-    print(f"  keyframe {keyframe_s:g} s: composite seeds {seeds}: lead range |rel| median "
-          f"{100 * np.median(rel):.1f} %, bias {100 * np.median(sign):+.1f} %, rate RMSE "
-          f"{np.sqrt(np.mean(np.square(rate))):.2f} m/s, presence {100 * np.mean(present):.0f} %")
+    figures = (f"lead range |rel| median {100 * np.median(rel):.1f} %, bias "
+               f"{100 * np.median(sign):+.1f} %, rate RMSE "
+               f"{np.sqrt(np.mean(np.square(rate))):.2f} m/s, presence "
+               f"{100 * np.mean(present):.0f} %")
+    print(f"  {name}: composite seeds {seeds}: {figures}")
+    SUMMARY[name]["composite"] = (f"range {100 * np.median(rel):.1f} % (bias "
+                                  f"{100 * np.median(sign):+.1f} %), rate RMSE "
+                                  f"{np.sqrt(np.mean(np.square(rate))):.2f} m/s, presence "
+                                  f"{100 * np.mean(present):.0f} %")
 
 
-def demo(model_dir: Path, keyframe_s: float) -> None:
+def parked(raw: Path, model_dir: Path, name: str, options: dict) -> None:
+    """The parked cars of KITTI raw 0001 against OXTS (as benchmarks/bench_parked_schedule.py):
+    real truth nobody here produced."""
+    settings = settings_for(model_dir, options)
+    video = raw / "video.mp4"
+    info = video_info(video)
+    camera, _ = fit_camera_to_frames(load_camera(raw / "camera.yaml"), info.width, info.height)
+    d = settings.detector
+    result, cam, _ = pipeline.detect_and_range(
+        video, camera, detector=load_detector_for(settings), progress=False,
+        detect_every=d.detect_every, schedule=d.schedule())
+    report = evaluate_parked(result, cam, ego_motion(raw)).report(name)
+    line = next(x for x in report.splitlines() if x.strip().startswith("all"))
+    print(f"  {name}: parked cars' range rate vs OXTS, {line.strip()}")
+    n, rmse, med, bias = re.findall(r"[-+]?\d+\.?\d*", line)[:4]
+    SUMMARY[name]["parked"] = (f"median abs error {med} m/s, signed {bias}, RMSE {rmse} "
+                               f"({n} boxes)")
+
+
+def demo(model_dir: Path, name: str, options: dict) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
-        result = run_demo(Path(tmp), settings=settings_for(model_dir, keyframe_s))
+        result = run_demo(Path(tmp), settings=settings_for(model_dir, options))
         wall = time.perf_counter() - t0
     m = result.metrics or {}
-    print(f"  keyframe {keyframe_s:g} s: demo with the real detector: keyframe F1 "
+    print(f"  {name}: demo with the real detector: keyframe F1 "
           f"{m.get('f1', float('nan')):.3f}, mean IoU {m.get('mean_iou', float('nan')):.3f} "
           f"(build {wall:.0f} s)")
 
@@ -369,6 +433,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--quick-720p", action="store_true",
                         help="the 720p clip with the default settings only")
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3, 4, 5])
+    parser.add_argument("--options", action="store_true",
+                        help="what each speed option of track/build buys and costs, on KITTI "
+                        "raw 0001 (speed, labelled frames, composite clips, parked cars)")
     args = parser.parse_args(argv)
     data, model_dir = args.shared / "data", args.shared / "models"
     raw = data / "kitti_raw_0001"
@@ -376,6 +443,8 @@ def main(argv: list[str] | None = None) -> int:
         if not p.exists():
             print(f"missing {p}", file=sys.stderr)
             return 2
+    if args.options:
+        return options_table(args, raw, model_dir)
     if not args.no_speed:
         _instrument()
         speed("KITTI raw 0001", raw / "video.mp4", raw / "camera.yaml", model_dir, args.repeat)
@@ -387,12 +456,34 @@ def main(argv: list[str] | None = None) -> int:
                       CONFIGS[:1] if args.quick_720p else CONFIGS)
     if not args.no_accuracy:
         print("\naccuracy, default keyframes against the detector on every frame")
-        for keyframe_s in (DetectorSettings().keyframe_s, 0.0):
-            sparse_folders(data / "kitti_tracking", model_dir, keyframe_s)
+        for name, options in CONFIGS:
+            sparse_folders(data / "kitti_tracking", model_dir, name, options)
         composite(args.shared, model_dir, args.seeds)
-        for keyframe_s in (DetectorSettings().keyframe_s, 0.0):
-            demo(model_dir, keyframe_s)
+        for name, options in CONFIGS:
+            demo(model_dir, name, options)
     print(f"\npeak RSS of this process {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MiB")
+    return 0
+
+
+def options_table(args, raw: Path, model_dir: Path) -> int:
+    """``--options``: every entry of :data:`OPTIONS` measured on the same clips, then one
+    table (speed on KITTI raw 0001 in-process; recall/precision of ``vid2sim detect`` on the
+    six labelled frames; the composite clips' lead; the parked cars against OXTS)."""
+    _instrument()
+    speed("KITTI raw 0001", raw / "video.mp4", raw / "camera.yaml", model_dir, args.repeat,
+          OPTIONS)
+    print("\naccuracy of each option")
+    for name, options in OPTIONS:
+        sparse_folders(args.shared / "data" / "kitti_tracking", model_dir, name, options)
+    composite(args.shared, model_dir, args.seeds, OPTIONS)
+    for name, options in OPTIONS:
+        parked(raw, model_dir, name, options)
+    print("\n| option | track, KITTI raw 0001 | detect recall / precision | composite lead | "
+          "parked cars vs OXTS |\n| --- | --- | --- | --- | --- |")
+    for name, _ in OPTIONS:
+        row = SUMMARY[name]
+        print(f"| `{name}` | {row.get('speed', '-')} | {row.get('detect', '-')} | "
+              f"{row.get('composite', '-')} | {row.get('parked', '-')} |")
     return 0
 
 

@@ -30,7 +30,7 @@ class DetectorSettings:
         then the user cache)
     :param tiles: also run on two half-frame tiles and a centre window (distant cars)
     :param refine: lead candidates re-detected on a crop per frame; None = the detector's
-        default (2 with tiles, 0 without)
+        default (1 with tiles, 0 without)
     :param score: minimum score to start a track [0-1]; None = the tracker's default
     :param detect_every: run the detector on every N-th frame (the tracker predicts between);
         above 1 it replaces the keyframe schedule
