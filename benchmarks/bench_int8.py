@@ -61,6 +61,7 @@ from __future__ import annotations
 import argparse
 import copy
 import statistics
+import sys
 import tempfile
 import time
 from dataclasses import dataclass, field
@@ -470,6 +471,11 @@ def main() -> None:
         args.variants.insert(0, "fp32")
     data = args.shared / "data"
     video = data / "kitti_raw_0001" / "video.mp4"
+    for needed in (video, data / "kitti_tracking", args.shared / "models"):
+        if not needed.exists():
+            print(f"error: {needed}: not found (the real data and the detector weights are in "
+                  "../shared beside the repository; give --shared DIR)", file=sys.stderr)
+            raise SystemExit(2)
     fp32_det = load_detector("yolox-nano", args.shared / "models", small_object_mode=True)
     fp32 = dynamic_copy(fp32_det.model_path)
     calib = [b for _, im in raw_frames(video, CALIB_FRAMES) for b in windows_of(fp32_det, im)]

@@ -31,7 +31,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     raw, models = args.shared / "data" / "kitti_raw_0001", args.shared / "models"
     if not raw.is_dir() or not models.is_dir():
-        print(f"missing {raw} or {models}", file=sys.stderr)
+        print(f"error: {raw if not raw.is_dir() else models}: not found "
+              "(the real data and the detector weights are in ../shared beside the repository; give --shared DIR)", file=sys.stderr)
         return 2
     video = raw / "video.mp4"
     info = video_info(video)

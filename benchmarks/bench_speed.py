@@ -441,7 +441,7 @@ def main(argv: list[str] | None = None) -> int:
     raw = data / "kitti_raw_0001"
     for p in (raw, data / "kitti_tracking", model_dir):
         if not p.exists():
-            print(f"missing {p}", file=sys.stderr)
+            print(f"error: {p}: not found (the real data and the detector weights are in ../shared beside the repository; give --shared DIR)", file=sys.stderr)
             return 2
     if args.options:
         return options_table(args, raw, model_dir)
