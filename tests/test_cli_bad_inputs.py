@@ -392,6 +392,13 @@ sys.exit(main(sys.argv[3:]))
 """
 
 
+def _default_sigint() -> None:
+    """The child starts with SIGINT at its default action. A shell without job control starts
+    background commands with SIGINT ignored, children inherit that, and Python then installs no
+    KeyboardInterrupt handler: the test would measure the shell that ran pytest, not vid2sim."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 @pytest.mark.parametrize("sig,code", [(signal.SIGTERM, 143), (signal.SIGINT, 130)],
                          ids=["SIGTERM", "SIGINT"])
 @pytest.mark.parametrize("stage", ["detect_and_range", "write_openscenario"])
@@ -406,7 +413,7 @@ def test_signal_leaves_no_staging_and_old_outputs(sig, code, stage, world, tmp_p
         [sys.executable, "-c", _SLOW_STAGE, str(marker), stage, "-q", "build",
          str(world["video"]), "--detections", str(world["det"]), "--offline",
          "--out", str(out_dir)], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-        text=True)
+        text=True, preexec_fn=_default_sigint)
     try:
         deadline = time.monotonic() + 300
         while not marker.exists():
