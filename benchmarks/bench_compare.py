@@ -38,7 +38,7 @@ import vid2sim
 assert vid2sim.__file__.startswith(os.getcwd()), vid2sim.__file__  # the exported tree
 from vid2sim.app.settings import DetectorSettings, Settings
 from vid2sim.app.loaders import load_detector_for
-from vid2sim.camera import load_camera
+from vid2sim.core.camera import load_camera
 from vid2sim.detect.pipeline import detect_and_range
 from vid2sim.detect.video import iter_frames
 raw, models = Path(sys.argv[1]), Path(sys.argv[2])

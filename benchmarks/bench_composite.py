@@ -58,10 +58,10 @@ import numpy as np
 from vid2sim.app.build import build
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.settings import DetectorSettings, Settings
-from vid2sim.camera import fit_camera_to_frames, load_camera
+from vid2sim.core.camera import fit_camera_to_frames, load_camera
+from vid2sim.core.records import Detection
 from vid2sim.detect.pipeline import detect_and_range
 from vid2sim.detect.video import video_info
-from vid2sim.records import Detection
 from vid2sim.samples import composite as cp
 from vid2sim.samples.cutin import EgoLaneWorld, in_lane, measure_ego_lane
 
@@ -88,8 +88,8 @@ def detections_for(clip: cp.CompositeClip, cache: Path, model_dir: Path
     if cache.is_file():
         rows = json.loads(cache.read_text())
         return {int(k): [Detection(tuple(d[0]), d[1], d[2]) for d in v] for k, v in rows.items()}
-    from vid2sim.detect.detector import load_detector
-    from vid2sim.detect.tracker import TrackerConfig
+    from vid2sim.detect.tracking.tracker import TrackerConfig
+    from vid2sim.detect.vehicles.detector import load_detector
     from vid2sim.detect.video import iter_frames
 
     det = load_detector("yolox-nano", model_dir, score_threshold=TrackerConfig().low_score)

@@ -2,7 +2,7 @@
 
 1. Accuracy on ../shared/data/kitti_tracking (6 labelled frames): recall of cars/vans with
    truncation < 0.5, occlusion <= 1, height >= 25 px at IoU >= 0.5, and precision (see
-   vid2sim.detect.external.score_against_kitti for what counts as a false detection),
+   vid2sim.detect.vehicles.external.score_against_kitti for what counts as a false detection),
    per model, with and without the small-car tiles; also recall of the small targets alone.
 2. Speed on ../shared/data/kitti_raw_0001/video.mp4 (108 frames): frames per second of
    decode + detect + track (run_detect), per model and tiling mode.
@@ -24,14 +24,14 @@ from pathlib import Path
 
 import cv2
 
-from vid2sim.detect.detector import load_detector
-from vid2sim.detect.external import (
+from vid2sim.detect.pipeline import run_detect
+from vid2sim.detect.vehicles.detector import load_detector
+from vid2sim.detect.vehicles.external import (
     MatchCounts,
     is_kitti_target,
     read_kitti_tracking_labels,
     score_against_kitti,
 )
-from vid2sim.detect.pipeline import run_detect
 from vid2sim.detect.video import video_info
 
 MODELS = ("yolox-nano", "picodet-s")
@@ -88,7 +88,7 @@ def tracking(seeds: int) -> None:
     """Identity figures of the tracker on the synthetic forward drive (see module doc)."""
     import importlib.util
 
-    from vid2sim.detect.tracker import Tracker
+    from vid2sim.detect.tracking.tracker import Tracker
 
     path = Path(__file__).resolve().parents[1] / "tests" / "detect" / "test_tracker.py"
     spec = importlib.util.spec_from_file_location("synthetic_drive", path)

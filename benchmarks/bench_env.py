@@ -14,10 +14,10 @@ from pathlib import Path
 import numpy as np
 
 from vid2sim.adas.policies import AccPolicy, AebPolicy, run_episode
+from vid2sim.core.scenario import Actor, Ego, Road, Scenario, Source
 from vid2sim.export.highway import ReplayEnv
 from vid2sim.export.openscenario import write_openscenario
 from vid2sim.samples.scenarios import ORIGIN, trajectory_along
-from vid2sim.scenario import Actor, Ego, Road, Scenario, Source
 
 
 def synthetic(n_actors: int, duration_s: float) -> Scenario:

@@ -14,13 +14,13 @@ import tempfile
 import time
 from pathlib import Path
 
-from vid2sim.camera import load_camera
+from vid2sim.core.camera import load_camera
+from vid2sim.core.records import AnnotatedBox, Keyframe
+from vid2sim.core.scenario import save
 from vid2sim.evaluate.metrics import score_keyframes
 from vid2sim.evaluate.replay import _env_available, replay_boxes, run_eval
-from vid2sim.records import AnnotatedBox, Keyframe
 from vid2sim.samples.scenarios import parallel_traffic_scenario as make_scenario
 from vid2sim.samples.scenarios import scenario_from_kitti_labels
-from vid2sim.scenario import save
 
 DATA = Path(os.environ.get("VID2SIM_SHARED", Path(__file__).resolve().parents[2] / "shared")) / "data"
 

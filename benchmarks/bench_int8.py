@@ -4,7 +4,7 @@
                                     [--no-speed] [--no-accuracy] [--keep DIR]
 
 Builds quantised copies of the detector's dynamic-shape weights
-(:func:`vid2sim.detect.dynamic.dynamic_copy`) into a temporary folder with
+(:func:`vid2sim.detect.vehicles._dynamic.dynamic_copy`) into a temporary folder with
 ``onnxruntime.quantization`` and compares them with the FP32 weights in one process:
 
 1. Speed: milliseconds per onnxruntime call at the three input shapes a keyframe of KITTI
@@ -73,13 +73,17 @@ import onnx
 from onnx import version_converter
 from onnxruntime.quantization import quant_pre_process
 
-from vid2sim.boxes import iou_matrix, match
-from vid2sim.detect.detector import ORT_SPINNING, load_detector
-from vid2sim.detect.dynamic import dynamic_copy
-from vid2sim.detect.external import MatchCounts, read_kitti_tracking_labels, score_against_kitti
+from vid2sim.core.boxes import iou_matrix, match
+from vid2sim.core.records import Detection
+from vid2sim.detect.vehicles._dynamic import dynamic_copy
+from vid2sim.detect.vehicles.detector import ORT_SPINNING, load_detector
+from vid2sim.detect.vehicles.external import (
+    MatchCounts,
+    read_kitti_tracking_labels,
+    score_against_kitti,
+)
+from vid2sim.detect.vehicles.windows import tile_windows
 from vid2sim.detect.video import iter_frames
-from vid2sim.detect.windows import tile_windows
-from vid2sim.records import Detection
 
 SHAPES = ((1, 3, 160, 416), (2, 3, 288, 416), (1, 3, 416, 416))
 """Input shapes of one KITTI keyframe with the default settings (see the module docstring)."""

@@ -7,7 +7,7 @@
    right. Per frame: detection rate (both ego-lane boundaries; either one; confirmed by the
    lane track). Noise: a painted line does not move, so each frame's measured line placed in
    the world with the OXTS GPS/INS pose must fall on one smooth curve
-   (:func:`vid2sim.evaluate.lanes.world_line_scatter`, a cubic across the 100 m drive); the
+   (:func:`vid2sim.evaluate.lane_checks.world_line_scatter`, a cubic across the 100 m drive); the
    scatter about it, with signed bias and lag-1 correlation, is given for the single-frame
    line at x = 0 (what one frame says beside the camera), the single-frame line where it is
    seen (x = 8 m), and the lane track's ego offset (no speed: the streaming stage; with the
@@ -40,10 +40,13 @@ from vid2sim.app.demo import run_demo
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.loaders import load_trace, smooth_trace
 from vid2sim.app.settings import Settings
-from vid2sim.camera import load_camera
-from vid2sim.detect.lane_markings import LaneMarkingDetector
-from vid2sim.detect.lane_track import lane_track
-from vid2sim.evaluate.lanes import (
+from vid2sim.core.camera import load_camera
+from vid2sim.core.lead import COURSE_JOIN_M, ego_lane_at, lane_centre_ahead_m, lane_centre_m
+from vid2sim.core.scenario import Trajectory
+from vid2sim.core.scenario import load as load_scenario
+from vid2sim.detect.lanes.markings import LaneMarkingDetector
+from vid2sim.detect.lanes.track import lane_track
+from vid2sim.evaluate.lane_checks import (
     actor_enters_lane_s,
     ego_cross_error,
     kitti_camera_poses,
@@ -52,10 +55,7 @@ from vid2sim.evaluate.lanes import (
     world_line_scatter,
 )
 from vid2sim.geo.course import RoadCourse
-from vid2sim.lead import COURSE_JOIN_M, ego_lane_at, lane_centre_ahead_m, lane_centre_m
 from vid2sim.samples.demo_truth import truth_scenario
-from vid2sim.scenario import Trajectory
-from vid2sim.scenario import load as load_scenario
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared"
 CURVE_INV_M = 2e-3
@@ -167,9 +167,9 @@ def far_ahead(track, poses: dict[str, np.ndarray]) -> None:
     OXTS speed: 0.03 m scatter) placed in the world with the OXTS poses and fitted by one cubic
     across the drive; each frame's prediction x ahead, placed in the world, is off that curve
     by its error (signed, positive left; only where the curve was measured). From the camera's
-    axis (a 3.5 m lane centred on it), the lane model (vid2sim.lead.lane_centre_m) and the
+    axis (a 3.5 m lane centred on it), the lane model (vid2sim.core.lead.lane_centre_m) and the
     lane model continued along the road's course (the OXTS path moved by the ego's offset in
-    its lane, vid2sim.lead.lane_centre_ahead_m)."""
+    its lane, vid2sim.core.lead.lane_centre_ahead_m)."""
     n = len(track.t_s)
     t = np.asarray(track.t_s, dtype=float)
     at = ego_lane_at(track, t)

@@ -38,12 +38,12 @@ from pathlib import Path
 
 import numpy as np
 
-from vid2sim.enu import EnuFrame
+from vid2sim.core.enu import EnuFrame
+from vid2sim.core.records import Origin
 from vid2sim.geo.mapcache import clear_memory
 from vid2sim.geo.mapmatch import match
 from vid2sim.geo.matcheval import rmf_corridor, score_route, stretch_xy
 from vid2sim.geo.osm import RoadNetwork, load_network
-from vid2sim.records import Origin
 from vid2sim.samples.drives import SimulatedDrive, simulate_drive
 
 ORIGIN = Origin(60.17, 24.944)
@@ -112,10 +112,10 @@ def fmt(a: np.ndarray) -> str:
 def pipeline(pbf: Path, full: RoadNetwork, drives: list[SimulatedDrive]) -> None:
     """The same drives through ``smooth_ego`` + ``build_road`` (as ``vid2sim road`` runs): the
     road's centerlines (whole matched pieces) against the true pieces, 5 m corridor."""
+    from vid2sim.core.records import GpsFix, GpsTrace
     from vid2sim.geo.alongroute import join_xy
     from vid2sim.geo.roads import build_road
     from vid2sim.geo.trace import smooth_ego
-    from vid2sim.records import GpsFix, GpsTrace
 
     frame = EnuFrame(ORIGIN)
     whole, driven, per_km = [], [], []

@@ -16,9 +16,9 @@ import sys
 from pathlib import Path
 
 from vid2sim.app.settings import Settings
-from vid2sim.camera import fit_camera_to_frames, load_camera
-from vid2sim.detect.detector import load_detector
+from vid2sim.core.camera import fit_camera_to_frames, load_camera
 from vid2sim.detect.pipeline import detect_and_range
+from vid2sim.detect.vehicles.detector import load_detector
 from vid2sim.detect.video import video_info
 from vid2sim.evaluate.ranging.static import ego_motion, evaluate_parked
 

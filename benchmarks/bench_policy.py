@@ -23,12 +23,12 @@ from pathlib import Path
 
 from highway_env.envs.common.observation import KinematicObservation
 
-from vid2sim import scenario as scenario_io
 from vid2sim.adas.campaign import CampaignOptions, run_campaign
 from vid2sim.adas.episode import run_episode
 from vid2sim.adas.policies import AccPolicy, AebPolicy
 from vid2sim.adas.policies import run_episode as raw_run_episode
 from vid2sim.adas.registry import parse_policy
+from vid2sim.core import scenario as scenario_io
 from vid2sim.export.highway import ReplayEnv
 
 GRID = "lead_decel=0.5:1.5:5,gap=0.6:1.2:5"

@@ -41,12 +41,14 @@ import numpy as np
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.settings import DetectorSettings, Settings
 from vid2sim.app.tracking import run_track
-from vid2sim.camera import Camera, fit_camera_to_frames, load_camera
-from vid2sim.detect.detector import load_detector
-from vid2sim.detect.external import read_kitti_tracking_labels
+from vid2sim.core.camera import Camera, fit_camera_to_frames, load_camera
+from vid2sim.core.outline import CAR_SHAPE, TRUCK_SHAPE, OutlineShape, project_outline
+from vid2sim.core.records import TrackedBox
 from vid2sim.detect.pipeline import detect_and_range
 from vid2sim.detect.ranging import RangingConfig, cuboid_config, range_tracks
-from vid2sim.detect.tracker import TrackerConfig
+from vid2sim.detect.tracking.tracker import TrackerConfig
+from vid2sim.detect.vehicles.detector import load_detector
+from vid2sim.detect.vehicles.external import read_kitti_tracking_labels
 from vid2sim.detect.video import video_info
 from vid2sim.evaluate.ranging.kitti import (
     RATE_BINS_M,
@@ -56,8 +58,6 @@ from vid2sim.evaluate.ranging.kitti import (
     kitti_rate_rows,
 )
 from vid2sim.evaluate.ranging.static import ego_motion, evaluate_parked
-from vid2sim.outline import CAR_SHAPE, TRUCK_SHAPE, OutlineShape, project_outline
-from vid2sim.records import TrackedBox
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared"
 
@@ -90,7 +90,7 @@ def _car_size(rng) -> tuple[float, float, float]:
 
 def _car_shape(rng) -> OutlineShape:
     """A passenger car's outline drawn from the fleet about the class shape (see
-    vid2sim/outline.py for the sources): tyre contact 0.6-1.1 m ahead of the rear face (city
+    vid2sim/core/outline.py for the sources): tyre contact 0.6-1.1 m ahead of the rear face (city
     cars to saloons), the rear face 0.05-0.18 m narrower on each side, mirrors 0.06-0.14 m out,
     the rear bumper 0.25-0.45 m high. Drawn independently of the class shape's exact values,
     so that no cue is exact by construction."""
@@ -124,7 +124,7 @@ def synthetic_clip(seed: int, duration_s: float = 30.0, dt: float = 0.1, flat: b
 
     Unless ``flat``, the road is not a plane: a grade change of N(0, 2 %) begins 15-60 m
     ahead and the lanes have cross-fall (:func:`road_height_m`). Boxes are the hull of each
-    vehicle's outline as the camera sees it (:func:`vid2sim.outline.project_outline`: tyre
+    vehicle's outline as the camera sees it (:func:`vid2sim.core.outline.project_outline`: tyre
     contact, widest section, mirrors; outlines drawn by :func:`_car_shape` and
     :func:`_truck_shape`), not projected cuboids."""
     rng = np.random.default_rng(seed)

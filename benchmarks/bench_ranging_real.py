@@ -40,15 +40,16 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from vid2sim import scenario as scenario_io
 from vid2sim.app.build import build
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.settings import DetectorSettings, Settings
-from vid2sim.camera import Camera, load_camera
-from vid2sim.detect.detector import load_detector
-from vid2sim.detect.external import read_kitti_tracking_labels
+from vid2sim.base.errors import InputError
+from vid2sim.core import scenario as scenario_io
+from vid2sim.core.camera import Camera, load_camera
+from vid2sim.core.records import Detection, TrackedBox
 from vid2sim.detect.ranging import RangingConfig, cuboid_config, range_tracks
-from vid2sim.errors import InputError
+from vid2sim.detect.vehicles.detector import load_detector
+from vid2sim.detect.vehicles.external import read_kitti_tracking_labels
 from vid2sim.evaluate.ranging.dgp import calibration_camera, ground_camera, read_dgp_scene
 from vid2sim.evaluate.ranging.realboxes import (
     RealBoxRow,
@@ -59,7 +60,6 @@ from vid2sim.evaluate.ranging.realboxes import (
 from vid2sim.evaluate.ranging.static import replayed_static_speeds
 from vid2sim.evaluate.ranging.table import bin_figures, format_bin_table
 from vid2sim.export.assemble import AssembleConfig
-from vid2sim.records import Detection, TrackedBox
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared"
 SCORE = 0.3  # the detector's own default threshold (MODELS.md: "score threshold about 0.3")

@@ -63,9 +63,9 @@ def looped_inputs(raw: Path, detections: Path, n_frames: int, work: Path) -> dic
     """Video, detections and GPS of the raw drive looped to ``n_frames`` (cached)."""
     import cv2
 
-    from vid2sim.enu import EnuFrame
+    from vid2sim.core.enu import EnuFrame
+    from vid2sim.core.records import Origin
     from vid2sim.geo.readers import read_gps
-    from vid2sim.records import Origin
 
     folder = work / f"loop_{n_frames}"
     video, dets, gps = folder / "video.mp4", folder / "detections.csv", folder / "gps.csv"

@@ -39,15 +39,15 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from vid2sim import scenario as scenario_io
 from vid2sim.app.build import build
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.settings import DetectorSettings, Settings
+from vid2sim.core import scenario as scenario_io
+from vid2sim.core.lanelayout import DRIVING, FORWARD
+from vid2sim.core.records import RAIL_CATEGORIES
 from vid2sim.evaluate.onlane import lane_occupancy
 from vid2sim.evaluate.ranging.static import replayed_static_speeds
 from vid2sim.export.highway import ReplayEnv
-from vid2sim.lanelayout import DRIVING, FORWARD
-from vid2sim.records import RAIL_CATEGORIES
 
 SHARED = Path(__file__).resolve().parents[2] / "shared"
 

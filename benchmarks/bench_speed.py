@@ -64,21 +64,21 @@ from vid2sim.app.inputs import Inputs
 from vid2sim.app.loaders import load_detector_for
 from vid2sim.app.settings import DetectorSettings, Settings
 from vid2sim.app.tracking import run_track
-from vid2sim.boxes import iou_matrix
-from vid2sim.camera import fit_camera_to_frames, load_camera
+from vid2sim.core.boxes import iou_matrix
+from vid2sim.core.camera import fit_camera_to_frames, load_camera
+from vid2sim.core.records import Detection
 from vid2sim.detect import pipeline
-from vid2sim.detect.detector import OnnxDetector
-from vid2sim.detect.external import (
+from vid2sim.detect.lanes.vanishing import HorizonEstimator
+from vid2sim.detect.tracking.flow import MedianFlow
+from vid2sim.detect.tracking.tracker import Tracker
+from vid2sim.detect.vehicles.detector import OnnxDetector
+from vid2sim.detect.vehicles.external import (
     MatchCounts,
     read_kitti_tracking_labels,
     score_against_kitti,
 )
-from vid2sim.detect.flow import MedianFlow
-from vid2sim.detect.lanes import HorizonEstimator
-from vid2sim.detect.tracker import Tracker
 from vid2sim.detect.video import iter_frames, video_info
 from vid2sim.evaluate.ranging.static import ego_motion, evaluate_parked
-from vid2sim.records import Detection
 from vid2sim.samples import composite as cp
 from vid2sim.samples.cutin import in_lane, measure_ego_lane
 

@@ -10,7 +10,7 @@
 2. ``vid2sim track`` on KITTI raw 0001 in a fresh interpreter (the CLI run in-process by the
    child), stopped when the tracker's third update returns: by then the camera and the
    detector are loaded, three frames are decoded and detected and the first assignment has
-   loaded scipy.optimize (:func:`vid2sim.boxes.match`). Seconds from the interpreter's start
+   loaded scipy.optimize (:func:`vid2sim.core.boxes.match`). Seconds from the interpreter's start
    (read from /proc), best of ``--repeat``, and the heavy packages loaded by then.
 
 Timing on a shared machine is noisy: read the best of several runs, and compare modules in
@@ -56,7 +56,7 @@ def started_s_ago():
 T0 = time.time() - started_s_ago()
 import vid2sim.cli as cli
 t_cli = time.time() - T0
-from vid2sim.detect.tracker import Tracker  # imported by the track command anyway
+from vid2sim.detect.tracking.tracker import Tracker  # imported by the track command anyway
 
 class Stop(Exception):
     pass

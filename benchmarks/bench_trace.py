@@ -18,9 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
+from vid2sim.core.records import GpsTrace
 from vid2sim.geo.readers import read_gps
 from vid2sim.geo.trace import smooth_ego
-from vid2sim.records import GpsTrace
 from vid2sim.samples.sample_gps import HELSINKI, Segment, sample_fixes, simulate
 
 

@@ -1,7 +1,7 @@
 """Damaged copies of valid input files, for the readers' property tests.
 
 A reader given arbitrary bytes, or a valid file with a few bytes or numbers damaged, must
-return a result or raise the project's :class:`~vid2sim.errors.InputError`, and nothing else
+return a result or raise the project's :class:`~vid2sim.base.errors.InputError`, and nothing else
 (no ValueError, OverflowError, RecursionError, UnicodeDecodeError... reaching the user as an
 "internal error").
 """
@@ -14,7 +14,7 @@ import re
 from hypothesis import HealthCheck, settings
 from hypothesis import strategies as st
 
-from vid2sim.errors import InputError
+from vid2sim.base.errors import InputError
 
 #: Examples per damage property test; ``VID2SIM_FUZZ_EXAMPLES=1000`` for a deeper local run.
 FUZZ = settings(max_examples=int(os.environ.get("VID2SIM_FUZZ_EXAMPLES", "60")), deadline=None,

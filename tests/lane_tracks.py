@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from vid2sim.records import LaneTrack
+from vid2sim.core.records import LaneTrack
 
 
 def make_track(t_s, lateral_m, width_m=3.0, heading_rad=0.0, curvature_inv_m=0.0,

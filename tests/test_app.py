@@ -9,9 +9,9 @@ import pytest
 
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.settings import DetectorSettings, Settings, tracker_for_score
+from vid2sim.base.errors import InputError
 from vid2sim.cli import main
-from vid2sim.detect.tracker import TrackerConfig
-from vid2sim.errors import InputError
+from vid2sim.detect.tracking.tracker import TrackerConfig
 
 
 @pytest.fixture(scope="module")

@@ -29,15 +29,14 @@ LAZY_IMPORTS_ALLOWED = {
 #: Packages the video-only commands (`vid2sim detect`, `vid2sim track`) must not load: the road,
 #: export, evaluation and plotting stacks (0.1-0.5 s each to import, about 2 s together before
 #: the first frame when the commands imported them, issue 15). pyproj is only needed once a GPS
-#: fix is converted (vid2sim.enu loads it then).
+#: fix is converted (vid2sim.core.enu loads it then).
 NOT_FOR_VIDEO_COMMANDS = ("matplotlib", "highway_env", "pygame", "pandas", "networkx", "shapely",
                           "osmnx", "geopandas", "pyrosm", "scenariogeneration", "pyproj",
                           "sklearn", "ray", "pyarrow")
 #: The layers, lowest first: a module may import its own layer and the layers below.
 LAYERS = (
-    ("errors", "fileio", "defaults"),
-    ("records", "camera", "scenario", "tables", "videofile", "lead", "outline", "enu",
-     "boxes", "htmlpage", "lanelayout", "polyline"),
+    ("base",),
+    ("core",),
     STAGES := ("geo", "detect", "export"),
     # consumers of the stages: evaluation (replay, scoring, truth readers), policy testing
     # on the exported environment, generators of samples
@@ -172,3 +171,48 @@ def test_the_video_commands_load_only_the_detection_stack():
     loaded = set(proc.stdout.split())
     assert {"vid2sim", "numpy", "cv2"} <= loaded, "the probe did not import the command"
     assert not loaded & set(NOT_FOR_VIDEO_COMMANDS), sorted(loaded & set(NOT_FOR_VIDEO_COMMANDS))
+
+
+#: Most modules directly in the package root: the entry points only; everything else lives in
+#: a folder named for its concept.
+MAX_ROOT_MODULES = 5
+#: Most files directly in ``detect/``: the pipeline and the ties between the four wings.
+MAX_DETECT_FILES = 8
+#: The wings of ``detect/``: each a concern of its own that the pipeline ties together.
+DETECT_WINGS = ("vehicles", "tracking", "lanes", "ranging")
+
+
+def test_the_package_root_holds_only_entry_points():
+    root = sorted(p.name for p in PACKAGE.glob("*.py"))
+    assert len(root) <= MAX_ROOT_MODULES, root
+
+
+def test_detect_is_a_pipeline_and_four_wings():
+    flat = sorted(p.name for p in (PACKAGE / "detect").glob("*.py"))
+    assert len(flat) <= MAX_DETECT_FILES, flat
+    for wing in DETECT_WINGS:
+        assert (PACKAGE / "detect" / wing / "__init__.py").exists(), wing
+
+
+def test_the_detect_wings_do_not_import_each_other():
+    crossing = []
+    for m, targets in _graph().items():
+        parts = m.split(".")
+        if parts[:2] != ["vid2sim", "detect"] or len(parts) < 3 or parts[2] not in DETECT_WINGS:
+            continue
+        for n in targets:
+            other = n.split(".")
+            if (other[:2] == ["vid2sim", "detect"] and len(other) > 2
+                    and other[2] in DETECT_WINGS and other[2] != parts[2]):
+                crossing.append(f"{m} -> {n}")
+    assert not crossing, crossing
+
+
+def test_no_file_name_is_used_twice():
+    """One name, one concept: ``kalman.py`` in two packages makes a reader ask which one."""
+    seen: dict[str, list[str]] = {}
+    for path in PACKAGE.rglob("*.py"):
+        if path.name != "__init__.py":
+            seen.setdefault(path.name.lstrip("_"), []).append(str(path.relative_to(PACKAGE)))
+    twice = {k: v for k, v in seen.items() if len(v) > 1}
+    assert not twice, twice

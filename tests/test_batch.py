@@ -11,8 +11,8 @@ from pathlib import Path
 import pytest
 
 from vid2sim.app.batch import BatchRow, done_outcome, read_manifest
+from vid2sim.base.errors import InputError
 from vid2sim.cli import main
-from vid2sim.errors import InputError
 
 
 def _rows(out: Path) -> dict[str, dict[str, str]]:

@@ -19,8 +19,8 @@ import cv2
 import numpy as np
 import pytest
 
+from vid2sim.base.fileio import STAGING_PREFIX
 from vid2sim.cli import main
-from vid2sim.fileio import STAGING_PREFIX
 
 REPO = Path(__file__).resolve().parents[1]
 T0 = 1_700_000_000.0
@@ -372,7 +372,11 @@ def test_output_on_another_filesystem_is_written_in_place(world, tmp_path, capsy
 # --------------------------------------------------------------------------- signals
 
 _SLOW_STAGE = """
-import sys, time
+import signal, sys, time
+# A shell without job control starts background jobs with SIGINT ignored, children inherit it
+# and Python then installs no KeyboardInterrupt handler: put Python's own default back, so the
+# test measures vid2sim and not the shell that started pytest.
+signal.signal(signal.SIGINT, signal.default_int_handler)
 import vid2sim.app.build as build_module
 marker, stage = sys.argv[1], sys.argv[2]
 real = getattr(build_module, stage)
@@ -392,13 +396,6 @@ sys.exit(main(sys.argv[3:]))
 """
 
 
-def _default_sigint() -> None:
-    """The child starts with SIGINT at its default action. A shell without job control starts
-    background commands with SIGINT ignored, children inherit that, and Python then installs no
-    KeyboardInterrupt handler: the test would measure the shell that ran pytest, not vid2sim."""
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
-
-
 @pytest.mark.parametrize("sig,code", [(signal.SIGTERM, 143), (signal.SIGINT, 130)],
                          ids=["SIGTERM", "SIGINT"])
 @pytest.mark.parametrize("stage", ["detect_and_range", "write_openscenario"])
@@ -413,7 +410,7 @@ def test_signal_leaves_no_staging_and_old_outputs(sig, code, stage, world, tmp_p
         [sys.executable, "-c", _SLOW_STAGE, str(marker), stage, "-q", "build",
          str(world["video"]), "--detections", str(world["det"]), "--offline",
          "--out", str(out_dir)], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-        text=True, preexec_fn=_default_sigint)
+        text=True)
     try:
         deadline = time.monotonic() + 300
         while not marker.exists():

@@ -6,10 +6,9 @@ from __future__ import annotations
 import pytest
 from hypothesis import given
 
+from tests.damage import FUZZ, damaged, input_error_or_result
 from vid2sim.app.batch import read_manifest
-from vid2sim.errors import InputError
-
-from .damage import FUZZ, damaged, input_error_or_result
+from vid2sim.base.errors import InputError
 
 
 def _folder(tmp_path):

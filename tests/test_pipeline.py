@@ -8,16 +8,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from vid2sim import scenario as scenario_io
 from vid2sim.app.build import build
 from vid2sim.app.demo import run_demo
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.settings import DetectorSettings, Settings
 from vid2sim.cli import main
-from vid2sim.enu import EnuFrame
-from vid2sim.evaluate.lanes import actor_enters_lane_on_road_s, ego_cross_error, summary
-from vid2sim.lanelayout import BACKWARD, DRIVING, FORWARD, PARKING
-from vid2sim.polyline import signed_offsets
+from vid2sim.core import scenario as scenario_io
+from vid2sim.core.enu import EnuFrame
+from vid2sim.core.lanelayout import BACKWARD, DRIVING, FORWARD, PARKING
+from vid2sim.core.polyline import signed_offsets
+from vid2sim.evaluate.lane_checks import actor_enters_lane_on_road_s, ego_cross_error, summary
 from vid2sim.samples.demo_truth import truth_scenario
 
 QUIET = Settings(progress=False, allow_download=False)

@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from vid2sim import scenario as scenario_io
 from vid2sim.app.build import build
 from vid2sim.app.demo import run_demo
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.settings import DetectorSettings, Settings
-from vid2sim.scenario import Scenario
+from vid2sim.core import scenario as scenario_io
+from vid2sim.core.scenario import Scenario
 
 
 @pytest.fixture(scope="session")

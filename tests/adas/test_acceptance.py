@@ -17,9 +17,9 @@ from tests.adas.conftest import recorded_gaps
 from vid2sim.adas.episode import run_episode
 from vid2sim.adas.registry import parse_policy
 from vid2sim.cli import main
+from vid2sim.core.scenario import save
 from vid2sim.export.highway import ReplayEnv
 from vid2sim.samples.scenarios import braking_lead_scenario
-from vid2sim.scenario import save
 
 CONTRACT = ["scenario", "policy", "variation", "collision", "min_ttc_s", "min_headway_s",
             "min_gap_m", "max_decel_mps2", "max_jerk_mps3", "lane_departures", "duration_s"]

@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from vid2sim.cli import main
+from vid2sim.core.scenario import load, save
 from vid2sim.samples.scenarios import braking_lead_scenario
-from vid2sim.scenario import load, save
 
 GRID = "lead_decel=1:2:3,gap=0.6:1:3"
 

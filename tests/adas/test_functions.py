@@ -20,6 +20,7 @@ from vid2sim.adas.functions import (
 )
 from vid2sim.adas.registry import parse_policy
 from vid2sim.adas.sensor import CameraFrame, SensorConfig, Track
+from vid2sim.core.scenario import Actor, Ego, Road, Scenario, Source, Trajectory
 from vid2sim.samples.scenarios import (
     ORIGIN,
     _s_profile,
@@ -27,7 +28,6 @@ from vid2sim.samples.scenarios import (
     make_scenario,
     trajectory_along,
 )
-from vid2sim.scenario import Actor, Ego, Road, Scenario, Source, Trajectory
 
 KMH = 1 / 3.6
 

@@ -15,10 +15,10 @@ import pytest
 from vid2sim.adas.episode import run_episode
 from vid2sim.adas.registry import parse_policy
 from vid2sim.cli import main
+from vid2sim.core.scenario import save
 from vid2sim.export.highway import HandoverRule, ReactiveVehicle, ReplayEnv
 from vid2sim.export.highway.vehicles import conflict
 from vid2sim.samples.scenarios import follower_scenario
-from vid2sim.scenario import save
 
 BRAKE = np.array([-1.0], np.float32)  # -8 m/s^2
 COAST = np.zeros(1, np.float32)

@@ -8,7 +8,7 @@ import pytest
 from vid2sim.adas.episode import run_episode
 from vid2sim.adas.functions import AdaptiveCruise, DrivingFunction, RecordedDriver
 from vid2sim.adas.registry import parse_policy
-from vid2sim.errors import InputError
+from vid2sim.base.errors import InputError
 from vid2sim.samples.scenarios import straight_scenario
 
 USER = '''

@@ -21,9 +21,9 @@ from vid2sim.adas.sensor import (
     range_sigma_m,
     read_frame,
 )
+from vid2sim.core.scenario import Actor, Ego, Road, Scenario, Source
 from vid2sim.export.highway import ReplayEnv
 from vid2sim.samples.scenarios import ORIGIN, straight_scenario, trajectory_along
-from vid2sim.scenario import Actor, Ego, Road, Scenario, Source
 
 KITTI = CameraGeometry(focal_px=721.5377, height_m=1.65, hfov_rad=2 * math.atan(621 / 721.5377))
 ZERO = np.zeros(1, np.float32)

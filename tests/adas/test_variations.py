@@ -22,10 +22,10 @@ from vid2sim.adas.variations import (
     shift_cut_in,
     variations,
 )
-from vid2sim.errors import InputError
+from vid2sim.base.errors import InputError
+from vid2sim.core.scenario import Trajectory
 from vid2sim.export.highway import ReplayEnv
 from vid2sim.samples.scenarios import BRAKING_LEAD, braking_lead_scenario, straight_scenario
-from vid2sim.scenario import Trajectory
 
 
 def _straight(t, s, speed, y=0.0):

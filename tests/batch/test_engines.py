@@ -13,9 +13,9 @@ import pytest
 
 from tests.batch.conftest import offline
 from vid2sim.app.batch import driver, run_batch, storage
+from vid2sim.base.errors import InputError
+from vid2sim.base.fileio import sha256_file
 from vid2sim.cli import main
-from vid2sim.errors import InputError
-from vid2sim.fileio import sha256_file
 
 OK_ROWS = ("full", "plain")
 
@@ -90,7 +90,7 @@ def test_rerun_skips_built_rows_without_hashing_or_engine(ray_run, clip, monkeyp
     def no_engine(*_args, **_kwargs):
         raise AssertionError("the rerun started an engine")
 
-    monkeypatch.setattr("vid2sim.fileio.sha256_file", no_hashing)
+    monkeypatch.setattr("vid2sim.base.fileio.sha256_file", no_hashing)
     monkeypatch.setattr(storage, "sha256_of", no_hashing)
     monkeypatch.setattr(driver, "run_ray", no_engine)
     summary = run_batch(clip / "manifest.csv", out, offline(), engine="ray")

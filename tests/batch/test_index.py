@@ -22,8 +22,8 @@ from vid2sim.app.batch.index import (
 )
 from vid2sim.app.batch.manifest import BatchRow
 from vid2sim.app.batch.worker import TTC_MIN_CLOSING_MPS, _lead_motion
-from vid2sim.records import RangedBox
-from vid2sim.tables import write_tracks_csv
+from vid2sim.core.records import RangedBox
+from vid2sim.core.tables import write_tracks_csv
 
 _text = st.text(st.characters(codec="utf-8", exclude_characters="\r\n\x00"), max_size=40)
 _opt_float = st.none() | st.floats(-1e6, 1e6, allow_nan=False, allow_infinity=False)

@@ -17,8 +17,8 @@ from vid2sim.app.batch.driver import plan_row
 from vid2sim.app.batch.hashing import HashCache, HashEntry, hash_inputs
 from vid2sim.app.batch.index import RowOutcome, index_record, read_index, write_index
 from vid2sim.app.batch.manifest import BatchRow
-from vid2sim.errors import InputError
-from vid2sim.fileio import sha256_path
+from vid2sim.base.errors import InputError
+from vid2sim.base.fileio import sha256_path
 
 SAMPLE_FILES = ("demo.mp4", "demo.gpx", "camera.yaml", "detections.txt", "keyframes.json",
                 "broken.mp4", "nofix.gpx")
@@ -148,7 +148,7 @@ def test_done_rows_need_no_hash_when_the_cache_knows_them(clip, tmp_path, monkey
     first = run_row(RowTask(row, offline(), tmp_path))
     cache = HashCache(first.hash_entries)
     monkeypatch.setattr(storage, "sha256_of", lambda w: pytest.fail(f"hashed {w}"))
-    monkeypatch.setattr("vid2sim.fileio.sha256_file", lambda p: pytest.fail(f"hashed {p}"))
+    monkeypatch.setattr("vid2sim.base.fileio.sha256_file", lambda p: pytest.fail(f"hashed {p}"))
     first.status = "ok"
     planned = plan_row(row, tmp_path, first, cache, retry_failed=False)
     assert planned is not None and planned.status == "skipped"

@@ -6,12 +6,12 @@ import cv2
 import numpy as np
 import pytest
 
-from vid2sim.detect.flow import MedianFlow
+from vid2sim.base.errors import InputError
+from vid2sim.core.records import Detection, Frame
 from vid2sim.detect.schedule import KeyframeSchedule, ScheduleConfig
-from vid2sim.detect.tracker import Tracker
+from vid2sim.detect.tracking.flow import MedianFlow
+from vid2sim.detect.tracking.tracker import Tracker
 from vid2sim.detect.video import prefetch
-from vid2sim.errors import InputError
-from vid2sim.records import Detection, Frame
 
 W, H = 640, 360
 

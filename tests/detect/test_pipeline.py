@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 
 from vid2sim.cli import main
-from vid2sim.detect.detector import load_detector
+from vid2sim.core.records import VEHICLE_CATEGORIES, Detection, TrackedBox
+from vid2sim.core.tables import DETECTIONS_CSV_COLUMNS as CSV_COLUMNS
+from vid2sim.core.tables import write_detections_csv
 from vid2sim.detect.pipeline import run_detect
-from vid2sim.records import VEHICLE_CATEGORIES, Detection, TrackedBox
-from vid2sim.tables import DETECTIONS_CSV_COLUMNS as CSV_COLUMNS
-from vid2sim.tables import write_detections_csv
+from vid2sim.detect.vehicles.detector import load_detector
 
 N_FRAMES = 20
 
@@ -157,7 +157,7 @@ def test_imported_boxes_all_beyond_the_video_are_an_input_error(clip, tmp_path, 
 
 
 def test_cli_detect_refine_option(clip, tmp_path, capsys, model_dir):
-    from vid2sim.detect.detector import REFINE_MAX_BOXES
+    from vid2sim.detect.vehicles.detector import REFINE_MAX_BOXES
 
     assert main(["detect", "--help"]) == 0
     help_text = " ".join(capsys.readouterr().out.split())

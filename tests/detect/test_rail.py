@@ -9,13 +9,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from vid2sim.camera import Camera
-from vid2sim.detect.detector import COCO_VEHICLES
-from vid2sim.detect.external import CATEGORY_ALIASES
-from vid2sim.detect.lead import assign_lanes_and_lead
-from vid2sim.detect.rail import RailConfig, beyond_edge, find_rail_tracks, relabel
-from vid2sim.detect.ranging import RangingConfig
-from vid2sim.records import (
+from vid2sim.core.camera import Camera
+from vid2sim.core.records import (
     RAIL_CATEGORIES,
     VEHICLE_CATEGORIES,
     LaneBoundary,
@@ -24,6 +19,11 @@ from vid2sim.records import (
     MarkingKind,
     TrackedBox,
 )
+from vid2sim.detect.assign import assign_lanes_and_lead
+from vid2sim.detect.rail import RailConfig, beyond_edge, find_rail_tracks, relabel
+from vid2sim.detect.ranging import RangingConfig
+from vid2sim.detect.vehicles.detector import COCO_VEHICLES
+from vid2sim.detect.vehicles.external import CATEGORY_ALIASES
 
 CAM = Camera.default_for(1242, 375, hfov_deg=81.0)
 

@@ -8,8 +8,8 @@ import cv2
 import numpy as np
 import pytest
 
+from vid2sim.base.errors import InputError
 from vid2sim.detect.video import iter_frames, video_info
-from vid2sim.errors import InputError
 
 
 def _write_video(path: Path, n: int = 12, fps: float = 5.0, size=(64, 48)) -> Path:

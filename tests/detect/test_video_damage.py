@@ -10,8 +10,8 @@ import cv2
 import numpy as np
 import pytest
 
+from vid2sim.base.errors import InputError
 from vid2sim.detect.video import iter_frames, video_info
-from vid2sim.errors import InputError
 
 
 def _noisy_video(path: Path, n: int = 60) -> Path:

@@ -8,7 +8,7 @@ from vid2sim.samples.scenarios import KITTI_LIKE_CAMERA as CAMERA
 from vid2sim.samples.scenarios import parallel_traffic_scenario as make_scenario
 
 __all__ = ["CAMERA", "make_scenario"]
-from vid2sim.scenario import Scenario
+from vid2sim.core.scenario import Scenario
 
 
 @pytest.fixture

@@ -10,7 +10,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from vid2sim.errors import InputError
+from vid2sim.base.errors import InputError
 from vid2sim.evaluate.annotations import read_keyframes
 
 KITTI_LINES = """\

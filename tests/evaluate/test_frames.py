@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 
 from tests.evaluate.conftest import CAMERA, make_scenario
-from vid2sim.camera import Camera
+from vid2sim.core.camera import Camera
+from vid2sim.core.records import LaneTrack, RangedBox
+from vid2sim.core.scenario import Event
 from vid2sim.evaluate.frames import (
     FrameSampleConfig,
     draw_frame,
@@ -19,8 +21,6 @@ from vid2sim.evaluate.frames import (
     side_by_side,
 )
 from vid2sim.evaluate.report import render_report
-from vid2sim.records import LaneTrack, RangedBox
-from vid2sim.scenario import Event
 
 
 def _lane_track(t: np.ndarray, width_m: float) -> LaneTrack:

@@ -1,4 +1,4 @@
-"""The references the lane measurement is checked against (vid2sim.evaluate.lanes)."""
+"""The references the lane measurement is checked against (vid2sim.evaluate.lane_checks)."""
 
 from __future__ import annotations
 
@@ -7,15 +7,15 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from vid2sim.evaluate.lanes import (
+from vid2sim.core.records import Origin
+from vid2sim.core.scenario import Ego, Scenario, Source, Trajectory
+from vid2sim.evaluate.lane_checks import (
     ego_cross_error,
     kitti_camera_lever_arm,
     kitti_camera_poses,
     summary,
     world_line_scatter,
 )
-from vid2sim.records import Origin
-from vid2sim.scenario import Ego, Scenario, Source, Trajectory
 
 
 def weaving_poses(n: int = 120, seed: int = 0) -> dict[str, np.ndarray]:

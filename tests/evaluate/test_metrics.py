@@ -9,8 +9,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from vid2sim.core.records import AnnotatedBox, Keyframe, ProjectedBox
 from vid2sim.evaluate.metrics import iou_matrix, match_boxes, score_frame, score_keyframes
-from vid2sim.records import AnnotatedBox, Keyframe, ProjectedBox
 
 
 def pb(box, aid="a", range_m=10.0, hard=False):

@@ -13,8 +13,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from tests.conftest import DATA
-from vid2sim.camera import Camera
-from vid2sim.errors import InputError
+from vid2sim.base.errors import InputError
+from vid2sim.core.camera import Camera
 from vid2sim.evaluate.ranging.dgp import (
     DgpCuboid,
     DgpFrame,

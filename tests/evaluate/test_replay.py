@@ -12,16 +12,16 @@ import pytest
 
 from tests.evaluate.conftest import CAMERA, make_scenario
 from vid2sim.cli import main
+from vid2sim.core.outline import CAR_SHAPE, outline_points, shape_matrix
+from vid2sim.core.scenario import save
+from vid2sim.core.videofile import read_frames
 from vid2sim.evaluate.replay import (
     _env_available,
     project_box_clipped,
     replay_boxes,
     run_eval,
 )
-from vid2sim.outline import CAR_SHAPE, outline_points, shape_matrix
 from vid2sim.samples.scenarios import scenario_from_kitti_labels
-from vid2sim.scenario import save
-from vid2sim.videofile import read_frames
 
 # Actors that never hide each other: (id, forward [m], lateral [m], speed [m/s], t0, t1)
 VISIBLE = [("lead", 20.0, 0.0, 8.0, 0.0, 4.0), ("left", 12.0, 3.5, 12.0, 0.0, 4.0),
@@ -265,7 +265,7 @@ def test_cli_eval_and_bad_input(tmp_path, visible_scenario, capsys):
 
 @pytest.mark.parametrize("seq, numbers", [("0001", (10, 15, 20)), ("0016", (2, 7, 12))])
 def test_kitti_3d_labels_replayed_against_2d_labels(kitti_tracking_dir, tmp_path, seq, numbers):
-    from vid2sim.camera import load_camera
+    from vid2sim.core.camera import load_camera
 
     # Each sequence's own calibration: 0016 was recorded on another day than 0001 and its
     # image_02 has another focal length and principal point.
@@ -293,7 +293,7 @@ def test_kitti_3d_labels_replayed_against_2d_labels(kitti_tracking_dir, tmp_path
 @pytest.mark.parametrize("seq, numbers", [("0001", (10, 15, 20)), ("0016", (2, 7, 12))])
 def test_kitti_projection_with_label_heights(kitti_tracking_dir, seq, numbers):
     """3D labels projected with their own heights reproduce the 2D labels."""
-    from vid2sim.camera import load_camera
+    from vid2sim.core.camera import load_camera
     from vid2sim.evaluate.metrics import iou_matrix
 
     camera = load_camera(kitti_tracking_dir / "calib" / f"{seq}.txt")

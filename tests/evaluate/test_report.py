@@ -13,11 +13,11 @@ import numpy as np
 import pytest
 
 from tests.evaluate.conftest import make_scenario
-from vid2sim.errors import InputError
+from vid2sim.base.errors import InputError
+from vid2sim.core.records import AnnotatedBox, Keyframe
 from vid2sim.evaluate.metrics import score_keyframes
 from vid2sim.evaluate.replay import replay_boxes
 from vid2sim.evaluate.report import lead_series, render_report, write_report
-from vid2sim.records import AnnotatedBox, Keyframe
 
 
 class _Collector(HTMLParser):

@@ -11,7 +11,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from vid2sim.camera import Camera
+from vid2sim.core.camera import Camera
+from vid2sim.core.records import EgoTrack, Origin, RangedBox
+from vid2sim.core.scenario import Source, dumps_canonical, from_json
 from vid2sim.export.assemble import (
     AssembleConfig,
     assemble_scenario,
@@ -19,8 +21,6 @@ from vid2sim.export.assemble import (
     local_linear_smooth,
     straight_road_for,
 )
-from vid2sim.records import EgoTrack, Origin, RangedBox
-from vid2sim.scenario import Source, dumps_canonical, from_json
 
 ORIGIN = Origin(60.17, 24.94, 12.0)
 CAMERA = Camera.default_for(1280, 720)

@@ -9,6 +9,18 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from vid2sim.core.lanelayout import (
+    BACKWARD,
+    BORDER,
+    DRIVING,
+    FORWARD,
+    PARKING,
+    SHOULDER,
+    CrossSection,
+    LaneSpec,
+)
+from vid2sim.core.records import LaneBoundary, LaneObservation, LaneTrack, MarkingKind
+from vid2sim.core.scenario import Actor, Trajectory
 from vid2sim.export.crosssection import (
     SeenLine,
     StandingVehicle,
@@ -23,18 +35,6 @@ from vid2sim.export.scenelayout import (
     place_static,
 )
 from vid2sim.geo.roads import cross_section_from_tags
-from vid2sim.lanelayout import (
-    BACKWARD,
-    BORDER,
-    DRIVING,
-    FORWARD,
-    PARKING,
-    SHOULDER,
-    CrossSection,
-    LaneSpec,
-)
-from vid2sim.records import LaneBoundary, LaneObservation, LaneTrack, MarkingKind
-from vid2sim.scenario import Actor, Trajectory
 
 SOLID, DASHED, EDGE = (MarkingKind.SOLID.value, MarkingKind.DASHED.value,
                        MarkingKind.ROAD_EDGE.value)

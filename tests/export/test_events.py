@@ -7,8 +7,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from tests.detect.test_lead import make_track
-from vid2sim.detect.lead import lane_indices
+from tests.detect.test_assign import make_track
+from vid2sim.core.lead import lane_name
+from vid2sim.core.records import LaneChange, RangedBox
+from vid2sim.core.scenario import Actor, Trajectory
+from vid2sim.detect.assign import lane_indices
 from vid2sim.export.events import (
     EventConfig,
     event_type,
@@ -16,9 +19,6 @@ from vid2sim.export.events import (
     scenario_events,
     track_crossings,
 )
-from vid2sim.lead import lane_name
-from vid2sim.records import LaneChange, RangedBox
-from vid2sim.scenario import Actor, Trajectory
 
 W = 3.0
 FPS = 10.0

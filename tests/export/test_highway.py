@@ -13,10 +13,10 @@ from hypothesis import strategies as st
 
 import vid2sim  # noqa: F401  registers the environment
 from vid2sim.adas.policies import AccPolicy, AebPolicy, FollowLogPolicy, run_episode
-from vid2sim.errors import InputError
+from vid2sim.base.errors import InputError
+from vid2sim.core.scenario import save
 from vid2sim.export.highway import ReplayEnv, enu_to_hw, hw_to_enu
 from vid2sim.samples.scenarios import left_turn_scenario, straight_scenario
-from vid2sim.scenario import save
 
 ZERO = np.zeros(1, dtype=np.float32)
 
@@ -389,7 +389,7 @@ def _lane_change_scenario(t_change_s: float = 4.5):
     """A straight two-lane road; the logged ego moves from the right lane to the left one
     between 3 and 6 s (minimum-jerk across 3.5 m), crossing the line at ``t_change_s``, with
     its ``lane_change`` event."""
-    from vid2sim.scenario import Event
+    from vid2sim.core.scenario import Event
 
     sc = straight_scenario(with_actors=False, duration_s=10.0)
     traj = sc.ego.trajectory

@@ -14,7 +14,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from vid2sim.cli import main
-from vid2sim.enu import EnuFrame
+from vid2sim.core.enu import EnuFrame
+from vid2sim.core.scenario import save
 from vid2sim.export.openscenario import fit_reference_line, write_openscenario
 from vid2sim.samples.scenarios import (
     ORIGIN,
@@ -22,7 +23,6 @@ from vid2sim.samples.scenarios import (
     left_turn_scenario,
     straight_scenario,
 )
-from vid2sim.scenario import save
 
 # scenariogeneration installs its XSDs in site-packages/schemas/
 SCHEMAS = Path(scenariogeneration.__file__).resolve().parents[1] / "schemas"
@@ -161,7 +161,7 @@ def test_cli_export_highway_env(tmp_path):
 
 
 def test_vehicle_seen_once_still_exports_valid_xosc(tmp_path):
-    from vid2sim.scenario import Trajectory
+    from vid2sim.core.scenario import Trajectory
 
     sc = straight_scenario(duration_s=3.0)
     sc.actors[0].trajectory = Trajectory([1.0], [40.0], [-1.75], [0.0], [0.0])

@@ -7,12 +7,11 @@ import math
 
 import numpy as np
 
+from tests.export.test_assemble import CAMERA, box, ego_track
 from vid2sim.adas.policies import AccPolicy, AebPolicy, run_episode
+from vid2sim.core.scenario import Source
 from vid2sim.export.highway import ReplayEnv
 from vid2sim.export.openscenario import write_openscenario
-from vid2sim.scenario import Source
-
-from .test_assemble import CAMERA, box, ego_track
 
 
 def _camera_relative():

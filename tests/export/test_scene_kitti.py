@@ -9,13 +9,13 @@ import csv
 
 import pytest
 
-from vid2sim import scenario as scenario_io
 from vid2sim.app.build import build
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.settings import DetectorSettings, Settings
+from vid2sim.core import scenario as scenario_io
+from vid2sim.core.lanelayout import DRIVING, PARKING, RAIL
 from vid2sim.evaluate.onlane import lane_occupancy
 from vid2sim.evaluate.ranging.static import replayed_static_speeds
-from vid2sim.lanelayout import DRIVING, PARKING, RAIL
 
 
 @pytest.fixture(scope="module")

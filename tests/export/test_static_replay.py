@@ -4,10 +4,10 @@ left of the ego, within 45 m ahead). Skips without ../shared."""
 
 from __future__ import annotations
 
-from vid2sim import scenario as scenario_io
 from vid2sim.app.build import build
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.settings import DetectorSettings, Settings
+from vid2sim.core import scenario as scenario_io
 from vid2sim.evaluate.ranging.static import replayed_static_speeds
 
 

@@ -13,10 +13,10 @@ import pytest
 import scenariogeneration
 import xmlschema
 
+from vid2sim.core.lanelayout import BACKWARD, DRIVING, FORWARD
 from vid2sim.export.highway.network import build_network, lane_centerlines_enu
 from vid2sim.export.opendrive import centre_split
 from vid2sim.export.openscenario import write_openscenario
-from vid2sim.lanelayout import BACKWARD, DRIVING, FORWARD
 from vid2sim.samples.scenarios import STREET_SECTION, street_scenario
 
 SCHEMAS = Path(scenariogeneration.__file__).resolve().parents[1] / "schemas"

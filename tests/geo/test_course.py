@@ -7,8 +7,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from vid2sim.core.records import EgoLateral, EgoTrack, Origin
 from vid2sim.geo.course import RoadCourse, road_course
-from vid2sim.records import EgoLateral, EgoTrack, Origin
 
 
 def _circle(radius_m: float, speed_mps: float = 10.0, duration_s: float = 20.0):

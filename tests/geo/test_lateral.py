@@ -12,12 +12,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from tests.detect.lane_frames import FPS, observations
-from vid2sim.detect.lane_track import lane_track
-from vid2sim.enu import EnuFrame
+from tests.detect.lanes.lane_frames import FPS, observations
+from vid2sim.core.enu import EnuFrame
+from vid2sim.core.records import EgoTrack, Origin, RoadResult
+from vid2sim.core.scenario import Road
+from vid2sim.detect.lanes.track import lane_track
 from vid2sim.geo.lateral import LateralConfig, fuse_lateral
-from vid2sim.records import EgoTrack, Origin, RoadResult
-from vid2sim.scenario import Road
 
 ORIGIN = Origin(60.17, 24.94, 0.0)
 SPEED = 12.0

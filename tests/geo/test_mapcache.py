@@ -13,7 +13,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from tests.geo.test_osm import NODES, ORIGIN, WAYS, helsinki_pbf, osm_xml
-from vid2sim.errors import InputError
+from vid2sim.base.errors import InputError
 from vid2sim.geo import mapcache, osm
 from vid2sim.geo.mapcache import cached_map, clear_memory, read_entry
 from vid2sim.geo.osm import load_network

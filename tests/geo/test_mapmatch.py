@@ -13,10 +13,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from tests.geo.test_osm import ORIGIN, helsinki_pbf, town_osm  # noqa: F401 - fixture
+from vid2sim.core.records import Origin
 from vid2sim.geo.mapmatch import MatchConfig, match
 from vid2sim.geo.matcheval import score_route
 from vid2sim.geo.osm import load_network
-from vid2sim.records import Origin
 from vid2sim.samples.drives import simulate_drive
 
 

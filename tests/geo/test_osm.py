@@ -9,11 +9,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from vid2sim.enu import EnuFrame
-from vid2sim.errors import InputError
+from vid2sim.base.errors import InputError
+from vid2sim.core.enu import EnuFrame
+from vid2sim.core.records import Origin
 from vid2sim.geo import osm
 from vid2sim.geo.osm import DRIVABLE_HIGHWAYS, download_network, load_network
-from vid2sim.records import Origin
 
 ORIGIN = Origin(60.0, 25.0, 0.0)
 

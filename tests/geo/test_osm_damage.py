@@ -8,11 +8,10 @@ import math
 import pytest
 from hypothesis import given
 
-from vid2sim.errors import InputError
+from tests.damage import FUZZ, damaged, input_error_or_result
+from vid2sim.base.errors import InputError
+from vid2sim.core.records import Origin
 from vid2sim.geo.osm import load_network
-from vid2sim.records import Origin
-
-from ..damage import FUZZ, damaged, input_error_or_result
 
 ORIGIN = Origin(60.17, 24.94, 0.0)
 

@@ -11,12 +11,11 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from vid2sim.errors import InputError
+from tests.damage import FUZZ, damaged, input_error_or_result
+from vid2sim.base.errors import InputError
 from vid2sim.geo.readers import read_gps
 from vid2sim.geo.trace import smooth_ego
 from vid2sim.samples.sample_gps import SAMPLE_START_UTC_S
-
-from ..damage import FUZZ, damaged, input_error_or_result
 
 T0 = SAMPLE_START_UTC_S
 

@@ -11,7 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from vid2sim.errors import InputError
+from vid2sim.base.errors import InputError
 from vid2sim.geo.readers import (
     KNOTS_TO_MPS,
     UERE_M,

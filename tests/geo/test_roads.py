@@ -13,7 +13,9 @@ from hypothesis import strategies as st
 
 from tests.geo.test_osm import NODES, ORIGIN, WAYS, osm_xml
 from vid2sim.cli import main
-from vid2sim.enu import EnuFrame
+from vid2sim.core.enu import EnuFrame
+from vid2sim.core.records import EgoTrack, GpsFix, GpsTrace
+from vid2sim.core.scenario import Road
 from vid2sim.geo.alongroute import signed_offsets
 from vid2sim.geo.roads import (
     DEFAULT_LANE_WIDTH_M,
@@ -25,8 +27,6 @@ from vid2sim.geo.roads import (
     resample_polyline,
     road_json,
 )
-from vid2sim.records import EgoTrack, GpsFix, GpsTrace
-from vid2sim.scenario import Road
 
 
 @pytest.fixture(scope="module")

@@ -16,11 +16,12 @@ from hypothesis import strategies as st
 from vid2sim.app.commands import run_trace
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.settings import Settings
-from vid2sim.enu import EnuFrame
-from vid2sim.errors import InputError
+from vid2sim.base.errors import InputError
+from vid2sim.core.enu import EnuFrame
+from vid2sim.core.records import GpsTrace, Origin
+from vid2sim.core.tables import write_ego_csv
 from vid2sim.geo.readers import read_gps
 from vid2sim.geo.trace import smooth_ego
-from vid2sim.records import GpsTrace, Origin
 from vid2sim.samples.sample_gps import (
     HELSINKI,
     Segment,
@@ -29,7 +30,6 @@ from vid2sim.samples.sample_gps import (
     simulate,
     write_sample_gpx,
 )
-from vid2sim.tables import write_ego_csv
 
 
 def angle_diff(a, b):

@@ -11,7 +11,7 @@ import json
 import numpy as np
 import pytest
 
-from vid2sim.camera import Camera, fit_camera_to_frames, load_camera
+from vid2sim.core.camera import Camera, fit_camera_to_frames, load_camera
 from vid2sim.samples import composite as cp
 
 N_FRAMES = 108
@@ -148,9 +148,9 @@ E2E_SEED = 1
 @pytest.fixture(scope="module")
 def e2e(kitti_raw_dir, kitti_tracking_dir, model_dir, polo, tmp_path_factory):
     """Write one composite clip and run the real detector, tracker and ranging on it once."""
-    from vid2sim.detect.detector import load_detector
     from vid2sim.detect.pipeline import detect_and_range
-    from vid2sim.detect.tracker import TrackerConfig
+    from vid2sim.detect.tracking.tracker import TrackerConfig
+    from vid2sim.detect.vehicles.detector import load_detector
     from vid2sim.detect.video import video_info
 
     out = tmp_path_factory.mktemp("composite") / "clip.mp4"

@@ -15,7 +15,7 @@ import pytest
 from vid2sim.app.build import build
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.settings import DetectorSettings, Settings
-from vid2sim.camera import fit_camera_to_frames, load_camera
+from vid2sim.core.camera import fit_camera_to_frames, load_camera
 from vid2sim.detect.video import video_info
 from vid2sim.samples import composite as cp
 from vid2sim.samples.cutin import cut_in_truth, measure_ego_lane, min_jerk

@@ -11,9 +11,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from vid2sim.camera import load_camera
-from vid2sim.enu import EnuFrame
-from vid2sim.records import Origin
+from vid2sim.core.camera import load_camera
+from vid2sim.core.enu import EnuFrame
+from vid2sim.core.records import Origin
 from vid2sim.samples.demo_sample import (
     EGO_LANE_OFFSET_M,
     GARMIN_TPX_NS,
@@ -136,7 +136,7 @@ def test_lead_brakes_and_cut_in_merges(truth):
 
 
 def test_truth_converts_to_a_valid_scenario(sample, tmp_path):
-    from vid2sim import scenario as sc
+    from vid2sim.core import scenario as sc
 
     scen = truth_scenario(sample.truth)
     sc.save(scen, tmp_path / "truth_scenario.json")

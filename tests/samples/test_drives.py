@@ -14,12 +14,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from tests.geo.test_osm import ORIGIN, helsinki_pbf, town_osm  # noqa: F401 - fixture
-from vid2sim.enu import EnuFrame
+from vid2sim.core.enu import EnuFrame
+from vid2sim.core.records import Origin
 from vid2sim.geo.alongroute import join_xy, signed_offsets
 from vid2sim.geo.mapmatch import match
 from vid2sim.geo.matcheval import rmf_corridor, score_route
 from vid2sim.geo.osm import load_network
-from vid2sim.records import Origin
 from vid2sim.samples.drives import (
     SAMPLE_ORIGIN,
     gauss_markov,

@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
+from vid2sim.core.records import TrackedBox
 from vid2sim.detect.ranging import range_tracks
-from vid2sim.records import TrackedBox
 from vid2sim.samples.demo_sample import demo_camera
 from vid2sim.samples.render import DrawnVehicle as VehicleState
 from vid2sim.samples.render import RoadGeometry, SceneRenderer, _clip_near

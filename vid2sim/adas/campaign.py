@@ -22,12 +22,11 @@ from pathlib import Path
 
 import numpy as np
 
-from vid2sim import scenario as scenario_io
 from vid2sim.adas.episode import EpisodeResult, run_episode
-from vid2sim.adas.metrics import COLUMNS as METRIC_COLUMNS
+from vid2sim.adas.episode_metrics import COLUMNS as METRIC_COLUMNS
 from vid2sim.adas.registry import PolicySpec, describe, parse_policy
-from vid2sim.adas.report import write_summary
 from vid2sim.adas.sensor import SensorConfig
+from vid2sim.adas.summary import write_summary
 from vid2sim.adas.variations import (
     LogRoles,
     apply_variation,
@@ -36,11 +35,12 @@ from vid2sim.adas.variations import (
     parse_vary,
     variations,
 )
-from vid2sim.errors import InputError
+from vid2sim.base.errors import InputError
+from vid2sim.base.fileio import write_text_atomic
+from vid2sim.core import scenario as scenario_io
+from vid2sim.core.scenario import Scenario
 from vid2sim.export.highway import ReplayEnv
 from vid2sim.export.openscenario import write_openscenario
-from vid2sim.fileio import write_text_atomic
-from vid2sim.scenario import Scenario
 
 RESULT_COLUMNS = ("scenario", "policy", "variation", *METRIC_COLUMNS)
 """The columns results.csv starts with (the contract); extra columns follow them."""

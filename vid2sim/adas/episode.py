@@ -7,12 +7,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from vid2sim.adas.metrics import EpisodeMetrics, episode_metrics
+from vid2sim.adas.episode_metrics import EpisodeMetrics, episode_metrics
 from vid2sim.adas.registry import PolicySpec
 from vid2sim.adas.sensor import CameraSensor, SensorConfig
-from vid2sim.errors import InputError
+from vid2sim.base.errors import InputError
+from vid2sim.core.scenario import Scenario
 from vid2sim.export.highway import Handover, ReplayEnv
-from vid2sim.scenario import Scenario
 
 SERIES = ("t_s", "gap_m", "ttc_s", "ego_speed_mps", "lead_speed_mps")
 """The per-step values kept for the report's plots (gap, TTC and lead speed NaN without a

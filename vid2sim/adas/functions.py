@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from vid2sim.adas.sensor import CameraFrame, read_frame
-from vid2sim.scenario import Trajectory
+from vid2sim.core.scenario import Trajectory
 
 DEFAULT_ACCEL_RANGE_MPS2 = (-8.0, 8.0)
 DEFAULT_STEERING_RANGE_RAD = (-math.pi / 4, math.pi / 4)

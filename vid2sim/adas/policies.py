@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from vid2sim.adas.functions import DEFAULT_ACCEL_RANGE_MPS2, accel_to_action, idm_acceleration
-from vid2sim.scenario import Trajectory
+from vid2sim.core.scenario import Trajectory
 
 Policy = Callable[[np.ndarray, dict], np.ndarray]
 __all__ = ["DEFAULT_ACCEL_RANGE_MPS2", "AccPolicy", "AebPolicy", "FollowLogPolicy", "Policy",

@@ -44,8 +44,8 @@ from vid2sim.adas.functions import (
     LaneKeeping,
     RecordedDriver,
 )
-from vid2sim.errors import InputError
-from vid2sim.scenario import Scenario
+from vid2sim.base.errors import InputError
+from vid2sim.core.scenario import Scenario
 
 BUILT_INS = ("log", "acc", "aeb", "lka")
 _HINT = ("use log, acc, aeb, lka or a +-combination such as acc+aeb, or module:callable "

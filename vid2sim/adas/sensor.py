@@ -50,7 +50,7 @@ from dataclasses import dataclass, replace
 import gymnasium
 import numpy as np
 
-from vid2sim.camera import DEFAULT_HEIGHT_M, DEFAULT_HFOV_DEG
+from vid2sim.core.camera import DEFAULT_HEIGHT_M, DEFAULT_HFOV_DEG
 
 OBJECT_ROWS = 8
 """Object rows of the observation: the lead and the 7 nearest other vehicles ahead."""

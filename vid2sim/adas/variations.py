@@ -38,9 +38,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 from shapely.geometry import Polygon
 
-from vid2sim.errors import InputError
+from vid2sim.base.errors import InputError
+from vid2sim.core.scenario import Scenario, Trajectory
 from vid2sim.export.highway import ReplayEnv, enu_to_hw, hw_to_enu
-from vid2sim.scenario import Scenario, Trajectory
 
 PARAMETERS = {
     "lead_decel": ("scale of the lead's deceleration", 1.0, None),

@@ -9,7 +9,7 @@ function of a domain package that takes records and returns records; this module
 inputs (through :mod:`vid2sim.app.loaders`), passes records along, sorts the stages' notes
 into warnings and assumptions, and writes the outputs.
 
-All outputs are written into a staging folder (:func:`vid2sim.fileio.staged_folder`, created
+All outputs are written into a staging folder (:func:`vid2sim.base.fileio.staged_folder`, created
 before the first stage, on the output's filesystem) and moved in only when every stage has
 succeeded, so a failed or interrupted build leaves no half-written files and does not clobber
 an earlier build's files; a successful one replaces all of an earlier build's outputs.
@@ -25,7 +25,6 @@ from pathlib import Path
 import numpy as np
 
 from vid2sim import __version__
-from vid2sim import scenario as scenario_io
 from vid2sim.app.commands import match_road
 from vid2sim.app.figures import stage_figures
 from vid2sim.app.inputs import Inputs
@@ -40,11 +39,16 @@ from vid2sim.app.loaders import (
 )
 from vid2sim.app.settings import Settings
 from vid2sim.app.tracking import lead_summary
-from vid2sim.camera import Camera
-from vid2sim.detect.lane_track import lane_track
-from vid2sim.detect.lead import relane
+from vid2sim.base.errors import InputError
+from vid2sim.base.fileio import staged_folder, write_text_atomic
+from vid2sim.core import scenario as scenario_io
+from vid2sim.core.camera import Camera
+from vid2sim.core.records import EgoLateral, EgoTrack, Note, NoteKind, Origin, VideoInfo, notes_of
+from vid2sim.core.scenario import Event, Source, dumps_canonical
+from vid2sim.core.tables import write_tracks_csv
+from vid2sim.detect.assign import relane
+from vid2sim.detect.lanes.track import lane_track
 from vid2sim.detect.pipeline import detect_and_range
-from vid2sim.errors import InputError
 from vid2sim.evaluate.frames import sample_frame_figures
 from vid2sim.evaluate.replay import run_eval
 from vid2sim.evaluate.report import write_report
@@ -52,13 +56,9 @@ from vid2sim.export.assemble import assemble_scenario
 from vid2sim.export.events import scenario_events
 from vid2sim.export.openscenario import write_openscenario
 from vid2sim.export.scenelayout import SceneLayout, lay_out_scene
-from vid2sim.fileio import staged_folder, write_text_atomic
 from vid2sim.geo import roads as geo_roads
 from vid2sim.geo.course import road_course
 from vid2sim.geo.lateral import fuse_lateral
-from vid2sim.records import EgoLateral, EgoTrack, Note, NoteKind, Origin, VideoInfo, notes_of
-from vid2sim.scenario import Event, Source, dumps_canonical
-from vid2sim.tables import write_tracks_csv
 
 #: Events listed one by one in the summary; more are counted.
 MAX_SUMMARY_EVENTS = 8

@@ -7,7 +7,7 @@ Each takes the run's :class:`~vid2sim.app.inputs.Inputs` and
 through :mod:`vid2sim.app.loaders` (the same loaders ``build`` uses), checks that its output
 can be written before any work, runs the stage functions and writes its output atomically: a
 file renamed into place, or a folder staged and moved into place
-(:func:`vid2sim.fileio.staged_folder`). Each returns the summary text the CLI prints.
+(:func:`vid2sim.base.fileio.staged_folder`). Each returns the summary text the CLI prints.
 """
 
 from __future__ import annotations
@@ -16,26 +16,26 @@ from pathlib import Path
 
 import numpy as np
 
-from vid2sim import scenario as scenario_io
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.loaders import load_keyframes_for, load_trace, smooth_trace
 from vid2sim.app.settings import Settings
-from vid2sim.errors import InputError
-from vid2sim.evaluate.replay import run_eval
-from vid2sim.export import FORMATS, replay_script
-from vid2sim.export.openscenario import write_openscenario
-from vid2sim.fileio import (
+from vid2sim.base.errors import InputError
+from vid2sim.base.fileio import (
     check_output_file,
     check_output_folder,
     staged_folder,
     write_bytes_atomic,
     write_text_atomic,
 )
+from vid2sim.core import scenario as scenario_io
+from vid2sim.core.scenario import dumps_canonical
+from vid2sim.core.tables import write_ego_csv
+from vid2sim.core.videofile import video_info
+from vid2sim.evaluate.replay import run_eval
+from vid2sim.export import FORMATS, replay_script
+from vid2sim.export.openscenario import write_openscenario
 from vid2sim.geo import roads as geo_roads
 from vid2sim.geo import trace as geo_trace
-from vid2sim.scenario import dumps_canonical
-from vid2sim.tables import write_ego_csv
-from vid2sim.videofile import video_info
 
 # --------------------------------------------------------------------------- trace, road
 

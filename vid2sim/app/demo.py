@@ -9,8 +9,8 @@ from pathlib import Path
 from vid2sim.app.build import BuildResult, build
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.settings import Settings
-from vid2sim.detect.models import resolve_model
-from vid2sim.errors import InputError
+from vid2sim.base.errors import InputError
+from vid2sim.detect.vehicles.models import resolve_model
 from vid2sim.samples.demo_sample import generate_demo_sample, helsinki_pbf_path
 
 

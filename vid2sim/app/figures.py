@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from vid2sim.core.records import EgoTrack, GpsTrace, RangedBox, RoadResult
 from vid2sim.detect import plots
 from vid2sim.geo.roads import plot_road
-from vid2sim.records import EgoTrack, GpsTrace, RangedBox, RoadResult
 
 
 def stage_figures(fig_dir: Path, road_result: RoadResult | None, trace: GpsTrace | None,

@@ -6,8 +6,8 @@ import math
 from dataclasses import dataclass, fields
 from pathlib import Path
 
-from vid2sim.errors import InputError
-from vid2sim.fileio import sha256_path
+from vid2sim.base.errors import InputError
+from vid2sim.base.fileio import sha256_path
 
 #: Every input a run may take: (field of :class:`Inputs` and manifest column, label used in
 #: messages and the report). The order is the order of ``source.inputs`` in scenario.json.

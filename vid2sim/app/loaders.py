@@ -11,16 +11,24 @@ from pathlib import Path
 
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.settings import Settings
-from vid2sim.camera import Camera, fit_camera_to_frames, load_camera
-from vid2sim.detect.detector import OnnxDetector, load_detector
-from vid2sim.detect.external import read_detections
+from vid2sim.base.errors import InputError
+from vid2sim.core.camera import Camera, fit_camera_to_frames, load_camera
+from vid2sim.core.records import (
+    Detection,
+    EgoTrack,
+    GpsTrace,
+    Keyframe,
+    Note,
+    TraceStats,
+    VideoInfo,
+)
+from vid2sim.core.videofile import image_files
+from vid2sim.detect.vehicles.detector import OnnxDetector, load_detector
+from vid2sim.detect.vehicles.external import read_detections
 from vid2sim.detect.video import video_info
-from vid2sim.errors import InputError
 from vid2sim.evaluate.annotations import read_keyframes
 from vid2sim.geo.readers import read_gps
 from vid2sim.geo.trace import smooth_ego
-from vid2sim.records import Detection, EgoTrack, GpsTrace, Keyframe, Note, TraceStats, VideoInfo
-from vid2sim.videofile import image_files
 
 
 def need_video(inputs: Inputs) -> Path:

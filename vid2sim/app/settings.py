@@ -2,7 +2,7 @@
 
 Every command takes a :class:`Settings`; the CLI builds it from its options once, and
 ``vid2sim batch`` hands the same record to each row. Defaults live in the stage config
-classes and in :mod:`vid2sim.defaults`, never in the CLI.
+classes and in :mod:`vid2sim.base.defaults`, never in the CLI.
 """
 
 from __future__ import annotations
@@ -10,13 +10,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from vid2sim.defaults import EGO_RATE_HZ
-from vid2sim.detect.lane_track import LaneTrackConfig
-from vid2sim.detect.models import DEFAULT_DETECTOR
+from vid2sim.base.defaults import EGO_RATE_HZ
+from vid2sim.base.errors import InputError
+from vid2sim.detect.lanes.track import LaneTrackConfig
 from vid2sim.detect.ranging import RangingConfig
 from vid2sim.detect.schedule import ScheduleConfig
-from vid2sim.detect.tracker import TrackerConfig
-from vid2sim.errors import InputError
+from vid2sim.detect.tracking.tracker import TrackerConfig
+from vid2sim.detect.vehicles.models import DEFAULT_DETECTOR
 from vid2sim.export.assemble import AssembleConfig
 from vid2sim.geo.trace import TraceParams
 

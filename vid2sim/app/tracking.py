@@ -24,12 +24,12 @@ import numpy as np
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.loaders import load_boxes, load_camera_for, load_video_info, need_video
 from vid2sim.app.settings import Settings
+from vid2sim.base.fileio import check_output_file, check_output_folder
+from vid2sim.core.records import RangingResult
+from vid2sim.core.tables import write_detections_csv, write_tracks_csv
+from vid2sim.core.videofile import skipped_frames_note
 from vid2sim.detect.pipeline import detect_and_range, run_detect
 from vid2sim.detect.plots import plot_lead, plot_topdown
-from vid2sim.fileio import check_output_file, check_output_folder
-from vid2sim.records import RangingResult
-from vid2sim.tables import write_detections_csv, write_tracks_csv
-from vid2sim.videofile import skipped_frames_note
 
 # --------------------------------------------------------------------------- detect
 

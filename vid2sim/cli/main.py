@@ -10,9 +10,9 @@ import traceback
 
 import click
 
+from vid2sim.base.errors import InputError, Terminated
+from vid2sim.base.fileio import OUTPUT_ERRNOS
 from vid2sim.cli.group import cli
-from vid2sim.errors import InputError, Terminated
-from vid2sim.fileio import OUTPUT_ERRNOS
 
 # --------------------------------------------------------------------------- entry point
 

@@ -7,10 +7,10 @@ from pathlib import Path
 import click
 
 from vid2sim.app.settings import DetectorSettings, Settings
-from vid2sim.defaults import IMAGE_FOLDER_FPS
-from vid2sim.detect.models import DEFAULT_DETECTOR
-from vid2sim.detect.windows import REFINE_MAX_BOXES
-from vid2sim.errors import InputError
+from vid2sim.base.defaults import IMAGE_FOLDER_FPS
+from vid2sim.base.errors import InputError
+from vid2sim.detect.vehicles.models import DEFAULT_DETECTOR
+from vid2sim.detect.vehicles.windows import REFINE_MAX_BOXES
 
 EXISTING_PATH = click.Path(exists=False, path_type=Path)
 

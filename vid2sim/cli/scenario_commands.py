@@ -17,7 +17,7 @@ from vid2sim.cli.options import (
     settings_from,
     show_progress,
 )
-from vid2sim.detect.models import DEFAULT_DETECTOR
+from vid2sim.detect.vehicles.models import DEFAULT_DETECTOR
 
 # --------------------------------------------------------------------------- eval
 

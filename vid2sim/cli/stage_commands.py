@@ -8,6 +8,7 @@ import click
 
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.settings import Settings
+from vid2sim.base.defaults import EGO_RATE_HZ
 from vid2sim.cli.group import cli
 from vid2sim.cli.options import (
     EXISTING_PATH,
@@ -19,7 +20,6 @@ from vid2sim.cli.options import (
     settings_from,
     show_progress,
 )
-from vid2sim.defaults import EGO_RATE_HZ
 
 # --------------------------------------------------------------------------- trace
 
@@ -128,7 +128,7 @@ def models() -> None:
 @click.option("--model-dir", type=EXISTING_PATH, default=None, help="Extra folder to search.")
 def models_list(model_dir: Path | None) -> None:
     """Known detectors and where their weights were found."""
-    from vid2sim.detect.models import describe_models
+    from vid2sim.detect.vehicles.models import describe_models
 
     echo(describe_models(model_dir))
 
@@ -139,7 +139,7 @@ def models_list(model_dir: Path | None) -> None:
               help="Download into this folder instead of the user cache.")
 def models_pull(name: str, dest_dir: Path | None) -> None:
     """Download a detector's weights and verify their sha256."""
-    from vid2sim.detect.models import pull
+    from vid2sim.detect.vehicles.models import pull
 
     path = pull(name, dest_dir, progress=show_progress())
     echo(f"{name}: verified -> {path}")

@@ -13,12 +13,13 @@ from pathlib import Path
 
 import numpy as np
 
-from vid2sim.camera import Camera
-from vid2sim.detect.detector import Detector
-from vid2sim.detect.flow import FlowConfig, MedianFlow
-from vid2sim.detect.lane_markings import LaneMarkingDetector
-from vid2sim.detect.lane_track import track_lanes
-from vid2sim.detect.lanes import HorizonEstimator, yaw_for_vanishing_column
+from vid2sim.base.errors import InputError
+from vid2sim.core.camera import Camera
+from vid2sim.core.records import Detection, Frame, Note, RangingResult, TrackedBox
+from vid2sim.core.videofile import skipped_frames_note
+from vid2sim.detect.lanes.markings import LaneMarkingDetector
+from vid2sim.detect.lanes.track import track_lanes
+from vid2sim.detect.lanes.vanishing import HorizonEstimator, yaw_for_vanishing_column
 from vid2sim.detect.rail import find_rail_tracks, keep_trams_from_lead, relabel
 from vid2sim.detect.ranging import (
     RangingConfig,
@@ -27,11 +28,10 @@ from vid2sim.detect.ranging import (
     range_tracks,
 )
 from vid2sim.detect.schedule import KeyframeSchedule, ScheduleConfig
-from vid2sim.detect.tracker import Tracker, TrackerConfig
+from vid2sim.detect.tracking.flow import FlowConfig, MedianFlow
+from vid2sim.detect.tracking.tracker import Tracker, TrackerConfig
+from vid2sim.detect.vehicles.detector import Detector
 from vid2sim.detect.video import folder_frame_steps, iter_frames, prefetch, video_info
-from vid2sim.errors import InputError
-from vid2sim.records import Detection, Frame, Note, RangingResult, TrackedBox
-from vid2sim.videofile import skipped_frames_note
 
 
 def run_detect(source: Path, *, detector: Detector | None,
@@ -53,7 +53,7 @@ def run_detect(source: Path, *, detector: Detector | None,
         boxes are used). Detectors are loaded by the application layer
         (:func:`vid2sim.app.loaders.load_detector_for`).
     detections : dict, optional
-        Imported boxes, 0-based frame -> detections (see :mod:`vid2sim.detect.external`);
+        Imported boxes, 0-based frame -> detections (see :mod:`vid2sim.detect.vehicles.external`);
         used instead of a detector. Frames absent from the dict are treated as frames where
         nothing was found when they are multiples of ``detect_every``.
     detect_every : int
@@ -74,7 +74,7 @@ def run_detect(source: Path, *, detector: Detector | None,
     schedule : ScheduleConfig, optional
         With a detector and ``detect_every`` 1: run the detector on keyframes only
         (:mod:`vid2sim.detect.schedule`) and carry the boxes between them by optical flow
-        (:mod:`vid2sim.detect.flow`, settings ``flow``). None: the detector runs on every
+        (:mod:`vid2sim.detect.tracking.flow`, settings ``flow``). None: the detector runs on every
         ``detect_every``-th frame and the tracker predicts between.
     stats : dict, optional
         Filled with counts for summaries and benchmarks: ``frames``, ``keyframes``.
@@ -217,7 +217,7 @@ def detect_and_range(video: Path, camera: Camera, *, detector, detections=None,
     While frames stream, lane markings give per-frame horizon rows and the vanishing column;
     the column corrects the camera's yaw (so the ego corridor follows the lane) when enough
     frames agree and the correction is plausible for a mounting. The ego lane is measured
-    from the same frames (``result.lanes``, a :class:`~vid2sim.records.LaneTrack`).
+    from the same frames (``result.lanes``, a :class:`~vid2sim.core.records.LaneTrack`).
 
     Parameters
     ----------

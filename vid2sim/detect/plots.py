@@ -7,9 +7,9 @@ from pathlib import Path
 
 import numpy as np
 
-from vid2sim.defaults import LANE_WIDTH_M
-from vid2sim.fileio import write_bytes_atomic
-from vid2sim.records import RangedBox
+from vid2sim.base.defaults import LANE_WIDTH_M
+from vid2sim.base.fileio import write_bytes_atomic
+from vid2sim.core.records import RangedBox
 
 
 def _figure():

@@ -3,7 +3,7 @@
 A tram reaches the tracker in three ways:
 
 1. **The detector says so**: COCO's ``train`` class is the ``tram`` category
-   (:data:`vid2sim.detect.detector.COCO_VEHICLES`); the tracker's score-weighted vote makes
+   (:data:`vid2sim.detect.vehicles.detector.COCO_VEHICLES`); the tracker's score-weighted vote makes
    the track a tram.
 2. **A tall vehicle beyond the kerb.** A small detector seeing a tram from behind at 40-90 m
    mostly calls it a car or a bus (KITTI raw 0001: car scores 0.3-0.5, train at most 0.26).
@@ -29,9 +29,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from vid2sim.camera import Camera
-from vid2sim.detect.lead import LaneSettings, relane
-from vid2sim.records import (
+from vid2sim.core.camera import Camera
+from vid2sim.core.records import (
     RAIL_CATEGORIES,
     LaneTrack,
     MarkingKind,
@@ -39,6 +38,7 @@ from vid2sim.records import (
     RangingResult,
     TrackedBox,
 )
+from vid2sim.detect.assign import LaneSettings, relane
 
 TRAM = RAIL_CATEGORIES[0]
 
@@ -98,7 +98,7 @@ def _by_track(boxes: list[TrackedBox]) -> dict[int, list[TrackedBox]]:
 def road_edges(lanes: LaneTrack | None, max_gap_frames: int = 10
                ) -> dict[int, tuple[object | None, object | None]]:
     """Per frame: the (right, left) ego-lane boundary where the lane track calls it a road
-    edge (a :class:`~vid2sim.records.LaneBoundary`), else None; frames without a measured
+    edge (a :class:`~vid2sim.core.records.LaneBoundary`), else None; frames without a measured
     boundary take the nearest frame's within ``max_gap_frames``."""
     if lanes is None or not len(lanes.observations):
         return {}

@@ -2,7 +2,7 @@
 
 The full detector (full frame, tiles, centre window, refine crops) costs several network runs;
 between its keyframes the tracks' boxes are carried by optical flow
-(:mod:`vid2sim.detect.flow`), which keeps per-frame box measurements for range and range
+(:mod:`vid2sim.detect.tracking.flow`), which keeps per-frame box measurements for range and range
 rate. A frame is a keyframe when
 
 * it is the first, or ``keyframe_s`` or more after the last keyframe (so sparse input, whose
@@ -13,7 +13,7 @@ rate. A frame is a keyframe when
   blur, a fast scene; a car leaving the view loses its flow as a matter of course);
 * the lead candidate's carried box changed its size by more than ``max_scale_change``
   since it was last detected (its range comes from the box: the detector's box is wanted);
-* the lead candidate changed (the nearest box ahead, :func:`~vid2sim.detect.windows.refine_candidates`).
+* the lead candidate changed (the nearest box ahead, :func:`~vid2sim.detect.vehicles.windows.refine_candidates`).
 """
 
 from __future__ import annotations
@@ -22,9 +22,9 @@ import math
 from collections import Counter
 from dataclasses import dataclass
 
-from vid2sim.boxes import border_cut
-from vid2sim.detect.tracker import Tracker
-from vid2sim.detect.windows import refine_candidates
+from vid2sim.core.boxes import border_cut
+from vid2sim.detect.tracking.tracker import Tracker
+from vid2sim.detect.vehicles.windows import refine_candidates
 
 TIME_TOLERANCE_S = 1e-3
 """Keyframes are due a hair before the interval: container timestamps of a 10 fps video are

@@ -10,9 +10,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from vid2sim.errors import InputError
-from vid2sim.records import Frame
-from vid2sim.videofile import image_files, open_capture, resume_after, video_info
+from vid2sim.base.errors import InputError
+from vid2sim.core.records import Frame
+from vid2sim.core.videofile import image_files, open_capture, resume_after, video_info
 
 PREFETCH_FRAMES = 4
 """Frames decoded ahead by :func:`prefetch`: enough to cover a keyframe's detector time at
@@ -79,7 +79,7 @@ def iter_frames(path: Path, every: int = 1, fps: float | None = None,
     skipped : list of int, optional
         Receives the indices of frames that could not be read (corrupt bytes, a decoder that
         stopped early, an unreadable image); they are not yielded, the stream goes on after
-        them (see :func:`vid2sim.videofile.resume_after`).
+        them (see :func:`vid2sim.core.videofile.resume_after`).
     only : collection of int, optional
         Decode these frames (0-based) instead of every N-th: the others are grabbed (or not
         read) as above, so the timestamps stay the container's.

@@ -1,6 +1,6 @@
 """Read annotated keyframes (Scalabel/BDD100K JSON, KITTI tracking label_02, CVAT for video XML).
 
-Every reader returns :class:`~vid2sim.records.Keyframe` records on the scenario clock
+Every reader returns :class:`~vid2sim.core.records.Keyframe` records on the scenario clock
 (seconds from the video's first frame) holding vehicle boxes and ignore regions only.
 
 Time base (where bugs hide, so spelled out):
@@ -32,9 +32,9 @@ from collections import defaultdict
 from pathlib import Path
 from typing import Any
 
-from vid2sim.errors import InputError
-from vid2sim.fileio import check_input_size, parse_json
-from vid2sim.records import AnnotatedBox, Keyframe
+from vid2sim.base.errors import InputError
+from vid2sim.base.fileio import check_input_size, parse_json
+from vid2sim.core.records import AnnotatedBox, Keyframe
 
 log = logging.getLogger(__name__)
 

@@ -20,14 +20,14 @@ import cv2
 import numpy as np
 from tqdm import tqdm
 
-from vid2sim.camera import Camera
+from vid2sim.base.fileio import write_bytes_atomic
+from vid2sim.core.camera import Camera
+from vid2sim.core.lead import ego_lane_at, lane_centre_m, lane_index
+from vid2sim.core.records import LaneTrack, RangedBox
+from vid2sim.core.scenario import Event, Scenario
+from vid2sim.core.videofile import read_frames
 from vid2sim.detect.video import iter_frames
 from vid2sim.export.highway import ReplayEnv, enu_to_hw
-from vid2sim.fileio import write_bytes_atomic
-from vid2sim.lead import ego_lane_at, lane_centre_m, lane_index
-from vid2sim.records import LaneTrack, RangedBox
-from vid2sim.scenario import Event, Scenario
-from vid2sim.videofile import read_frames
 
 
 @dataclass(frozen=True, slots=True)
@@ -39,7 +39,7 @@ class FrameSampleConfig:
     n_even: int = 6
     max_event_frames: int = 8
     #: the lane boundaries are drawn over this range ahead [m]: from the bonnet to where the
-    #: lane model is trusted (vid2sim.lead.LANE_MODEL_REACH_M) and a little beyond
+    #: lane model is trusted (vid2sim.core.lead.LANE_MODEL_REACH_M) and a little beyond
     lane_near_m: float = 4.0
     lane_far_m: float = 35.0
     #: the highway-env render: a square [px] at a scale [px/m] showing 50 m ahead of the
@@ -208,7 +208,7 @@ def sample_frame_figures(out_dir: Path, video: Path, camera: Camera, boxes: list
     progress : a progress bar over the frames read (stderr)
     frame_times_s : every frame's time (index -> s), as the detection stage streamed them:
         with it the picked frames are decoded by seeking over long gaps
-        (:func:`vid2sim.videofile.read_frames`) instead of decoding the video up to the last
+        (:func:`vid2sim.core.videofile.read_frames`) instead of decoding the video up to the last
         pick, and timed from it
     """
     cfg = config or FrameSampleConfig()

@@ -32,8 +32,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from vid2sim.boxes import box_area, intersection_matrix, iou_matrix
-from vid2sim.records import AnnotatedBox, Keyframe, ProjectedBox
+from vid2sim.core.boxes import box_area, intersection_matrix, iou_matrix
+from vid2sim.core.records import AnnotatedBox, Keyframe, ProjectedBox
 
 TP_IOU = 0.5
 """Minimum IoU of a true positive (both counting rules)."""

@@ -20,10 +20,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from vid2sim.core.lanelayout import ROAD_LANE_TYPES
+from vid2sim.core.records import RAIL_CATEGORIES
+from vid2sim.core.scenario import Scenario
 from vid2sim.export.highway.env import ReplayEnv
-from vid2sim.lanelayout import ROAD_LANE_TYPES
-from vid2sim.records import RAIL_CATEGORIES
-from vid2sim.scenario import Scenario
 
 
 @dataclass(slots=True)

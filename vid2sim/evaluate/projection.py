@@ -8,8 +8,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from vid2sim.camera import Camera
-from vid2sim.outline import OutlineShape, vehicle_points
+from vid2sim.core.camera import Camera
+from vid2sim.core.outline import OutlineShape, vehicle_points
 
 NEAR_PLANE_M = 0.1
 """Depth in front of the camera [m] at which 3D boxes are cut before projection."""

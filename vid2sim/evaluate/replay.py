@@ -1,13 +1,13 @@
 """Replay a scenario at annotated keyframes, project its vehicles into the camera, score them.
 
 Geometry: the ego trajectory is the pose of the vehicle-frame origin (the road point below
-the camera, as :mod:`vid2sim.camera` defines it); an actor's trajectory is the centre of its
+the camera, as :mod:`vid2sim.core.camera` defines it); an actor's trajectory is the centre of its
 footprint. At time t an actor's centre (x, y) and heading go into the ego frame by
 
     x_fwd  =  cos(h_ego) dx + sin(h_ego) dy
     y_left = -sin(h_ego) dx + cos(h_ego) dy,    yaw = h_actor - h_ego
 
-with (dx, dy) the ENU offset from the ego. Its outline (:mod:`vid2sim.outline`: tyres, widest
+with (dx, dy) the ENU offset from the ego. Its outline (:mod:`vid2sim.core.outline`: tyres, widest
 section, mirrors; the rear face where ranging's ``range_m`` put it) is projected through the
 scenario camera: the box a detector or annotator draws. One reaching behind the camera is its
 3D box cut at a near plane (the truncated box an annotator draws of a car alongside).
@@ -39,17 +39,17 @@ import numpy as np
 from shapely.geometry import box as shapely_box
 from shapely.ops import unary_union
 
-from vid2sim.camera import Camera, fit_camera_to_frames
-from vid2sim.defaults import IMAGE_FOLDER_FPS
+from vid2sim.base.defaults import IMAGE_FOLDER_FPS
+from vid2sim.base.fileio import write_bytes_atomic, write_text_atomic
+from vid2sim.core.camera import Camera, fit_camera_to_frames
+from vid2sim.core.outline import CAR_SHAPE, CLASS_SHAPES, OutlineShape
+from vid2sim.core.records import Keyframe, ProjectedBox
+from vid2sim.core.scenario import Actor, Scenario, load
+from vid2sim.core.videofile import image_files, read_frames, video_size_and_fps
 from vid2sim.evaluate.annotations import describe, read_keyframes
 from vid2sim.evaluate.metrics import score_keyframes
 from vid2sim.evaluate.projection import NEAR_PLANE_M, BoxView, project_box_clipped  # noqa: F401
 from vid2sim.evaluate.report import write_report
-from vid2sim.fileio import write_bytes_atomic, write_text_atomic
-from vid2sim.outline import CAR_SHAPE, CLASS_SHAPES, OutlineShape
-from vid2sim.records import Keyframe, ProjectedBox
-from vid2sim.scenario import Actor, Scenario, load
-from vid2sim.videofile import image_files, read_frames, video_size_and_fps
 
 log = logging.getLogger(__name__)
 
@@ -220,7 +220,7 @@ def replay_boxes(scenario: Scenario, times_s: list[float], *, use_env: bool = Tr
     camera : Camera, optional
         Camera to project through; default the scenario's.
     outlines : dict, optional
-        Per-category outline (:mod:`vid2sim.outline`); None projects 3D boxes (the boxes of
+        Per-category outline (:mod:`vid2sim.core.outline`); None projects 3D boxes (the boxes of
         a world drawn as cuboids, such as the demo sample's).
 
     Returns

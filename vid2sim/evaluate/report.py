@@ -21,12 +21,12 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from vid2sim import __version__
-from vid2sim.defaults import LANE_WIDTH_M
-from vid2sim.errors import InputError
-from vid2sim.fileio import write_text_atomic
-from vid2sim.htmlpage import BASE_CSS, figure_png
-from vid2sim.lead import in_ego_corridor
-from vid2sim.scenario import Scenario
+from vid2sim.base.defaults import LANE_WIDTH_M
+from vid2sim.base.errors import InputError
+from vid2sim.base.fileio import write_text_atomic
+from vid2sim.base.htmlpage import BASE_CSS, figure_png
+from vid2sim.core.lead import in_ego_corridor
+from vid2sim.core.scenario import Scenario
 
 LEAD_SAMPLE_HZ = 10.0
 """Rate at which the lead vehicle is looked up for the plots [Hz]."""
@@ -88,7 +88,7 @@ def _lane_width_m(scenario: Scenario) -> float:
 
 
 def lead_series(scenario: Scenario, rate_hz: float = LEAD_SAMPLE_HZ) -> dict[str, np.ndarray]:
-    """Lead vehicle over time (:mod:`vid2sim.lead`): the nearest actor ahead whose centre lies
+    """Lead vehicle over time (:mod:`vid2sim.core.lead`): the nearest actor ahead whose centre lies
     within half a lane width of the ego's longitudinal axis.
 
     Returns
@@ -116,7 +116,7 @@ def lead_series(scenario: Scenario, rate_hz: float = LEAD_SAMPLE_HZ) -> dict[str
         fwd = c * dx + s * dy
         lat = -s * dx + c * dy
         rear = fwd - a.length_m / 2.0
-        # the lead's geometry (vid2sim.lead), vectorised over time: ahead, in the corridor,
+        # the lead's geometry (vid2sim.core.lead), vectorised over time: ahead, in the corridor,
         # and nearer than the lead found among the actors so far
         is_lead = active & (rear > 0) & in_ego_corridor(lat, lane_width_m) & ~(rng <= rear)
         rng[is_lead] = rear[is_lead]

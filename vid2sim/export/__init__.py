@@ -21,8 +21,8 @@ from pathlib import Path
 import gymnasium
 
 import vid2sim  # noqa: F401  registers vid2sim/Replay-v0
-from vid2sim import scenario as scenario_io
-from vid2sim.adas.metrics import episode_metrics
+from vid2sim.core import scenario as scenario_io
+from vid2sim.adas.episode_metrics import episode_metrics
 from vid2sim.adas.registry import parse_policy
 from vid2sim.adas.sensor import CameraSensor
 

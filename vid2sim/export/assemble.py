@@ -41,13 +41,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from vid2sim.defaults import EGO_HEIGHT_M, EGO_LENGTH_M, EGO_WIDTH_M, LANE_WIDTH_M
-from vid2sim.errors import InputError
-from vid2sim.records import EgoTrack, RangedBox
-from vid2sim.scenario import Actor, Ego, Road, Scenario, Source, Trajectory
+from vid2sim.base.defaults import EGO_HEIGHT_M, EGO_LENGTH_M, EGO_WIDTH_M, LANE_WIDTH_M
+from vid2sim.base.errors import InputError
+from vid2sim.core.records import EgoTrack, RangedBox
+from vid2sim.core.scenario import Actor, Ego, Road, Scenario, Source, Trajectory
 
 if TYPE_CHECKING:
-    from vid2sim.camera import Camera
+    from vid2sim.core.camera import Camera
 
 # Typical dimensions [m] (length, width, height): EU/US passenger-car fleet medians, a rigid
 # delivery truck, a 12 m city bus, a motorcycle with rider, a low-floor tram (ranging's

@@ -46,7 +46,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from vid2sim.lanelayout import (
+from vid2sim.core.lanelayout import (
     BACKWARD,
     BORDER,
     DRIVING,
@@ -57,7 +57,7 @@ from vid2sim.lanelayout import (
     CrossSection,
     LaneSpec,
 )
-from vid2sim.records import LaneTrack, MarkingKind
+from vid2sim.core.records import LaneTrack, MarkingKind
 
 #: Road classes whose strip beside the lanes is a hard shoulder, not a parking strip.
 SHOULDER_HIGHWAYS = ("motorway", "motorway_link", "trunk", "trunk_link")
@@ -109,7 +109,7 @@ class CrossSectionConfig:
 @dataclass(frozen=True, slots=True)
 class SeenLine:
     """A line of the road: offset from the reference line [m, positive left], its majority
-    :class:`~vid2sim.records.MarkingKind` value and the share of measured frames it was
+    :class:`~vid2sim.core.records.MarkingKind` value and the share of measured frames it was
     seen in."""
 
     offset_m: float

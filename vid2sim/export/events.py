@@ -1,9 +1,9 @@
 """Lane-change events of a scenario: cut-ins, cut-outs and other lane changes.
 
 Every tracked vehicle has a lane per frame relative to the ego lane, with hysteresis
-(``RangedBox.lane``, :func:`vid2sim.detect.lead.lane_indices`), and its centre's offset from
+(``RangedBox.lane``, :func:`vid2sim.detect.assign.lane_indices`), and its centre's offset from
 the ego lane's centre line (``RangedBox.lane_offset_m``). A vehicle's lane is counted on the
-road (the ego's own lane changes, :attr:`~vid2sim.records.LaneTrack.lane`, are added back),
+road (the ego's own lane changes, :attr:`~vid2sim.core.records.LaneTrack.lane`, are added back),
 so only the vehicle's own moves are events:
 
 1. **Runs.** A track's frames are cut into runs of one lane; only runs that last at least
@@ -22,7 +22,7 @@ so only the vehicle's own moves are events:
    oncoming ones (they pass in a second or two, seen mostly far ahead) give no events,
    nor crossings between lanes more than :attr:`EventConfig.max_lane` from the ego lane.
 
-The ego's own lane changes (:attr:`~vid2sim.records.EgoLateral.lane_changes`) are events of
+The ego's own lane changes (:attr:`~vid2sim.core.records.EgoLateral.lane_changes`) are events of
 the actor ``"ego"`` from lane 0 to +1 (left) or -1 (right).
 """
 
@@ -35,9 +35,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vid2sim.lead import ego_lane_at, lane_index
-from vid2sim.records import LaneChange, LaneTrack, RangedBox
-from vid2sim.scenario import EGO_ID, Actor, Event, Trajectory
+from vid2sim.core.lead import ego_lane_at, lane_index
+from vid2sim.core.records import LaneChange, LaneTrack, RangedBox
+from vid2sim.core.scenario import EGO_ID, Actor, Event, Trajectory
 
 
 @dataclass(frozen=True, slots=True)
@@ -53,7 +53,7 @@ class EventConfig:
     #: lane's boundary at a vehicle's range is off by 0.22 / 0.42 m RMS at 30 / 40 m on
     #: KITTI raw 0001 with the road's course (0.53 / 0.86 m from the lane model alone;
     #: ``python benchmarks/bench_lanes.py --kitti``) and by 0.50 / 0.76 m on the demo's bend
-    #: (vid2sim.lead): within a tenth of a lane at 30 m, a sixth or worse beyond (a parked
+    #: (vid2sim.core.lead): within a tenth of a lane at 30 m, a sixth or worse beyond (a parked
     #: car 40 m ahead in the demo's bend read as in the ego lane)
     max_range_m: float = 30.0
     #: actors slower than this along the ego's direction at the crossing give no events

@@ -3,7 +3,7 @@ cross-sections.
 
 Each scenario road becomes one road whose reference line is the scenario centerline, fitted
 as a clothoid chain (:mod:`vid2sim.export.refline`). Its lanes are the road's cross-section
-(:meth:`vid2sim.scenario.Road.layout`) with their OpenDRIVE types (``driving``, ``parking``,
+(:meth:`vid2sim.core.scenario.Road.layout`) with their OpenDRIVE types (``driving``, ``parking``,
 ``shoulder``, ``border``, ``rail``): in right-hand traffic OpenDRIVE's right lanes (ids -1,
 -2, ...) run in the reference line's direction and its left lanes against it, so the centre
 lane (id 0) is put on the boundary left of the leftmost forward driving lane, by a
@@ -25,11 +25,11 @@ import xml.etree.ElementTree as ET
 
 import numpy as np
 
-from vid2sim.enu import EnuFrame
+from vid2sim.core.enu import EnuFrame
+from vid2sim.core.lanelayout import DRIVING, FORWARD, CrossSection
+from vid2sim.core.scenario import Road, Scenario
 from vid2sim.export.assemble import straight_road_for
 from vid2sim.export.refline import FIT_TOLERANCE_M, fit_reference_line
-from vid2sim.lanelayout import DRIVING, FORWARD, CrossSection
-from vid2sim.scenario import Road, Scenario
 
 log = logging.getLogger(__name__)
 

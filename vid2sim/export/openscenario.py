@@ -32,6 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
+from vid2sim.core.scenario import Scenario, Trajectory
 from vid2sim.export.assemble import straight_road_for
 from vid2sim.export.opendrive import build_opendrive, set_header_bounds
 from vid2sim.export.refline import (  # noqa: F401 - the fit's names, as before the split
@@ -41,7 +42,6 @@ from vid2sim.export.refline import (  # noqa: F401 - the fit's names, as before 
     _ClothoidModel,
     fit_reference_line,
 )
-from vid2sim.scenario import Scenario, Trajectory
 
 _SINGLE_SAMPLE_HOLD_S = 0.1  # how long a once-seen vehicle's polyline lasts [s]
 

@@ -2,7 +2,7 @@
 the actors stood on them.
 
 :func:`lay_out_scene` takes the assembled scenario and the ego's lateral record
-(:class:`~vid2sim.records.EgoLateral`: the lane track, the ego's lane, the path of its lane's
+(:class:`~vid2sim.core.records.EgoLateral`: the lane track, the ego's lane, the path of its lane's
 middle) and returns the scenario with
 
 - **the main road's reference line**: on a road derived from the trajectory, the middle of
@@ -27,15 +27,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-from vid2sim.export.assemble import AssembleConfig, is_static
-from vid2sim.export.crosssection import (
-    CrossSectionConfig,
-    Inference,
-    StandingVehicle,
-    infer_cross_section,
-    seen_lines,
-)
-from vid2sim.lanelayout import (
+from vid2sim.core.lanelayout import (
     BACKWARD,
     DRIVING,
     PARKING,
@@ -44,9 +36,17 @@ from vid2sim.lanelayout import (
     SHOULDER,
     CrossSection,
 )
-from vid2sim.polyline import resample_polyline, signed_offsets
-from vid2sim.records import RAIL_CATEGORIES, EgoLateral, Note
-from vid2sim.scenario import LANE_WIDTH_RANGE_M, Actor, Road, Scenario, Trajectory
+from vid2sim.core.polyline import resample_polyline, signed_offsets
+from vid2sim.core.records import RAIL_CATEGORIES, EgoLateral, Note
+from vid2sim.core.scenario import LANE_WIDTH_RANGE_M, Actor, Road, Scenario, Trajectory
+from vid2sim.export.assemble import AssembleConfig, is_static
+from vid2sim.export.crosssection import (
+    CrossSectionConfig,
+    Inference,
+    StandingVehicle,
+    infer_cross_section,
+    seen_lines,
+)
 
 
 @dataclass(frozen=True)

@@ -7,8 +7,8 @@ import math
 
 import numpy as np
 
+from vid2sim.core.polyline import signed_offsets  # noqa: F401 - its old home, still imported here
 from vid2sim.geo.osm import RoadNetwork
-from vid2sim.polyline import signed_offsets  # noqa: F401 - its old home, still imported here
 
 #: innovations beyond 4 sigma (16 = 4^2 in variance) are rejected by the along-route filter
 GATE = 16.0

@@ -10,7 +10,7 @@ line parallel to every lane of the road.
 :class:`RoadCourse` holds that line (ENU, smoothed over :data:`COURSE_SMOOTHING_M` of arc)
 and answers, for an instant and distances ahead, how far the road bends away from the
 straight line it follows at a join point (:meth:`RoadCourse.bend_m`): what a lane model
-continued from the join along the road needs (:func:`vid2sim.lead.lane_centre_ahead_m`).
+continued from the join along the road needs (:func:`vid2sim.core.lead.lane_centre_ahead_m`).
 
 Pure: records in, arrays out.
 """
@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-from vid2sim.records import EgoLateral
+from vid2sim.core.records import EgoLateral
 
 #: The course is smoothed over this arc length [m] (Gaussian one-sigma): GPS/INS positions
 #: 10 cm apart with centimetre noise give headings that scatter by a few 1e-3 rad per

@@ -7,9 +7,9 @@ import math
 from dataclasses import replace
 from pathlib import Path
 
-from vid2sim.errors import InputError
-from vid2sim.fileio import check_input_size
-from vid2sim.records import GpsFix, GpsTrace
+from vid2sim.base.errors import InputError
+from vid2sim.base.fileio import check_input_size
+from vid2sim.core.records import GpsFix, GpsTrace
 
 KNOTS_TO_MPS = 1852.0 / 3600.0
 # A receiver's user-equivalent range error: horizontal one-sigma accuracy ~ HDOP x UERE.

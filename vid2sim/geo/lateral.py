@@ -30,9 +30,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-from vid2sim.enu import EnuFrame
-from vid2sim.geo.mapmatch import signed_offsets
-from vid2sim.records import (
+from vid2sim.core.enu import EnuFrame
+from vid2sim.core.records import (
     EgoLateral,
     EgoTrack,
     LaneChange,
@@ -41,6 +40,7 @@ from vid2sim.records import (
     Note,
     RoadResult,
 )
+from vid2sim.geo.mapmatch import signed_offsets
 
 
 @dataclass(frozen=True, slots=True)
@@ -183,7 +183,7 @@ def fuse_lateral(ego: EgoTrack, lanes: LaneTrack | None, road: RoadResult | None
     refilter : callable, optional
         ``(lane track, ego speed at its frames [m/s]) -> lane track``: the lane filter run
         again with the ego's speed (the application passes
-        :func:`vid2sim.detect.lane_track.lane_track`; a stage receives it rather than
+        :func:`vid2sim.detect.lanes.track.lane_track`; a stage receives it rather than
         importing another stage). None uses ``lanes`` as they are.
 
     Returns

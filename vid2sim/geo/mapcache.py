@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vid2sim.fileio import atomic_open, sha256_file
+from vid2sim.base.fileio import atomic_open, sha256_file
 
 log = logging.getLogger(__name__)
 

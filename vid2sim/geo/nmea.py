@@ -7,9 +7,9 @@ from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 
-from vid2sim.errors import InputError
+from vid2sim.base.errors import InputError
+from vid2sim.core.records import GpsFix, GpsTrace
 from vid2sim.geo.gpsfile import KNOTS_TO_MPS, UERE_M, finish_trace, read_text
-from vid2sim.records import GpsFix, GpsTrace
 
 # --------------------------------------------------------------------------- NMEA
 

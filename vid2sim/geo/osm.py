@@ -35,10 +35,10 @@ from typing import Any
 import networkx as nx
 import numpy as np
 
-from vid2sim.enu import EnuFrame
-from vid2sim.errors import InputError
+from vid2sim.base.errors import InputError
+from vid2sim.core.enu import EnuFrame
+from vid2sim.core.records import Origin
 from vid2sim.geo.mapcache import DrivableMap, cached_map, default_cache_dir
-from vid2sim.records import Origin
 
 log = logging.getLogger(__name__)
 

@@ -7,9 +7,9 @@ from pathlib import Path
 
 import numpy as np
 
-from vid2sim.errors import InputError
+from vid2sim.base.errors import InputError
+from vid2sim.core.records import GpsFix, GpsTrace
 from vid2sim.geo.gpsfile import finish_trace, optional_value, read_text
-from vid2sim.records import GpsFix, GpsTrace
 
 # --------------------------------------------------------------------------- KITTI OXTS
 

@@ -2,10 +2,10 @@
 
 One reader per format behind :func:`read_gps`, which picks the reader from the file's CONTENT
 (the extension is only a tie-breaker), so ``drive.txt`` holding NMEA or ``log.dat`` holding GPX
-are read correctly. Every problem with the input raises :class:`~vid2sim.errors.InputError`
+are read correctly. Every problem with the input raises :class:`~vid2sim.base.errors.InputError`
 naming the file and what is wrong.
 
-Conventions of the record every reader returns (:class:`~vid2sim.records.GpsFix`):
+Conventions of the record every reader returns (:class:`~vid2sim.core.records.GpsFix`):
 time in seconds since the Unix epoch (UTC) on the format's own clock, WGS-84 degrees, speed in
 m/s, course in degrees clockwise from north, accuracy as a one-sigma horizontal error in metres.
 """
@@ -21,8 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-from vid2sim.errors import InputError
-from vid2sim.fileio import parse_json
+from vid2sim.base.errors import InputError
+from vid2sim.base.fileio import parse_json
+from vid2sim.core.records import GpsFix, GpsTrace
 from vid2sim.geo.gpsfile import KNOTS_TO_MPS, UERE_M, finish_trace, optional_value, read_text
 from vid2sim.geo.nmea import nmea_checksum_ok, read_nmea
 from vid2sim.geo.oxts import (
@@ -41,7 +42,6 @@ from vid2sim.geo.oxts import (
     read_kitti_oxts_table,
     read_kitti_stamps,
 )
-from vid2sim.records import GpsFix, GpsTrace
 
 __all__ = [
     "KNOTS_TO_MPS",

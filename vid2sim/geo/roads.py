@@ -21,15 +21,11 @@ from pathlib import Path
 
 import numpy as np
 
-from vid2sim.defaults import LANE_WIDTH_M
-from vid2sim.enu import EnuFrame
-from vid2sim.errors import InputError
-from vid2sim.fileio import atomic_open
-from vid2sim.geo.alongroute import signed_offsets
-from vid2sim.geo.mapmatch import MatchConfig, MatchResult, match
-from vid2sim.geo.osm import RoadNetwork, download_network, format_bbox, load_network
-from vid2sim.geo.trace import video_t0_utc
-from vid2sim.lanelayout import (
+from vid2sim.base.defaults import LANE_WIDTH_M
+from vid2sim.base.errors import InputError
+from vid2sim.base.fileio import atomic_open
+from vid2sim.core.enu import EnuFrame
+from vid2sim.core.lanelayout import (
     BACKWARD,
     DRIVING,
     FORWARD,
@@ -38,9 +34,13 @@ from vid2sim.lanelayout import (
     CrossSection,
     LaneSpec,
 )
-from vid2sim.polyline import resample_polyline
-from vid2sim.records import EgoTrack, GpsTrace, RoadResult
-from vid2sim.scenario import MAX_LANES, Road
+from vid2sim.core.polyline import resample_polyline
+from vid2sim.core.records import EgoTrack, GpsTrace, RoadResult
+from vid2sim.core.scenario import MAX_LANES, Road
+from vid2sim.geo.alongroute import signed_offsets
+from vid2sim.geo.mapmatch import MatchConfig, MatchResult, match
+from vid2sim.geo.osm import RoadNetwork, download_network, format_bbox, load_network
+from vid2sim.geo.trace import video_t0_utc
 
 log = logging.getLogger(__name__)
 
@@ -70,7 +70,7 @@ LANE_DEFAULTS: dict[str, tuple[int, int, float]] = {
 #: lane 0 is the rightmost lane in the direction of travel, and indices count leftwards.
 LANE_NUMBERING = "lane 0 = rightmost in the direction of travel, counting leftwards"
 #: lane width of a road derived from the trajectory, and of unknown highway types [m]
-DEFAULT_LANE_WIDTH_M = LANE_WIDTH_M  # the project's default (vid2sim.defaults)
+DEFAULT_LANE_WIDTH_M = LANE_WIDTH_M  # the project's default (vid2sim.base.defaults)
 #: lane widths outside this range in a ``width`` tag are taken as tagging errors [m]
 LANE_WIDTH_RANGE_M = (2.5, 4.5)
 #: centerline sample spacing, at most [m]

@@ -25,10 +25,11 @@ from pathlib import Path
 
 import numpy as np
 
-from vid2sim.defaults import EGO_RATE_HZ
-from vid2sim.enu import EnuFrame
-from vid2sim.errors import InputError
-from vid2sim.geo.kalman import hermite, smooth
+from vid2sim.base.defaults import EGO_RATE_HZ
+from vid2sim.base.errors import InputError
+from vid2sim.core.enu import EnuFrame
+from vid2sim.core.records import EgoTrack, GpsTrace, Origin, TraceStats
+from vid2sim.geo._gps_kalman import hermite, smooth
 from vid2sim.geo.stops import (
     doppler_stops,
     held_heading,
@@ -38,7 +39,6 @@ from vid2sim.geo.stops import (
     stop_headings,
 )
 from vid2sim.geo.trace_params import TraceParams
-from vid2sim.records import EgoTrack, GpsTrace, Origin, TraceStats
 
 __all__ = ["TraceParams", "format_summary", "smooth_ego", "video_t0_utc"]
 

@@ -40,10 +40,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from vid2sim.boxes import iou_matrix
-from vid2sim.camera import Camera, fit_camera_to_frames, load_camera
-from vid2sim.errors import InputError
-from vid2sim.fileio import write_text_atomic
+from vid2sim.base.errors import InputError
+from vid2sim.base.fileio import write_text_atomic
+from vid2sim.core.boxes import iou_matrix
+from vid2sim.core.camera import Camera, fit_camera_to_frames, load_camera
 from vid2sim.geo.readers import OXTS_PITCH, read_kitti_oxts_table
 from vid2sim.samples.cutout import (  # noqa: F401 - re-exported: composite is the samples' API
     CARS,
@@ -306,7 +306,7 @@ class LeadScore:
 
 def score_lead(boxes: list, truth: LeadTruth, truth_boxes: list, min_iou: float = 0.5
                ) -> LeadScore:
-    """Score ranged boxes (:class:`vid2sim.records.RangedBox`) of a composite clip.
+    """Score ranged boxes (:class:`vid2sim.core.records.RangedBox`) of a composite clip.
 
     Parameters
     ----------

@@ -3,10 +3,10 @@ left of the ego lane into it (:mod:`vid2sim.samples.composite` does the pasting)
 
 The truth of a cut-in is the moment the car's centre crosses the ego lane's left boundary,
 so the clip needs the ego lane itself. It is measured on the drive *without* the car: the lane
-markings of every frame (:class:`~vid2sim.detect.lane_markings.LaneMarkingDetector`, the
+markings of every frame (:class:`~vid2sim.detect.lanes.markings.LaneMarkingDetector`, the
 lane track with the OXTS speed) give the lane's middle beside the camera, which placed in
 the world with the OXTS poses is fitted by one cubic across the ~100 m drive (as
-:func:`vid2sim.evaluate.lanes.world_line_scatter` checks it: 0.07 m RMS scatter at 10 m,
+:func:`vid2sim.evaluate.lane_checks.world_line_scatter` checks it: 0.07 m RMS scatter at 10 m,
 ``python benchmarks/bench_lanes.py --kitti``). The car's lateral position is then set *in
 that lane's coordinates*: from the middle of the lane to the left (+1 lane width) to the
 middle of the ego lane along a minimum-jerk profile, so the true crossing of the boundary
@@ -25,11 +25,11 @@ from pathlib import Path
 
 import numpy as np
 
-from vid2sim.camera import Camera
-from vid2sim.detect.lane_markings import LaneMarkingDetector
-from vid2sim.detect.lane_track import lane_track
+from vid2sim.core.camera import Camera
+from vid2sim.detect.lanes.markings import LaneMarkingDetector
+from vid2sim.detect.lanes.track import lane_track
 from vid2sim.detect.video import iter_frames
-from vid2sim.evaluate.lanes import kitti_camera_poses
+from vid2sim.evaluate.lane_checks import kitti_camera_poses
 from vid2sim.samples.composite import DEFAULT_FPS, LeadTruth, lead_profile
 
 #: A lane change takes 3-6 s from start to end (Toledo and Zohar 2007, NGSIM); drawn in this

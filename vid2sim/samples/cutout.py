@@ -43,10 +43,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from vid2sim.camera import Camera, load_camera, parse_kitti_calib
-from vid2sim.detect.external import KittiLabel, read_kitti_tracking_labels
-from vid2sim.errors import InputError
-from vid2sim.fileio import read_input_text
+from vid2sim.base.errors import InputError
+from vid2sim.base.fileio import read_input_text
+from vid2sim.core.camera import Camera, load_camera, parse_kitti_calib
+from vid2sim.detect.vehicles.external import KittiLabel, read_kitti_tracking_labels
 
 # A rear view: the car heads within this angle of the camera axis [deg].
 MAX_REAR_YAW_DEG = 15.0

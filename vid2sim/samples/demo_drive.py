@@ -9,9 +9,9 @@ from pathlib import Path
 
 import numpy as np
 
-from vid2sim.enu import EnuFrame
-from vid2sim.errors import InputError
-from vid2sim.records import Origin
+from vid2sim.base.errors import InputError
+from vid2sim.core.enu import EnuFrame
+from vid2sim.core.records import Origin
 from vid2sim.samples.render import Building, RoadGeometry
 
 # --------------------------------------------------------------------------- the drive

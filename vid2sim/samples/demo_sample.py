@@ -19,7 +19,7 @@ other way and three cars stand in the parking strip along the right kerb. The ge
 
 Only the noise (GPS, detections, pixel grain) depends on the seed; the drive itself is fixed.
 ``python -m vid2sim.samples.demo_sample OUT_DIR`` writes the sample; :func:`truth_scenario` reads the
-truth back as a :class:`~vid2sim.scenario.Scenario` and :func:`compare_to_truth` scores a
+truth back as a :class:`~vid2sim.core.scenario.Scenario` and :func:`compare_to_truth` scores a
 built scenario against it.
 """
 
@@ -39,11 +39,12 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from vid2sim.camera import Camera
-from vid2sim.enu import EnuFrame
-from vid2sim.errors import InputError
-from vid2sim.fileio import write_text_atomic
-from vid2sim.records import Origin
+from vid2sim.base.errors import InputError
+from vid2sim.base.fileio import write_text_atomic
+from vid2sim.core.camera import Camera
+from vid2sim.core.enu import EnuFrame
+from vid2sim.core.records import Origin
+from vid2sim.core.scenario import dumps_canonical
 from vid2sim.samples.demo_drive import (
     ACTORS,
     CAMERA_BEHIND_FRONT_M,
@@ -71,7 +72,6 @@ from vid2sim.samples.demo_drive import (
 from vid2sim.samples.demo_traffic import EnuTrack, simulate_traffic, traffic_to_enu
 from vid2sim.samples.demo_truth import compare_to_truth, truth_scenario
 from vid2sim.samples.render import DrawnVehicle, SceneRenderer, VehicleView
-from vid2sim.scenario import dumps_canonical
 
 # Re-exported: the sample's public names in one place.
 __all__ = ["DemoSample", "compare_to_truth", "demo_camera", "generate_demo_sample", "gps_noise_enu", "helsinki_pbf_path", "main", "truth_scenario"]

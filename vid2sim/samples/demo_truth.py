@@ -7,15 +7,15 @@ from pathlib import Path
 
 import numpy as np
 
-from vid2sim.enu import EnuFrame
-from vid2sim.records import Origin
-from vid2sim.scenario import Actor, Ego, Road, Scenario, Source, Trajectory
+from vid2sim.core.enu import EnuFrame
+from vid2sim.core.records import Origin
+from vid2sim.core.scenario import Actor, Ego, Road, Scenario, Source, Trajectory
 
 # --------------------------------------------------------------------------- truth reader
 
 
 def truth_scenario(truth_path: Path) -> Scenario:
-    """The ground truth of a sample as a :class:`~vid2sim.scenario.Scenario` (to compare with
+    """The ground truth of a sample as a :class:`~vid2sim.core.scenario.Scenario` (to compare with
     what ``vid2sim build`` recovers)."""
     data = json.loads(Path(truth_path).read_text(encoding="utf-8"))
     o = data["origin"]

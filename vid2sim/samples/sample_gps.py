@@ -17,9 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
-from vid2sim.enu import EnuFrame
-from vid2sim.fileio import write_text_atomic
-from vid2sim.records import GpsFix, Origin
+from vid2sim.base.fileio import write_text_atomic
+from vid2sim.core.enu import EnuFrame
+from vid2sim.core.records import GpsFix, Origin
 from vid2sim.samples.drives import helsinki_sample
 
 HELSINKI = Origin(60.1699, 24.9384, 20.0)

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from vid2sim.camera import Camera
-from vid2sim.lanelayout import (
+from vid2sim.core.camera import Camera
+from vid2sim.core.lanelayout import (
     BACKWARD,
     BORDER,
     DRIVING,
@@ -19,8 +19,8 @@ from vid2sim.lanelayout import (
     CrossSection,
     LaneSpec,
 )
-from vid2sim.records import Origin
-from vid2sim.scenario import Actor, Ego, Road, Scenario, Source, Trajectory
+from vid2sim.core.records import Origin
+from vid2sim.core.scenario import Actor, Ego, Road, Scenario, Source, Trajectory
 
 ORIGIN = Origin(60.17, 24.94, 12.0)
 

@@ -53,7 +53,7 @@ from vid2sim.app.batch.worker import (
     staging_owner,
 )
 from vid2sim.app.settings import Settings
-from vid2sim.errors import InputError
+from vid2sim.base.errors import InputError
 
 log = logging.getLogger(__name__)
 

@@ -21,8 +21,8 @@ from vid2sim.app.batch import storage
 from vid2sim.app.batch.index import STATUSES, read_index_records
 from vid2sim.app.batch.manifest import FLEET_HTML, INDEX_PARQUET
 from vid2sim.app.batch.storage import Where
-from vid2sim.errors import InputError
-from vid2sim.htmlpage import BASE_CSS, figure_png, png_base64
+from vid2sim.base.errors import InputError
+from vid2sim.base.htmlpage import BASE_CSS, figure_png, png_base64
 
 #: Rows shown in the per-video table (failed rows first); the full list is index.csv. A
 #: 100,000-row table would make a page of tens of MB that browsers render slowly.

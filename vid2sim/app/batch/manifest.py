@@ -17,7 +17,7 @@ from pathlib import Path
 from vid2sim.app.batch import storage
 from vid2sim.app.batch.storage import Where
 from vid2sim.app.inputs import INPUT_NUMBERS, INPUT_ROLES, Inputs
-from vid2sim.errors import InputError
+from vid2sim.base.errors import InputError
 
 # Manifest column -> label used in messages (the input roles of a build).
 PATH_COLUMNS = dict(INPUT_ROLES)

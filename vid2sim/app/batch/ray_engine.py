@@ -26,7 +26,7 @@ import cv2
 from vid2sim.app.batch.index import RowOutcome
 from vid2sim.app.batch.local import worker_died
 from vid2sim.app.batch.worker import RowTask, one_line, run_row
-from vid2sim.errors import InputError
+from vid2sim.base.errors import InputError
 
 Finished = Callable[[int, RowOutcome], None]
 

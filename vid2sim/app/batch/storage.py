@@ -4,7 +4,7 @@ A location is a :class:`~pathlib.Path` for anything on a mounted file system (pl
 ``file://`` URLs: NFS, Lustre, CephFS and the like, where a rename is atomic) or a ``str``
 URL for every other fsspec protocol (``s3://``, ``gs://``, ``memory://``, ...), where the
 bytes go through fsspec. Local locations take the fast path (``os``/``pathlib`` and the
-atomic writers of :mod:`vid2sim.fileio`); only URLs touch fsspec, which is imported here at
+atomic writers of :mod:`vid2sim.base.fileio`); only URLs touch fsspec, which is imported here at
 module level because it is a core dependency (small, pure Python).
 
 Object stores have no rename: a URL row folder is uploaded file by file with
@@ -21,8 +21,8 @@ from pathlib import Path
 
 import fsspec
 
-from vid2sim.errors import InputError
-from vid2sim.fileio import read_input_text, sha256_path, write_bytes_atomic
+from vid2sim.base.errors import InputError
+from vid2sim.base.fileio import read_input_text, sha256_path, write_bytes_atomic
 
 Where = Path | str
 """A location: a local path, or an fsspec URL (``s3://bucket/key``)."""
@@ -206,7 +206,7 @@ def _modified(fs, path: str, info: dict) -> str:
 
 
 def sha256_of(where: Where) -> str:
-    """sha256 of a file or folder, as :func:`vid2sim.fileio.sha256_path` computes it (a
+    """sha256 of a file or folder, as :func:`vid2sim.base.fileio.sha256_path` computes it (a
     folder: its files' relative names and hashes in sorted order), streamed through fsspec
     for a URL so that no local copy is needed."""
     if isinstance(where, Path):

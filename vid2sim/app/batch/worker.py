@@ -35,15 +35,15 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from vid2sim import scenario as scenario_io
 from vid2sim.app.batch import storage
 from vid2sim.app.batch.hashing import HashEntry, hash_inputs
 from vid2sim.app.batch.index import RowOutcome, stage_column
 from vid2sim.app.batch.manifest import STATE_DIR, BatchRow
 from vid2sim.app.batch.storage import Where
 from vid2sim.app.settings import Settings
-from vid2sim.errors import InputError
-from vid2sim.tables import read_tracks_csv
+from vid2sim.base.errors import InputError
+from vid2sim.core import scenario as scenario_io
+from vid2sim.core.tables import read_tracks_csv
 
 if TYPE_CHECKING:
     from vid2sim.app.build import BuildResult

@@ -11,10 +11,10 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from vid2sim.camera import Camera
+from vid2sim.core.camera import Camera
+from vid2sim.core.outline import OUTLINE_COLUMNS, outline_boxes, shape_matrix_for
+from vid2sim.core.records import TrackedBox
 from vid2sim.detect.ranging.config import RangingConfig
-from vid2sim.outline import OUTLINE_COLUMNS, outline_boxes, shape_matrix_for
-from vid2sim.records import TrackedBox
 
 # Solver settings of :func:`fit_boxes` (numerical choices, not properties of the world).
 # A ground point nearer than this [m] is a bottom edge at or below the camera's own bumper:
@@ -51,9 +51,9 @@ _CONTACT = OUTLINE_COLUMNS["contact_m"]
 class BoxArrays:
     """Boxes as columns (pixels) with the cut flags of each edge and each box's outline.
 
-    ``outline`` holds one row of :func:`vid2sim.outline.shape_matrix` per box: the shape of
+    ``outline`` holds one row of :func:`vid2sim.core.outline.shape_matrix` per box: the shape of
     its class (where the tyres, the widest section and the mirrors lie; see
-    :mod:`vid2sim.outline`).
+    :mod:`vid2sim.core.outline`).
     """
 
     x1: np.ndarray
@@ -100,7 +100,7 @@ def predict_edges(camera: Camera, x_m: np.ndarray, y_m: np.ndarray, w_m: np.ndar
                   h_m: np.ndarray, l_m: np.ndarray, outline: np.ndarray) -> np.ndarray:
     """(N, 4) pixel box (u1, v1, u2, v2) of vehicles whose rear is at range ``x_m``, centre
     at lateral ``y_m``, aligned with the ego axis and standing on the road: the hull of their
-    outlines (``outline``: rows of :func:`vid2sim.outline.shape_matrix`)."""
+    outlines (``outline``: rows of :func:`vid2sim.core.outline.shape_matrix`)."""
     return outline_boxes(camera, x_m, y_m, w_m, h_m, l_m, outline)
 
 

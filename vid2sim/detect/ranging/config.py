@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 
-from vid2sim.camera import Camera, PitchSource
-from vid2sim.outline import CLASS_SHAPES, CUBOID, OutlineShape
+from vid2sim.core.camera import Camera, PitchSource
+from vid2sim.core.outline import CLASS_SHAPES, CUBOID, OutlineShape
 
 
 @dataclass(frozen=True)
@@ -94,9 +94,9 @@ class RangingConfig:
         An edge also counts as cut within this many sigmas of its own edge noise
         (``edge_noise_px + edge_noise_frac * size``): a big box's edge wanders further.
     outlines : dict
-        Per-class :class:`vid2sim.outline.OutlineShape`: where a vehicle's tyre contact,
+        Per-class :class:`vid2sim.core.outline.OutlineShape`: where a vehicle's tyre contact,
         widest section and mirrors lie, i.e. what its box hugs (unknown classes take the
-        car's). :data:`vid2sim.outline.CUBOID` for every class ranges boxes that are
+        car's). :data:`vid2sim.core.outline.CUBOID` for every class ranges boxes that are
         projected cuboids (KITTI label boxes) instead of detector boxes.
     min_ground_margin_px : float
         The ground cue needs the bottom edge at least this far below the horizon.

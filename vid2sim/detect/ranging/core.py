@@ -20,8 +20,9 @@ import math
 
 import numpy as np
 
-from vid2sim.camera import Camera
-from vid2sim.detect.lead import assign_lanes_and_lead
+from vid2sim.core.camera import Camera
+from vid2sim.core.records import LaneTrack, Note, NoteKind, RangedBox, RangingResult, TrackedBox
+from vid2sim.detect.assign import assign_lanes_and_lead
 from vid2sim.detect.ranging.boxfit import (
     BoxArrays,
     BoxFit,
@@ -42,7 +43,6 @@ from vid2sim.detect.ranging.scalefilter import (
     log_width_var,
 )
 from vid2sim.detect.ranging.smoother import smooth_track
-from vid2sim.records import LaneTrack, Note, NoteKind, RangedBox, RangingResult, TrackedBox
 
 # The absolute-cue fit leaves the width free with this spread [m]: its sides then say where
 # the vehicle is laterally but nothing about its range (that is the filter's scale cue).
@@ -130,7 +130,7 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
     camera : Camera
         The camera; its pitch is only a prior for the horizon estimate.
     horizon_hints_px : list of float, optional
-        Per-frame horizon rows from lane markings (:class:`vid2sim.detect.lanes.HorizonEstimator`).
+        Per-frame horizon rows from lane markings (:class:`vid2sim.detect.lanes.vanishing.HorizonEstimator`).
     horizon_hint_frames : list of int, optional
         The frame of each hint: with them, each frame's horizon follows the hints about it
         (:func:`lane_horizon_offsets`); without, all frames share the hints' median.

@@ -8,12 +8,12 @@ from collections import defaultdict
 
 import numpy as np
 
-from vid2sim.camera import Camera
-from vid2sim.defaults import IMAGE_FOLDER_FPS, MAD_TO_SIGMA
+from vid2sim.base.defaults import IMAGE_FOLDER_FPS, MAD_TO_SIGMA
+from vid2sim.core.camera import Camera
+from vid2sim.core.records import Note, TrackedBox
 from vid2sim.detect.ranging.boxfit import BoxArrays, BoxFit, fit_boxes, predict_edges
 from vid2sim.detect.ranging.config import RangingConfig
 from vid2sim.detect.ranging.smoother import _kf_rts_cv
-from vid2sim.records import Note, TrackedBox
 
 # A size prior this tight [m] holds the size fixed at the value given (the width-only fit of
 # the per-frame pitch uses each track's learnt size as known).

@@ -8,7 +8,7 @@ file and annotation files), ``calibration/<key>.json`` (per sensor intrinsics an
 camera frame: x right, y down, z forward) and its 2D boxes (``bounding_box_2d/...``), linked by
 ``instance_id``. Annotation type 0 is 2D boxes and 1 is 3D boxes (DGP's ``AnnotationType``).
 Only the camera asked for is read; datums whose files are absent are skipped, malformed files
-raise :class:`~vid2sim.errors.InputError`.
+raise :class:`~vid2sim.base.errors.InputError`.
 
 The truth: the cuboids are annotated on lidar, so their bottoms say where the road is. The
 camera of a frame is the one whose road plane is the least-squares plane through the bottoms
@@ -28,9 +28,9 @@ from pathlib import Path
 
 import numpy as np
 
-from vid2sim.camera import Camera, PitchSource
-from vid2sim.errors import InputError
-from vid2sim.fileio import read_input_text
+from vid2sim.base.errors import InputError
+from vid2sim.base.fileio import read_input_text
+from vid2sim.core.camera import Camera, PitchSource
 
 ANNOTATION_2D, ANNOTATION_3D = "0", "1"
 # The ground plane is fitted to cars nearer than this [m]: beyond it one lidar return in a

@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 from scipy.signal import savgol_filter
 
-from vid2sim.detect.external import KittiLabel, read_kitti_tracking_labels
-from vid2sim.records import RangedBox, TrackedBox
+from vid2sim.core.records import RangedBox, TrackedBox
+from vid2sim.detect.vehicles.external import KittiLabel, read_kitti_tracking_labels
 
 # What a detector would call each labelled class (COCO has no van: a van is a "car").
 KITTI_CATEGORY = {"Car": "car", "Van": "car", "Truck": "truck"}

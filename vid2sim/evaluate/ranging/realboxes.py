@@ -17,12 +17,12 @@ from pathlib import Path
 
 import numpy as np
 
-from vid2sim.camera import Camera
-from vid2sim.detect.external import KittiLabel
+from vid2sim.base.fileio import read_input_text
+from vid2sim.core.camera import Camera
+from vid2sim.core.records import RangedBox
+from vid2sim.detect.vehicles.external import KittiLabel
 from vid2sim.evaluate.metrics import match_boxes
 from vid2sim.evaluate.ranging.dgp import DgpFrame, cuboid_range_m
-from vid2sim.fileio import read_input_text
-from vid2sim.records import RangedBox
 
 #: DGP classes scored as vehicles and what a COCO detector calls them.
 DGP_VEHICLES = {"Car": "car", "Truck": "truck", "Bus/RV/Caravan": "bus"}

@@ -34,7 +34,8 @@ from pathlib import Path
 
 import numpy as np
 
-from vid2sim.camera import Camera, parse_kitti_calib
+from vid2sim.core.camera import Camera, parse_kitti_calib
+from vid2sim.core.records import RangedBox, RangingResult
 from vid2sim.geo.readers import (
     OXTS_VF,
     OXTS_VL,
@@ -42,7 +43,6 @@ from vid2sim.geo.readers import (
     read_kitti_oxts_table,
     read_kitti_stamps,
 )
-from vid2sim.records import RangedBox, RangingResult
 
 RANGE_BINS_M = ((0.0, 20.0), (20.0, 40.0), (40.0, math.inf))
 
@@ -387,7 +387,7 @@ def replayed_static_speeds(scenario, left_m: tuple[float, float] = PARKED_LEFT_M
     to the left of the ego's position and 0 to ``max_ahead_m`` ahead of it, in the ego's
     heading at that time (the zone where a drive's parked cars stand).
 
-    ``scenario`` is a :class:`vid2sim.scenario.Scenario` (scenario.json as loaded).
+    ``scenario`` is a :class:`vid2sim.core.scenario.Scenario` (scenario.json as loaded).
     """
     ego = scenario.ego.trajectory
     speeds, along, per_actor = [], [], {}

@@ -12,8 +12,9 @@ from highway_env import utils
 from highway_env.envs.common.abstract import AbstractEnv
 from highway_env.road.road import Road as HwRoad
 
-from vid2sim import scenario as scenario_io
-from vid2sim.errors import InputError
+from vid2sim.base.errors import InputError
+from vid2sim.core import scenario as scenario_io
+from vid2sim.core.scenario import EGO_ID, Scenario
 from vid2sim.export.assemble import straight_road_for
 from vid2sim.export.highway.network import hw_to_enu, network_for, path_lane
 from vid2sim.export.highway.observation import FastKinematics
@@ -29,7 +30,6 @@ from vid2sim.export.highway.vehicles import (
     conflict,
     set_box,
 )
-from vid2sim.scenario import EGO_ID, Scenario
 
 ENV_ID = "vid2sim/Replay-v0"
 EGO_MODES = ("policy", "log")

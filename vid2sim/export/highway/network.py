@@ -18,7 +18,7 @@ inside the network the lanes are added left to right (highway-env index 0 = the 
 :func:`project_lane` and :func:`hw_lane` convert at the boundary; everything the environment
 reports (``info["ego_lane"]``, the sensor's lanes) uses the project's numbers.
 
-Lane types. A road's cross-section (:meth:`vid2sim.scenario.Road.layout`) puts its forward
+Lane types. A road's cross-section (:meth:`vid2sim.core.scenario.Road.layout`) puts its forward
 driving lanes on the edge ``road{i}:start -> road{i}:end`` (the lanes the ego and IDM/MOBIL
 drivers use and the numbers above count), its backward driving lanes on their own edge drawn
 in their travel direction, and every parking strip, shoulder, border and track bed on an edge
@@ -36,8 +36,8 @@ import numpy as np
 from highway_env.road.lane import LineType, PolyLaneFixedWidth
 from highway_env.road.road import RoadNetwork
 
-from vid2sim.lanelayout import BACKWARD, BORDER, DRIVING, FORWARD, PARKING, RAIL, CrossSection
-from vid2sim.scenario import Road
+from vid2sim.core.lanelayout import BACKWARD, BORDER, DRIVING, FORWARD, PARKING, RAIL, CrossSection
+from vid2sim.core.scenario import Road
 
 ROAD_EXTENSION_M = 50.0
 """Straight extension of each road end in the simulation [m] (the scenario is unchanged)."""

@@ -17,8 +17,8 @@ from dataclasses import dataclass
 
 from highway_env import utils
 
+from vid2sim.core.lead import in_ego_corridor
 from vid2sim.export.highway.network import project_lane
-from vid2sim.lead import in_ego_corridor
 
 CURVATURE_LOOKAHEAD_M = 10.0
 """Arc length over which the lane's curvature ahead of the ego is measured [m] (the distance
@@ -142,7 +142,7 @@ def measure(ego, others, reference, network) -> Traffic:
             length_m=float(v.LENGTH), width_m=float(v.WIDTH),
             in_path=bool(in_ego_corridor(lat, 2.0 * half_width))))
     objects.sort(key=lambda o: abs(o.along_m))
-    # the lead (vid2sim.lead): the nearest vehicle ahead in the ego's corridor
+    # the lead (vid2sim.core.lead): the nearest vehicle ahead in the ego's corridor
     ahead = [o for o in objects if o.in_path and o.along_m > 0.0]
     lead = min(ahead, key=lambda o: o.gap_m) if ahead else None
     return Traffic(ego_state, tuple(objects), lead)

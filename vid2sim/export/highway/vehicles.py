@@ -22,8 +22,8 @@ from highway_env.vehicle.behavior import IDMVehicle
 from highway_env.vehicle.controller import ControlledVehicle
 from highway_env.vehicle.kinematics import Vehicle
 
+from vid2sim.core.scenario import Trajectory
 from vid2sim.export.highway.network import ScenarioLane, enu_to_hw, nearby_lane_index
-from vid2sim.scenario import Trajectory
 
 
 class LogTrack:
