@@ -37,7 +37,7 @@ NOT_FOR_VIDEO_COMMANDS = ("matplotlib", "highway_env", "pygame", "pandas", "netw
 LAYERS = (
     ("base",),
     ("core",),
-    STAGES := ("geo", "detect", "export"),
+    STAGES := ("geo", "detect", "calib", "export"),
     # consumers of the stages: evaluation (replay, scoring, truth readers), policy testing
     # on the exported environment, generators of samples
     ("evaluate", "adas", "samples"),

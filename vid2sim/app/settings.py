@@ -12,6 +12,7 @@ from pathlib import Path
 
 from vid2sim.base.defaults import EGO_RATE_HZ
 from vid2sim.base.errors import InputError
+from vid2sim.calib.config import CalibrationConfig
 from vid2sim.detect.lanes.track import LaneTrackConfig
 from vid2sim.detect.ranging import RangingConfig
 from vid2sim.detect.schedule import ScheduleConfig
@@ -97,6 +98,9 @@ class Settings:
         placed across the road)
     :param trace: GPS smoothing
     :param assemble: scenario assembly
+    :param calibration: camera self-calibration (priors, noise, frame sampling)
+    :param camera_cache: keep and reuse self-calibrations per camera (frame size, rate,
+        codec) as the prior of that camera's later clips
     :param rate_hz: ego trajectory sample rate [Hz]
     :param allow_download: fetch OpenStreetMap data for a trace without a map file
     :param osm_cache_dir: where downloaded maps are cached (default the user cache)
@@ -109,6 +113,8 @@ class Settings:
     lanes: LaneTrackConfig = field(default_factory=LaneTrackConfig)
     trace: TraceParams = field(default_factory=TraceParams)
     assemble: AssembleConfig = field(default_factory=AssembleConfig)
+    calibration: CalibrationConfig = field(default_factory=CalibrationConfig)
+    camera_cache: bool = True
     rate_hz: float = EGO_RATE_HZ
     allow_download: bool = True
     osm_cache_dir: Path | None = None

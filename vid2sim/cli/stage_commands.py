@@ -1,4 +1,4 @@
-"""Single-stage commands: trace, road, detect, track, models."""
+"""Single-stage commands: trace, road, detect, track, calibrate, models."""
 
 from __future__ import annotations
 
@@ -99,7 +99,8 @@ def detect(source: Path, detections_path: Path | None, fps: float | None, out_pa
 @cli.command()
 @click.argument("video", type=EXISTING_PATH)
 @click.option("--camera", "camera_path", type=EXISTING_PATH, default=None,
-              help="Camera YAML or KITTI calibration (default: a 90 deg dash-cam guess).")
+              help="Camera YAML or KITTI calibration; a partial YAML (e.g. only fx or "
+                   "height_m) is a prior. Default: the camera is calibrated on the clip.")
 @detector_options
 @frame_source_options
 @click.option("--plots", "plot_dir", type=EXISTING_PATH, default=None,
@@ -117,6 +118,39 @@ def track(video: Path, camera_path: Path | None, detections_path: Path | None,
         check_out_dir(plot_dir)
     inputs = Inputs(video=video, camera=camera_path, detections=detections_path, fps=fps)
     echo(run_track(inputs, out_path, settings_from(**detector), plot_dir=plot_dir))
+
+
+# --------------------------------------------------------------------------- calibrate
+
+
+@cli.command()
+@click.argument("video", type=EXISTING_PATH)
+@click.option("--gps", "gps_path", type=EXISTING_PATH, default=None,
+              help="GPS trace (GPX, NMEA, BDD100K JSON, KITTI OXTS, CSV): its motion gives "
+                   "the camera's scale (focal length x height) and, on a turn, the focal "
+                   "length.")
+@click.option("--gps-offset", "gps_offset_s", type=float, default=None,
+              help="Video time of the first fix [s]. Default: the file's clock, else "
+                   "estimated from the motion profiles.")
+@click.option("--camera", "camera_path", type=EXISTING_PATH, default=None,
+              help="Prior camera YAML: the values it gives (e.g. only fx, or only "
+                   "height_m) are kept and the rest estimated.")
+@click.option("--fps", type=click.FloatRange(min=0.1), default=None,
+              help="Frame rate of an image folder [frames/s] (default 10); videos use "
+                   "their own timestamps.")
+@click.option("--out", "out_path", type=EXISTING_PATH, required=True,
+              help="Where to write camera.yaml (the --camera format, with std and source "
+                   "per parameter).")
+def calibrate(video: Path, gps_path: Path | None, gps_offset_s: float | None,
+              camera_path: Path | None, fps: float | None, out_path: Path) -> None:
+    """Estimate the camera (focal length, distortion, mount angles and height) from the
+    clip itself: road flow against the GPS motion, lane vanishing point, plumb lines."""
+    from vid2sim.app.selfcal import run_calibrate
+
+    check_out_file(out_path, "camera.yaml")
+    inputs = Inputs(video=video, gps=gps_path, camera=camera_path, fps=fps,
+                    gps_offset_s=gps_offset_s)
+    echo(run_calibrate(inputs, out_path, Settings(progress=show_progress())))
 
 
 @cli.group()

@@ -14,7 +14,7 @@ from vid2sim.geo.gpsfile import finish_trace, optional_value, read_text
 # --------------------------------------------------------------------------- KITTI OXTS
 
 # Column indices in a KITTI OXTS data line (see oxts/dataformat.txt of a raw drive).
-OXTS_LAT, OXTS_LON, OXTS_ALT, OXTS_PITCH = 0, 1, 2, 4
+OXTS_LAT, OXTS_LON, OXTS_ALT, OXTS_PITCH, OXTS_YAW = 0, 1, 2, 4, 5
 OXTS_VN, OXTS_VE, OXTS_VF, OXTS_VL = 6, 7, 8, 9
 OXTS_WZ = 19
 OXTS_POS_ACC = 23

@@ -1,0 +1,301 @@
+"""Camera self-calibration in the application: measure the cues, sync the clocks, fit.
+
+One streamed pass over the video decodes a subset of frames: a flow pair (two frames
+``pair_interval_s`` apart) every ``pair_every_s`` (fewer on long clips: at most
+``max_pairs``) and ``line_frames`` frames for lane segments and straight edges, a few of
+which are kept, downscaled, to measure the lane width once the camera is known. The GPS
+(through the geo stage's smoothed trajectory) gives each pair's motion on the video clock;
+without ``--gps-offset`` and without a clock in the GPS file, the clocks are synced first
+(:mod:`vid2sim.calib.sync`). The pure estimation is :mod:`vid2sim.calib`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from vid2sim.app.inputs import Inputs
+from vid2sim.app.settings import Settings
+from vid2sim.base.errors import InputError
+from vid2sim.calib import CalibrationConfig, CalibrationInput, CameraPrior, LaneWidthPrior
+from vid2sim.calib import calibrate as fit_camera
+from vid2sim.calib import with_lanes
+from vid2sim.calib.sync import estimate_time_offset
+from vid2sim.core.calibration import (
+    CameraEstimate,
+    EgoMotionSample,
+    FlowPair,
+    FrameLines,
+    LaneWidthSample,
+    TimeOffset,
+)
+from vid2sim.core.camera import Camera
+from vid2sim.core.records import EgoTrack, GpsTrace, Note, VideoInfo
+from vid2sim.detect.lanes.linecues import frame_lines
+from vid2sim.detect.lanes.markings import LaneMarkingDetector
+from vid2sim.detect.tracking.groundflow import lower_image_flow
+from vid2sim.detect.video import iter_frames
+from vid2sim.geo.readers import OXTS_VF, read_kitti_oxts_table, read_kitti_stamps
+from vid2sim.geo.oxts import OXTS_YAW
+
+#: Frames kept (downscaled to this width) for the lane width once the camera is known.
+HELD_FRAME_WIDTH_PX = 960
+#: Mean grey level below which a clip is too dark to see the road in [0-255] (night
+#: footage without street lights: the road's texture is sensor noise).
+MIN_BRIGHTNESS = 18.0
+#: A calibration needs this many flow pairs with road points, or lane segments.
+MIN_PAIRS = 5
+#: A GPS trace whose fastest speed over the clip is below this never moved [m/s].
+MIN_GPS_SPEED_MPS = 0.5
+#: GPS formats whose heading comes from an inertial unit (KITTI's OXTS RT3003: 0.1 deg
+#: heading, OXTS datasheet), good to weigh a gentle turn's image shift against.
+INS_FORMATS = ("kitti_oxts",)
+#: Heading-rate noise of such a unit over a pair [rad/s].
+INS_YAW_RATE_STD = 0.002
+
+
+@dataclass(slots=True)
+class Cues:
+    """The measured cues of one clip, and frames kept for the lane width."""
+
+    pairs: list[FlowPair]
+    lines: list[FrameLines]
+    held: dict[int, np.ndarray] = field(default_factory=dict)
+    brightness: float = float("nan")
+
+
+def plan_frames(info: VideoInfo, cfg: CalibrationConfig) -> tuple[list[int], int, list[int]]:
+    """Frames a pair starts at, the pair's frame gap, and the line frames."""
+    fps = info.fps if info.fps > 0 else 10.0
+    gap = max(1, round(cfg.pair_interval_s * fps))
+    duration = info.n_frames / fps
+    every = max(cfg.pair_every_s, duration / max(cfg.max_pairs, 1))
+    step = max(1, round(every * fps))
+    starts = list(range(0, max(info.n_frames - gap, 0), step))
+    n_lines = min(cfg.line_frames, info.n_frames)
+    lines = sorted({int(i) for i in np.linspace(0, info.n_frames - 1, n_lines)}) if n_lines else []
+    return starts, gap, lines
+
+
+def measure_cues(video: Path, info: VideoInfo, fps: float | None, cfg: CalibrationConfig
+                 ) -> Cues:
+    """Stream the planned frames once and measure flow pairs and line evidence."""
+    starts, gap, line_frames = plan_frames(info, cfg)
+    ends = {s + gap: s for s in starts}
+    chains_at = set(line_frames[::2])  # edge chains cost ~0.1 s a frame: every other one
+    wanted = set(starts) | set(ends) | set(line_frames)
+    cues = Cues(pairs=[], lines=[])
+    pending: dict[int, tuple[np.ndarray, float]] = {}
+    grey_means = []
+    for frame in iter_frames(video, fps=fps, only=wanted):
+        img = frame.image_bgr
+        if img is None:
+            continue
+        i = frame.index
+        if i in starts:
+            pending[i] = (img, frame.t_s)
+        if i in ends and ends[i] in pending:
+            a, t_a = pending.pop(ends[i])
+            cues.pairs.append(lower_image_flow(a, img, ends[i], i, t_a, frame.t_s))
+        if i in line_frames:
+            cues.lines.append(frame_lines(img, i, frame.t_s, with_chains=i in chains_at))
+            grey_means.append(float(cv2.cvtColor(img, cv2.COLOR_BGR2GRAY).mean()))
+            scale = min(1.0, HELD_FRAME_WIDTH_PX / img.shape[1])
+            cues.held[i] = cv2.resize(img, None, fx=scale, fy=scale,
+                                      interpolation=cv2.INTER_AREA) if scale < 1 else img
+    cues.brightness = float(np.median(grey_means)) if grey_means else float("nan")
+    return cues
+
+
+def check_cues(cues: Cues, video: Path) -> str | None:
+    """Why the clip cannot be calibrated (too dark, too short), or None."""
+    if np.isfinite(cues.brightness) and cues.brightness < MIN_BRIGHTNESS:
+        return (f"too dark to calibrate (mean grey level {cues.brightness:.0f} of 255): the "
+                "road's texture and markings are not visible")
+    usable = sum(len(p.points_a) >= 10 for p in cues.pairs)
+    segments = sum(len(fl.segments) for fl in cues.lines)
+    if usable < MIN_PAIRS and segments < 10:
+        return (f"too short or too featureless to calibrate ({usable} frame pairs with road "
+                f"texture, {segments} line segments; at least {MIN_PAIRS} pairs or lane "
+                "markings are needed)")
+    return None
+
+
+def motion_from_ego(ego: EgoTrack, pairs: list[FlowPair], cfg: CalibrationConfig,
+                    yaw_rate_std: float) -> list[EgoMotionSample]:
+    """Each pair's GPS motion on the video clock (pairs outside the GPS's span get none)."""
+    path = np.concatenate(([0.0], np.cumsum(np.hypot(np.diff(ego.x_m), np.diff(ego.y_m)))))
+    heading = np.unwrap(ego.heading_rad)
+    out = []
+    for p in pairs:
+        if not (ego.t_s[0] <= p.t_a_s and p.t_b_s <= ego.t_s[-1]):
+            continue
+        d = float(np.interp(p.t_b_s, ego.t_s, path) - np.interp(p.t_a_s, ego.t_s, path))
+        dpsi = float(np.interp(p.t_b_s, ego.t_s, heading) - np.interp(p.t_a_s, ego.t_s, heading))
+        out.append(EgoMotionSample(p.frame_a, d, dpsi, cfg.gps_speed_std_mps * p.dt_s
+                                   + cfg.gps_scale_std * abs(d), yaw_rate_std * p.dt_s))
+    return out
+
+
+def _ins_heading(trace: GpsTrace) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """(UTC time, forward speed, heading CCW [rad]) of a KITTI OXTS folder's inertial unit."""
+    if trace.format != "kitti_oxts" or trace.path is None:
+        return None
+    folder = Path(trace.path)
+    folder = folder / "oxts" if (folder / "oxts" / "timestamps.txt").is_file() else folder
+    try:
+        table = read_kitti_oxts_table(folder)
+        t = np.array(read_kitti_stamps(folder / "timestamps.txt"), float)
+    except (InputError, OSError, ValueError):
+        return None
+    if len(t) != len(table):
+        return None
+    return t, table[:, OXTS_VF], np.unwrap(table[:, OXTS_YAW])
+
+
+def motion_from_fixes(trace: GpsTrace, t0_utc_s: float, pairs: list[FlowPair],
+                      cfg: CalibrationConfig, yaw_rate_std: float) -> list[EgoMotionSample] | None:
+    """Each pair's motion from the receiver's own speed and heading, when it has them: an
+    inertial unit's heading (KITTI OXTS), else the fixes' Doppler speed and course. Sharper
+    than the smoothed trajectory, whose heading lags a turn and whose speed lags braking.
+    (On KITTI raw 0001 the focal length came out 7 % short from the smoothed track's heading
+    changes, 11 % from the course, whose change over the turn exceeds the heading's by 12 %
+    as the car's sideslip changes, 3 % from the OXTS heading.) None if the fixes lack them."""
+    ins = _ins_heading(trace)
+    fixes = trace.fixes
+    if ins is not None:
+        t, speed, heading = ins[0] - t0_utc_s, ins[1], ins[2]
+    elif len(fixes) >= 2 and all(f.speed_mps is not None and f.course_deg is not None
+                                 for f in fixes):
+        t = np.array([f.t_utc_s - t0_utc_s for f in fixes])
+        speed = np.array([f.speed_mps for f in fixes], float)
+        # course: degrees clockwise from north -> counter-clockwise radians, unwrapped
+        heading = np.unwrap(-np.radians(np.array([f.course_deg for f in fixes], float)))
+    else:
+        return None
+    out = []
+    for p in pairs:
+        if not (t[0] <= p.t_a_s and p.t_b_s <= t[-1]):
+            continue
+        grid = np.linspace(p.t_a_s, p.t_b_s, 5)
+        d = float(np.trapezoid(np.interp(grid, t, speed), grid))
+        dpsi = float(np.interp(p.t_b_s, t, heading) - np.interp(p.t_a_s, t, heading))
+        out.append(EgoMotionSample(p.frame_a, d, dpsi, cfg.gps_speed_std_mps * p.dt_s
+                                   + cfg.gps_scale_std * abs(d), yaw_rate_std * p.dt_s))
+    return out
+
+
+def lane_widths(camera: Camera, held: dict[int, np.ndarray]) -> list[LaneWidthSample]:
+    """The ego lane's width in each kept frame, measured with ``camera``."""
+    if not held:
+        return []
+    any_frame = next(iter(held.values()))
+    cam = camera.scaled_to(any_frame.shape[1], any_frame.shape[0])
+    det = LaneMarkingDetector(cam)
+    out = []
+    for i, img in sorted(held.items()):
+        obs = det.measure(img, i)
+        if np.isfinite(obs.lane_width_m):
+            out.append(LaneWidthSample(i, float(obs.lane_width_m), camera.height_m))
+    return out
+
+
+def visual_profiles(est_speeds: list[tuple[float, float]], pairs: list[FlowPair],
+                    yaw_changes: dict[int, float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(t, speed, heading rate) of the pairs the fit used (visual, in the fit's scales)."""
+    by_t = {round(t, 6): v for t, v in est_speeds}
+    t, v, w = [], [], []
+    for p in pairs:
+        tm = round(0.5 * (p.t_a_s + p.t_b_s), 6)
+        if tm in by_t and p.frame_a in yaw_changes and p.dt_s > 0:
+            t.append(tm)
+            v.append(by_t[tm])
+            w.append(yaw_changes[p.frame_a] / p.dt_s)
+    return np.array(t), np.array(v), np.array(w)
+
+
+def gps_profiles(ego: EgoTrack) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(t, speed, heading rate) of a trajectory smoothed on the GPS's own clock."""
+    rate = np.gradient(np.unwrap(ego.heading_rad), ego.t_s)
+    return np.asarray(ego.t_s, float), np.asarray(ego.speed_mps, float), rate
+
+
+def yaw_rate_std_for(trace: GpsTrace | None, cfg: CalibrationConfig) -> float:
+    return INS_YAW_RATE_STD if trace is not None and trace.format in INS_FORMATS \
+        else cfg.gps_yaw_rate_std
+
+
+def gps_moves(ego: EgoTrack, duration_s: float) -> bool:
+    inside = (ego.t_s >= -0.5) & (ego.t_s <= duration_s + 0.5)
+    return bool(inside.any() and np.nanmax(ego.speed_mps[inside]) >= MIN_GPS_SPEED_MPS)
+
+
+def fit_cues(cues: Cues, info: VideoInfo, prior: CameraPrior, cfg: CalibrationConfig,
+             motion: list[EgoMotionSample] | None = None, lane_prior: LaneWidthPrior | None
+             = None, gps_label: str = "") -> CameraEstimate:
+    """The camera of the cues (the lane width folded in from the kept frames)."""
+    inp = CalibrationInput(width_px=info.width, height_px=info.height, pairs=cues.pairs,
+                           lines=cues.lines, prior=prior, motion=motion or None,
+                           lane_prior=lane_prior, gps_label=gps_label)
+    est, sol = fit_camera(inp, cfg)
+    samples = lane_widths(est.camera, cues.held)
+    est = with_lanes(sol, inp, samples, cfg)
+    est.yaw_changes = {int(sol.problem.pairs.frame_a[k]): float(sol.m[k, 1])
+                       for k in range(sol.problem.pairs.n_pairs)} if sol.problem.pairs else {}
+    return est
+
+
+def sync_clock(cues: Cues, info: VideoInfo, prior: CameraPrior, ego_gps_clock: EgoTrack,
+               cfg: CalibrationConfig) -> TimeOffset:
+    """The video time of the GPS's first fix, from the visual and GPS motion profiles."""
+    visual = fit_cues(replace(cues, held={}), info, prior, cfg)
+    t, v, w = visual_profiles(visual.speeds, cues.pairs, visual.yaw_changes)
+    gt, gv, gw = gps_profiles(ego_gps_clock)
+    return estimate_time_offset(t, v, w, gt - gt[0], gv, gw)
+
+
+def lane_prior_from_roads(roads: list, road_source: str | None,
+                          cfg: CalibrationConfig) -> LaneWidthPrior:
+    """The lane width of the matched OpenStreetMap road, or the named prior."""
+    if road_source == "osm" and roads:
+        r = roads[0]
+        ways = ",".join(str(w) for w in r.osm_way_ids[:3])
+        return LaneWidthPrior(float(r.lane_width_m), cfg.lane_width_prior_std_m,
+                              f"OpenStreetMap way {ways} (highway={r.highway})")
+    return LaneWidthPrior(cfg.lane_width_prior_m, cfg.lane_width_prior_std_m,
+                          "lane width prior: urban 3.0-3.25 m, main roads 3.5 m (RASt 06), "
+                          "US 3.3-3.6 m (FHWA)")
+
+
+def default_prior_camera(info: VideoInfo, prior: CameraPrior, cfg: CalibrationConfig,
+                         why: str) -> tuple[Camera, list[Note]]:
+    """The prior camera where nothing can be calibrated, with a warning naming it."""
+    v = prior.values
+    f0 = (info.width / 2.0) / math.tan(math.radians(cfg.hfov_prior_deg) / 2.0)
+    cam = Camera(image_width=info.width, image_height=info.height, fx=v.get("fx", f0),
+                 fy=v.get("fx", f0), cx=v.get("cx", (info.width - 1) / 2.0),
+                 cy=v.get("cy", (info.height - 1) / 2.0),
+                 dist=(v.get("k1", 0.0), v.get("k2", 0.0), 0.0, 0.0, 0.0),
+                 height_m=v.get("height_m", cfg.height_prior_m),
+                 pitch_deg=v.get("pitch_deg", 0.0), yaw_deg=v.get("yaw_deg", 0.0),
+                 roll_deg=v.get("roll_deg", 0.0))
+    return cam, [Note.warning(f"camera not calibrated: {why}; the prior camera is used: "
+                              f"fx {cam.fx:.0f} px ({cfg.hfov_prior_deg:g} deg field of view), "
+                              f"{cam.height_m:g} m above the road, no distortion, level "
+                              "(ranges scale with focal length x height)")]
+
+
+def require_video(inputs: Inputs) -> Path:
+    if inputs.video is None:
+        raise InputError(None, "no video given")
+    return Path(inputs.video)
+
+
+def calibration_config(settings: Settings) -> CalibrationConfig:
+    cfg = settings.calibration
+    cfg.check()
+    return cfg

@@ -1,0 +1,165 @@
+"""Sparse optical flow of the lower image between two nearby frames: the road's motion.
+
+For camera self-calibration (:mod:`vid2sim.calib`): the road below the horizon moves, for a
+camera at height ``h`` and a forward speed ``v``, as ``dy/dt = (y - y0)^2 v / (f h)``
+(row ``y``, horizon row ``y0``, focal length ``f``), so its flow measures ``f h``; a turn
+adds ``f * yaw rate`` to every point alike. This module only measures pixels: corners
+(Shi-Tomasi, ``cv2.goodFeaturesToTrack``) in the lower part of the LATER frame, followed back
+into the earlier one by pyramidal Lucas-Kanade and forward again (Kalal et al., ICPR 2010:
+forward-backward error). Tracking backwards keeps every point inside both images: a road
+point near the bottom of the later frame was higher up in the earlier one, while forward
+tracking would push the nearest road out of the picture. Which points lie on the road is
+decided by the estimator with its camera model, not here.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from vid2sim.core.calibration import FlowPair
+
+
+@dataclass(frozen=True, slots=True)
+class GroundFlowConfig:
+    """Settings of the lower-image flow.
+
+    :param max_width_px: frames are downscaled to at most this width first (the flow of
+        road texture 10-40 m ahead is 1-20 px a frame at 960 px; finer costs time)
+    :param top_frac: corners are sought below this fraction of the image height (dash-cam
+        horizons lie at 0.35-0.55 of the height; rows above the estimated horizon are
+        dropped by the estimator)
+    :param bottom_frac: and above this fraction (the lowest rows of many dash-cams see the
+        bonnet)
+    :param max_points: corners per pair (a few hundred fill the road triangle)
+    :param grid: corners are picked in this many columns and rows of cells, each its share
+        (the road's weak texture would otherwise lose to trees and car edges)
+    :param quality: Shi-Tomasi quality relative to a cell's best corner (asphalt is weak
+        texture beside lane markings; the forward-backward check removes bad tracks)
+    :param min_distance_frac: corners at least this fraction of the width apart
+    :param window_px: Lucas-Kanade window side [px, downscaled]
+    :param levels: pyramid levels: 4 follows up to ~16 windows' motion (a road point 6 m
+        ahead of a 10 fps camera at 14 m/s moves 40 px)
+    :param max_fb_error_px: forward-backward round trip allowed [px, downscaled]
+    :param homography_tolerance_px: inlier distance of the road's homography that guides
+        the second tracking [px, downscaled]
+    :param homography_points: corners tracked first, for the homography (a plane's eight
+        degrees of freedom need few; each tracked point costs ~0.06 ms)
+    :param warped_levels: pyramid levels of the second tracking, against the warped frame
+        (what is left to follow is a few pixels)
+    """
+
+    max_width_px: int = 960
+    top_frac: float = 0.3
+    bottom_frac: float = 0.97
+    max_points: int = 400
+    grid: tuple[int, int] = (8, 3)
+    quality: float = 0.003
+    min_distance_frac: float = 0.008
+    window_px: int = 15
+    levels: int = 4
+    max_fb_error_px: float = 0.5
+    homography_tolerance_px: float = 2.0
+    homography_points: int = 150
+    warped_levels: int = 2
+
+
+def grey_small(image_bgr: np.ndarray, max_width_px: int) -> tuple[np.ndarray, float]:
+    """The frame in grey, downscaled to at most ``max_width_px``; and the scale used."""
+    grey = cv2.cvtColor(image_bgr, cv2.COLOR_BGR2GRAY) if image_bgr.ndim == 3 else image_bgr
+    scale = min(1.0, max_width_px / grey.shape[1])
+    if scale < 1.0:
+        grey = cv2.resize(grey, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
+    return grey, scale
+
+
+def lower_image_flow(image_a: np.ndarray, image_b: np.ndarray, frame_a: int, frame_b: int,
+                     t_a_s: float, t_b_s: float, config: GroundFlowConfig | None = None
+                     ) -> FlowPair:
+    """Points of the lower image tracked between frame a (earlier) and frame b (later).
+
+    Corners are picked in b, tracked back to a, and kept when tracking a -> b returns within
+    ``max_fb_error_px``. Pixels are full-resolution raw pixels.
+    """
+    cfg = config or GroundFlowConfig()
+    ga, scale = grey_small(image_a, cfg.max_width_px)
+    gb, _ = grey_small(image_b, cfg.max_width_px)
+    h, w = gb.shape
+    pb = _corners(gb, cfg)
+    empty = np.zeros((0, 2))
+    if len(pb) < 4:
+        return FlowPair(frame_a, frame_b, t_a_s, t_b_s, empty, empty)
+    lk = {"winSize": (cfg.window_px, cfg.window_px), "maxLevel": cfg.levels}
+    first = np.ascontiguousarray(pb[::max(1, len(pb) // cfg.homography_points)])
+    pa, ok = _track(gb, ga, first, None, lk, cfg.max_fb_error_px)
+    if ok.sum() >= 8:
+        # The road is a plane, so its motion between the frames is a homography (Hartley &
+        # Zisserman, sec. 13.1). Frame a is warped by the dominant homography of the first
+        # tracks onto frame b, and the points tracked again there: what remains is a small
+        # shift without the growth that Lucas-Kanade (a translation model) cannot follow
+        # (the near road of a 10 fps camera at speed grows by a fifth and its first tracks
+        # lag by several per cent).
+        hom, _ = cv2.findHomography(first[ok], pa[ok], cv2.RANSAC,
+                                    cfg.homography_tolerance_px)
+        if hom is not None and np.all(np.isfinite(hom)) and abs(np.linalg.det(hom)) > 1e-6:
+            warped = cv2.warpPerspective(ga, hom, (w, h), flags=cv2.INTER_LINEAR
+                                         | cv2.WARP_INVERSE_MAP, borderMode=cv2.BORDER_REPLICATE)
+            fine = {"winSize": lk["winSize"], "maxLevel": cfg.warped_levels}
+            q, ok = _track(gb, warped, pb, None, fine, cfg.max_fb_error_px)
+            pa = cv2.perspectiveTransform(q.reshape(-1, 1, 2).astype(np.float64), hom)
+            pa = pa.astype(np.float32)
+        else:
+            pa, ok = _track(gb, ga, pb, None, lk, cfg.max_fb_error_px)
+    else:
+        pa, ok = _track(gb, ga, pb, None, lk, cfg.max_fb_error_px)
+    pa, pb = pa.reshape(-1, 2)[ok], pb.reshape(-1, 2)[ok]
+    inside = ((pa[:, 0] >= 0) & (pa[:, 0] <= w - 1) & (pa[:, 1] >= 0) & (pa[:, 1] <= h - 1))
+    return FlowPair(frame_a, frame_b, t_a_s, t_b_s, _full_pixels(pa[inside], scale),
+                    _full_pixels(pb[inside], scale))
+
+
+def _corners(grey: np.ndarray, cfg: GroundFlowConfig) -> np.ndarray:
+    """Corners of the lower image, picked cell by cell (a grid of ``grid`` columns and rows)
+    so that the asphalt's weak texture gets its share beside trees and car edges."""
+    h, w = grey.shape
+    top, bottom = int(cfg.top_frac * h), int(cfg.bottom_frac * h)
+    cols, rows = cfg.grid
+    per_cell = max(1, cfg.max_points // (cols * rows))
+    out = []
+    for i in range(rows):
+        r0 = top + (bottom - top) * i // rows
+        r1 = top + (bottom - top) * (i + 1) // rows
+        for j in range(cols):
+            c0, c1 = w * j // cols, w * (j + 1) // cols
+            found = cv2.goodFeaturesToTrack(grey[r0:r1, c0:c1], per_cell, cfg.quality,
+                                            max(2.0, cfg.min_distance_frac * w))
+            if found is not None:
+                out.append(found.reshape(-1, 2) + (c0, r0))
+    if not out:
+        return np.zeros((0, 1, 2), np.float32)
+    return np.concatenate(out).reshape(-1, 1, 2).astype(np.float32)
+
+
+def _track(grey_from: np.ndarray, grey_to: np.ndarray, pts: np.ndarray,
+           guess: np.ndarray | None, lk: dict, max_fb_px: float
+           ) -> tuple[np.ndarray, np.ndarray]:
+    """Lucas-Kanade from ``grey_from`` to ``grey_to`` (from ``guess`` if given) and back;
+    the tracked points and the mask of those whose round trip closes."""
+    if guess is None:
+        out, st1, _ = cv2.calcOpticalFlowPyrLK(grey_from, grey_to, pts, None, **lk)
+    else:
+        out, st1, _ = cv2.calcOpticalFlowPyrLK(grey_from, grey_to, pts, guess.copy(),
+                                               flags=cv2.OPTFLOW_USE_INITIAL_FLOW, **lk)
+    back, st2, _ = cv2.calcOpticalFlowPyrLK(grey_to, grey_from, out, pts.copy(),
+                                            flags=cv2.OPTFLOW_USE_INITIAL_FLOW, **lk)
+    ok = ((st1.ravel() == 1) & (st2.ravel() == 1)
+          & (np.linalg.norm((back - pts).reshape(-1, 2), axis=1) <= max_fb_px))
+    return out, ok
+
+
+def _full_pixels(small_px: np.ndarray, scale: float) -> np.ndarray:
+    """Downscaled pixel coordinates -> full-resolution ones (an area-averaged pixel i
+    covers full pixels i / scale .. (i + 1) / scale)."""
+    return (np.asarray(small_px, dtype=float) + 0.5) / scale - 0.5
