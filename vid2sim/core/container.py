@@ -35,6 +35,8 @@ EBML_MAGIC = b"\x1a\x45\xdf\xa3"
 #: Two frame intervals differing by more than this fraction make a variable frame rate
 #: (a 30 fps clip on a 90 kHz clock has intervals 3003 +- 1 ticks: 0.03 %).
 VFR_TOLERANCE = 0.01
+#: The codec name of a video track whose sample entry FFmpeg does not know.
+UNKNOWN_CODEC = "unknown"
 
 
 def looks_like_container(head: bytes) -> bool:
@@ -77,6 +79,7 @@ class VideoStreamInfo:
     :param n_frames: frames in the index (or declared)
     :param start_s: presentation time of the first frame on the container clock [s]
     :param time_base_s: the stream's clock tick [s] (1/90000 for most MP4s)
+    :param span_s: time from the first to the last frame [s] from the index, None without one
     """
 
     index: int
@@ -89,6 +92,7 @@ class VideoStreamInfo:
     n_frames: int
     start_s: float
     time_base_s: float
+    span_s: float | None = None
 
     @property
     def variable_rate(self) -> bool:
@@ -198,6 +202,10 @@ def _video_info(container, stream) -> VideoStreamInfo:
     rate = float(stream.average_rate) if stream.average_rate else 0.0
     if not (math.isfinite(rate) and rate > 0) and interval is not None:
         rate = 1.0 / interval[1]
+    if ctx is None:  # a codec FFmpeg does not know: no decoder, no frame size
+        return VideoStreamInfo(index=stream.index, codec=UNKNOWN_CODEC, width=0, height=0,
+                               rotation_deg=0, nominal_fps=rate, interval_s=interval,
+                               n_frames=len(times), start_s=0.0, time_base_s=tb)
     rotation = _rotation(container, stream)
     width, height = int(ctx.width), int(ctx.height)
     if rotation % 180:
@@ -206,7 +214,8 @@ def _video_info(container, stream) -> VideoStreamInfo:
     return VideoStreamInfo(index=stream.index, codec=ctx.name, width=width, height=height,
                            rotation_deg=rotation, nominal_fps=rate, interval_s=interval,
                            n_frames=len(times) or int(stream.frames or 0), start_s=start,
-                           time_base_s=tb)
+                           time_base_s=tb,
+                           span_s=float(times[-1] - times[0]) if len(times) > 1 else None)
 
 
 def _index_times(stream, tb: float) -> np.ndarray:
@@ -272,3 +281,19 @@ def stream_packets(path: Path, stream_index: int) -> Iterator[Packet]:
         except av.error.FFmpegError as exc:
             raise FormatError(path, f"the container breaks off in stream {stream_index} "
                               f"({_ffmpeg_reason(exc)})", "is the file truncated?") from None
+
+
+def codec_of(path: Path) -> str | None:
+    """The video codec FFmpeg names for a file (:data:`UNKNOWN_CODEC` for a sample entry
+    FFmpeg does not know), or None where the file cannot be probed."""
+    import av
+
+    try:
+        with av.open(str(path), metadata_errors="ignore") as container:
+            if not container.streams.video:
+                return None
+            ctx = container.streams.video[0].codec_context
+            name = ctx.name if ctx is not None else ""
+            return name if name and name != "none" else UNKNOWN_CODEC
+    except (av.error.FFmpegError, OSError, ValueError):
+        return None
