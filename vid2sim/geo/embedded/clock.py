@@ -17,6 +17,9 @@ from vid2sim.geo.gpsfile import finish_trace
 #: video (a receiver that jumped, two recordings spliced): a dash-cam writes a sentence within
 #: a second of its fix.
 MAX_OFFSET_SPREAD_S = 2.0
+#: How messages name each embedded format.
+FORMAT_LABELS = {"gpmf": "GoPro GPMF", "nmea-track": "NMEA track", "nmea-box": "NMEA box",
+                 "subtitle-telemetry": "subtitle", "srt": "SRT subtitle"}
 
 
 @dataclass(frozen=True, slots=True)
@@ -47,8 +50,9 @@ def on_video_clock(clocked: list[ClockedFix], fmt: str, path: Path,
     """
     warnings = list(warnings or [])
     if not clocked:
-        raise FormatError(path, f"the {fmt} telemetry holds no GPS fix"
-                          + (f" ({n_skipped} samples without a lock)" if n_skipped else ""),
+        raise FormatError(path, f"the {FORMAT_LABELS.get(fmt, fmt)} telemetry holds no GPS "
+                          "fix" + (f" ({n_skipped} records without a fix or unreadable)"
+                                   if n_skipped else ""),
                           "did the receiver get a lock during the recording?")
     offsets = np.array([c.receiver_utc_s - c.video_t_s for c in clocked
                         if c.receiver_utc_s is not None], float)
@@ -56,7 +60,7 @@ def on_video_clock(clocked: list[ClockedFix], fmt: str, path: Path,
     if len(offsets):
         lo, anchor, hi = np.percentile(offsets, [10, 50, 90])
         if (hi - lo) / 2 > MAX_OFFSET_SPREAD_S:
-            raise FormatError(path, f"the {fmt} receiver's fix times drift {hi - lo:.1f} s "
+            raise FormatError(path, f"the {FORMAT_LABELS.get(fmt, fmt)} receiver's fix times drift {hi - lo:.1f} s "
                               "against the video's packets", "the receiver clock jumped or the "
                               "file holds two recordings")
     elif anchors_s:
