@@ -38,7 +38,7 @@ def nest(key: str, *items: bytes) -> bytes:
 
 def gpsu_text(t_utc_s: float) -> str:
     dt = datetime.fromtimestamp(t_utc_s, UTC)
-    return dt.strftime("%y%m%d%H%M%S") + f".{int(round((t_utc_s % 1) * 1000)) % 1000:03d}"
+    return dt.strftime("%y%m%d%H%M%S") + f".{round((t_utc_s % 1) * 1000) % 1000:03d}"
 
 
 def gps5_payload(fixes: list[GpsFix], fix_type: int = 3, gpsu: float | None = None,
@@ -96,7 +96,7 @@ def _ddmm(value: float, lat: bool) -> tuple[str, str]:
 def nmea_sentences(f: GpsFix) -> list[str]:
     """$GPRMC + $GPGGA of one fix (position to 1e-6 minute, about 2 mm)."""
     dt = datetime.fromtimestamp(f.t_utc_s, UTC)
-    tod = dt.strftime("%H%M%S") + f".{int(round((f.t_utc_s % 1) * 100)) % 100:02d}"
+    tod = dt.strftime("%H%M%S") + f".{round((f.t_utc_s % 1) * 100) % 100:02d}"
     lat, ns = _ddmm(f.lat_deg, True)
     lon, ew = _ddmm(f.lon_deg, False)
     knots = (f.speed_mps or 0.0) / (1852.0 / 3600.0)

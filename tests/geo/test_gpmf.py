@@ -23,7 +23,7 @@ SAMPLES = Path(__file__).resolve().parents[1] / "data" / "gopro"
 def test_a_real_hero5_payload_holds_18_gps5_samples_with_a_3d_lock():
     (gps,) = payload_gps((SAMPLES / "hero5.raw").read_bytes())
     assert gps.kind == "GPS5" and gps.fix == 3 and len(gps.rows) == 18
-    lat, lon, alt, speed, _, dop = gps.rows[0]
+    lat, lon, _, speed, _, dop = gps.rows[0]
     # GoPro's office in Carlsbad, California (the samples' recording place)
     assert lat == pytest.approx(33.1265, abs=1e-3) and lon == pytest.approx(-117.3274, abs=1e-3)
     assert 0 <= speed < 1 and dop == pytest.approx(6.06)
