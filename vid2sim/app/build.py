@@ -197,7 +197,8 @@ BUILD_OUTPUTS: tuple[str, ...] = (
 
 
 def build(inputs: Inputs, out_dir: Path, settings: Settings | None = None,
-          report: Callable[[str], None] | None = None) -> BuildResult:
+          report: Callable[[str], None] | None = None,
+          extra_notes: list[Note] | None = None) -> BuildResult:
     """Run the whole pipeline for one video and write its outputs into ``out_dir``.
 
     Parameters
@@ -211,6 +212,8 @@ def build(inputs: Inputs, out_dir: Path, settings: Settings | None = None,
         Detector, tracker, ranging, smoothing and assembly settings (defaults otherwise).
     report : callable, optional
         Receives one line per stage as it starts (progress).
+    extra_notes : list of Note, optional
+        What the caller learnt about the inputs (segments joined), kept with the build's.
     """
     settings = settings or Settings()
     out_dir = Path(out_dir)
@@ -222,7 +225,7 @@ def build(inputs: Inputs, out_dir: Path, settings: Settings | None = None,
     camera, notes = load_camera_for(inputs, info)
     # A recording that carries its GPS (GoPro, dash-cams) is its own GPS input.
     inputs, gps_notes = with_embedded_gps(inputs)
-    notes.extend(gps_notes)
+    notes.extend([*(extra_notes or []), *gps_notes])
     if inputs.keyframes is not None:
         load_keyframes_for(inputs.keyframes, video, info, inputs.fps)
     # The detector (or imported boxes) before any long work: missing weights fail fast.

@@ -8,7 +8,7 @@ puts every fix on the container's clock (video time 0 = the first frame), so a b
 ========================  ===============================================================
 GoPro GPMF (GPS5, GPS9)   the ``gpmd`` data track (:mod:`.gpmf`, gpmf-parser README)
 NMEA 0183 in a track      a subtitle or data track whose samples are NMEA sentences
-NMEA 0183 in a box        BlackVue's ``gps `` box of stamped sentences (:mod:`.boxes`)
+NMEA 0183 in a box        BlackVue's ``gps `` box of stamped sentences (:mod:`.mp4boxes`)
 subtitle telemetry        DJI and dash-cam text cues in a subtitle track, or a sidecar
                           ``.SRT`` file (:mod:`.cuetext`)
 ========================  ===============================================================
