@@ -82,3 +82,19 @@ def test_segments_of_two_drives_are_refused(kitti_raw_dir, tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith(f"error: {seg2}") and "not the next" in err[0]
     assert not out.exists()
+
+
+def test_batch_builds_a_row_of_segments_as_one_drive(kitti_raw_dir, model_dir, tmp_path):
+    video = kitti_raw_dir / "video.mp4"
+    drive = tmp_path / "card" / "drive1"
+    drive.mkdir(parents=True)
+    cut(video, drive / "0001_A.MP4", 0, 48, START)
+    cut(video, drive / "0001_B.MP4", 48, 108, START + 4.8)
+    manifest = tmp_path / "card" / "manifest.csv"
+    manifest.write_text("video,name,camera\ndrive1,drive1,"
+                        f"{kitti_raw_dir / 'camera.yaml'}\n")
+    out = tmp_path / "batch"
+    assert main(["-q", "batch", str(manifest), "--out", str(out), "--model-dir",
+                 str(model_dir), "--offline"]) == 0
+    scenario = json.loads((out / "drive1" / "scenario.json").read_text())
+    assert any("2 segments joined" in a for a in scenario["source"]["assumptions"])
