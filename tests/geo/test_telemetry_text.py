@@ -12,8 +12,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from vid2sim.base.errors import FormatError
-from vid2sim.geo.embedded.mp4boxes import iter_boxes, stamped_lines
 from vid2sim.geo.embedded.cuetext import KMH_TO_MPS, parse_cue
+from vid2sim.geo.embedded.mp4boxes import iter_boxes, stamped_lines
 
 _lat = st.floats(-89.9, 89.9, allow_nan=False).filter(lambda v: abs(v) > 1e-3)
 _lon = st.floats(-179.9, 179.9, allow_nan=False).filter(lambda v: abs(v) > 1e-3)

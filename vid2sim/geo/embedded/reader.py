@@ -10,10 +10,10 @@ from vid2sim.base.errors import FormatError
 from vid2sim.base.fileio import check_input_size
 from vid2sim.core.container import Packet, probe_container, stream_packets
 from vid2sim.core.records import GpsFix, GpsTrace
-from vid2sim.geo.embedded.mp4boxes import read_box, stamped_lines, telemetry_boxes
 from vid2sim.geo.embedded.clock import ClockedFix, on_video_clock
 from vid2sim.geo.embedded.cuetext import parse_cue
 from vid2sim.geo.embedded.gpmf import GpmfError, payload_gps
+from vid2sim.geo.embedded.mp4boxes import read_box, stamped_lines, telemetry_boxes
 from vid2sim.geo.gpsfile import MAX_GPS_BYTES, UERE_M
 from vid2sim.geo.nmea import parse_nmea_lines
 
