@@ -25,26 +25,27 @@ from pathlib import Path
 import numpy as np
 
 from vid2sim import __version__
-from vid2sim.app.commands import match_road
+from vid2sim.app.buildgeo import (  # noqa: F401 - ego_without_gps, clip_ego_to_video: API
+    clip_ego_to_video,
+    ego_without_gps,
+    geo_and_camera,
+)
+from vid2sim.app.camerafile import camera_record, write_camera_file
 from vid2sim.app.figures import stage_figures
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.loaders import (
     load_boxes,
-    load_camera_for,
     load_keyframes_for,
-    load_trace,
     load_video_info,
     need_video,
-    smooth_trace,
 )
 from vid2sim.app.recording import video_clock, video_span_s, with_embedded_gps
+from vid2sim.app.selfcal import CameraChoice, camera_line, start_camera
 from vid2sim.app.settings import Settings
 from vid2sim.app.tracking import lead_summary
-from vid2sim.base.errors import InputError
 from vid2sim.base.fileio import staged_folder, write_text_atomic
 from vid2sim.core import scenario as scenario_io
-from vid2sim.core.camera import Camera
-from vid2sim.core.records import EgoLateral, EgoTrack, Note, NoteKind, Origin, VideoInfo, notes_of
+from vid2sim.core.records import EgoLateral, EgoTrack, Note, NoteKind, VideoInfo, notes_of
 from vid2sim.core.scenario import Event, Source, dumps_canonical
 from vid2sim.core.tables import write_tracks_csv
 from vid2sim.detect.assign import relane
@@ -85,6 +86,8 @@ class BuildResult:
     scene: SceneLayout | None = None
     #: the scenario's lane-change events (cut-ins, cut-outs, lane changes)
     events: list[Event] = field(default_factory=list)
+    #: the camera used: a file, or the self-calibration with its spread
+    camera: str = ""
 
     def summary(self) -> str:
         lines = [(f"scenario: {self.duration_s:.1f} s, ego distance {self.distance_m:.0f} m, "
@@ -105,6 +108,8 @@ class BuildResult:
             m = self.metrics
             lines.append(f"keyframes {m['keyframes']}: precision {m['precision']:.3f}, recall "
                          f"{m['recall']:.3f}, F1 {m['f1']:.3f}, mean IoU {m['mean_iou']:.3f}")
+        if self.camera:
+            lines.append(self.camera)
         lines.append("stages: " + ", ".join(f"{k} {v:.1f} s" for k, v in self.stage_seconds.items()))
         for w in self.warnings:
             lines.append(f"warning: {w}")
@@ -114,40 +119,6 @@ class BuildResult:
 
 
 # --------------------------------------------------------------------------- pure helpers
-
-
-def ego_without_gps(duration_s: float, speed_mps: float, rate_hz: float) -> EgoTrack:
-    """A straight ego drive heading east from the ENU origin at a constant speed.
-
-    Used when no GPS trace is given: the scenario is then camera-relative (speed 0) or
-    relative to an assumed constant ego speed.
-    """
-    n = max(2, int(np.floor(duration_s * rate_hz)) + 1)
-    t = np.arange(n) / rate_hz
-    x = speed_mps * t
-    zeros = np.zeros(n)
-    return EgoTrack(origin=Origin(0.0, 0.0, 0.0), t_s=t, x_m=x, y_m=zeros.copy(),
-                    heading_rad=zeros.copy(), speed_mps=np.full(n, float(speed_mps)),
-                    lat_deg=zeros.copy(), lon_deg=zeros.copy())
-
-
-def clip_ego_to_video(ego: EgoTrack, duration_s: float) -> tuple[EgoTrack, list[str]]:
-    """Keep the ego samples inside the video's time span [0, duration] (scenario clock)."""
-    warnings: list[str] = []
-    keep = (ego.t_s >= -1e-9) & (ego.t_s <= duration_s + 1e-9)
-    if keep.sum() < 2:
-        raise InputError(None, f"the GPS trace does not overlap the video (GPS covers "
-                         f"{ego.t_s[0]:.1f}..{ego.t_s[-1]:.1f} s of video time, the video "
-                         f"0..{duration_s:.1f} s)", "check the clocks or pass --gps-offset")
-    if ego.t_s[0] > 0.5:
-        warnings.append(f"GPS starts {ego.t_s[0]:.1f} s after the first video frame")
-    if ego.t_s[-1] < duration_s - 0.5:
-        warnings.append(f"GPS ends {duration_s - ego.t_s[-1]:.1f} s before the last video frame")
-    if keep.all():
-        return ego, warnings
-    fields_ = {name: (getattr(ego, name)[keep] if isinstance(getattr(ego, name), np.ndarray)
-                      else getattr(ego, name)) for name in EgoTrack.__slots__}
-    return EgoTrack(**fields_), warnings
 
 
 def path_length_m(ego: EgoTrack) -> float:
@@ -193,7 +164,7 @@ def _write_tables(staging: Path, scenario, ranging, road_result) -> dict[str, Pa
 #: (replay.py, preview.png), which would otherwise describe a scenario no longer there.
 BUILD_OUTPUTS: tuple[str, ...] = (
     "scenario.json", "scenario.xosc", "road.xodr", "tracks.csv", "road.json", "report.html",
-    "figures", "metrics.json", "keyframes", "replay.py", "preview.png")
+    "figures", "metrics.json", "keyframes", "replay.py", "preview.png", "camera.yaml")
 
 
 def build(inputs: Inputs, out_dir: Path, settings: Settings | None = None,
@@ -222,7 +193,9 @@ def build(inputs: Inputs, out_dir: Path, settings: Settings | None = None,
     inputs.check()
     video = need_video(inputs)
     info = load_video_info(inputs)
-    camera, notes = load_camera_for(inputs, info)
+    # The camera file (or its prior) before any long work: a bad value fails in a second.
+    choice = start_camera(inputs, info, settings)
+    notes: list = []
     # A recording that carries its GPS (GoPro, dash-cams) is its own GPS input.
     inputs, gps_notes = with_embedded_gps(inputs)
     notes.extend([*(extra_notes or []), *gps_notes])
@@ -234,12 +207,12 @@ def build(inputs: Inputs, out_dir: Path, settings: Settings | None = None,
     # fails now, and everything is written into a staging folder moved into place at the
     # end (removed on an error, Ctrl-C or SIGTERM).
     with staged_folder(out_dir, BUILD_OUTPUTS) as staging:
-        return _build_into(staging, out_dir, inputs, settings, info, camera, notes, detector,
+        return _build_into(staging, out_dir, inputs, settings, info, choice, notes, detector,
                            imported, boxes_label, _Stages(report))
 
 
 def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings,
-                info: VideoInfo, camera: Camera, notes: list, detector, imported,
+                info: VideoInfo, choice: CameraChoice, notes: list, detector, imported,
                 boxes_label: str, stages: _Stages) -> BuildResult:
     """The stages of :func:`build`, writing into ``staging`` (``out_dir`` once moved)."""
     video = need_video(inputs)
@@ -247,28 +220,10 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
     clock, container = video_clock(video, info)
     video_duration_s = video_span_s(info, container)
 
-    # ---- geo: ego trajectory and road
-    roads, road_result, trace = [], None, None
-    ego_noise_m = None  # the ego trajectory's position noise: known with a GPS only
-    if inputs.gps is not None:
-        trace = stages.run("read GPS", load_trace, inputs)
-        ego, trace_stats = stages.run("smooth ego trajectory", smooth_trace, trace, inputs,
-                                      settings)
-        notes.extend(trace_stats.warnings)
-        ego_noise_m = trace_stats.noise_m
-        notes.extend(Note.assumption(a) for a in trace_stats.assumptions)
-        ego, clip_warnings = clip_ego_to_video(ego, video_duration_s)
-        notes.extend(clip_warnings)
-        road_result = stages.run("road and map matching", match_road, trace, ego, inputs,
-                                 settings)
-        roads = list(road_result.roads)
-        notes.extend(road_result.warnings)
-    else:
-        ego = ego_without_gps(video_duration_s, inputs.ego_speed_mps, settings.rate_hz)
-        notes.append(Note.assumption(
-            f"no GPS: the ego drives a straight road heading east at {inputs.ego_speed_mps:g} "
-            "m/s from an arbitrary origin (lat 0, lon 0)"
-            + (" (a camera-relative scenario)" if inputs.ego_speed_mps == 0 else "")))
+    # ---- geo: ego trajectory, road and the camera (file or self-calibrated)
+    geo = geo_and_camera(stages, inputs, settings, info, choice, video_duration_s, notes)
+    inputs, ego, camera, trace = geo.inputs, geo.ego, geo.camera, geo.trace
+    road_result, roads, ego_noise_m = geo.road_result, geo.roads, geo.ego_noise_m
 
     # ---- detect, track, range
     ranging, camera, ranging_notes = stages.run(
@@ -311,6 +266,11 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
                                              config=settings.assemble,
                                              ego_noise_m=ego_noise_m)
     warnings.extend(assemble_warnings)
+    if choice.estimate is not None:
+        # the camera the ranging used, with the calibration's spread and sources
+        scenario.camera = {**camera_record(choice.estimate, scenario=True),
+                           **scenario.camera}
+        write_camera_file(choice.estimate, staging / "camera.yaml", video.name)
     # ---- the street: the road's lanes from the video (and map), parked cars on their strip
     scene = stages.run("road cross-section", lay_out_scene, scenario, lateral)
     scenario = scene.scenario
@@ -333,7 +293,8 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
     files["opendrive"] = Path(xodr.name)
     figures = stages.run("figures", stage_figures, staging / "figures", road_result, trace, ego,
                          ranging.boxes)
-    report_inputs = {**inputs.labelled_paths(), "output folder": str(out_dir)}
+    report_inputs = {**inputs.labelled_paths(), "output folder": str(out_dir),
+                     "camera used": camera_line(choice)}
     metrics = None
     if inputs.keyframes is not None:
         # run_eval writes metrics.json, the keyframe overlays and the one report.html,
@@ -360,6 +321,8 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
                    metrics=None, extra_figures=figures, warnings=warnings, inputs=report_inputs,
                    frame_images=[(c, p, p.relative_to(staging).as_posix()) for c, p in frames])
     files["report"] = Path("report.html")
+    if choice.estimate is not None:
+        files["camera"] = Path("camera.yaml")
 
     lead = lead_summary(ranging, info.n_frames)
     lead_range = (None if not np.isfinite(lead["lead_range_median_m"]) else
@@ -369,5 +332,5 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
         duration_s=scenario.duration_s, distance_m=path_length_m(ego),
         n_actors=len(scenario.actors), lead_share=lead["lead_share"], lead_range_m=lead_range,
         metrics=metrics, warnings=warnings, stage_seconds=stages.seconds, lateral=lateral,
-        scene=scene, events=list(scenario.events))
+        scene=scene, events=list(scenario.events), camera=camera_line(choice))
 

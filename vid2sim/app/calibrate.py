@@ -21,9 +21,14 @@ import numpy as np
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.settings import Settings
 from vid2sim.base.errors import InputError
-from vid2sim.calib import CalibrationConfig, CalibrationInput, CameraPrior, LaneWidthPrior
+from vid2sim.calib import (
+    CalibrationConfig,
+    CalibrationInput,
+    CameraPrior,
+    LaneWidthPrior,
+    with_lanes,
+)
 from vid2sim.calib import calibrate as fit_camera
-from vid2sim.calib import with_lanes
 from vid2sim.calib.sync import estimate_time_offset
 from vid2sim.core.calibration import (
     CameraEstimate,
@@ -39,8 +44,8 @@ from vid2sim.detect.lanes.linecues import frame_lines
 from vid2sim.detect.lanes.markings import LaneMarkingDetector
 from vid2sim.detect.tracking.groundflow import lower_image_flow
 from vid2sim.detect.video import iter_frames
-from vid2sim.geo.readers import OXTS_VF, read_kitti_oxts_table, read_kitti_stamps
 from vid2sim.geo.oxts import OXTS_YAW
+from vid2sim.geo.readers import OXTS_VF, read_kitti_oxts_table, read_kitti_stamps
 
 #: Frames kept (downscaled to this width) for the lane width once the camera is known.
 HELD_FRAME_WIDTH_PX = 960

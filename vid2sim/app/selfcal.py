@@ -74,11 +74,27 @@ def start_camera(inputs: Inputs, info: VideoInfo, settings: Settings) -> CameraC
     return CameraChoice(camera=None, prior=prior or CameraPrior(), cache_key=key)
 
 
-def measure(choice: CameraChoice, inputs: Inputs, info: VideoInfo, settings: Settings) -> None:
-    """Measure the clip's cues (when calibrating)."""
-    if choice.calibrating:
+def measure_cues_for(choice: CameraChoice, inputs: Inputs, info: VideoInfo,
+                     settings: Settings) -> None:
+    """Measure the clip's cues (once)."""
+    if choice.cues is None:
         choice.cues = cal.measure_cues(Path(inputs.video), info, inputs.fps,
                                        cal.calibration_config(settings))
+
+
+def visual_ego_speeds(choice: CameraChoice, info: VideoInfo, settings: Settings
+                      ) -> list[tuple[float, float]]:
+    """The ego's speed per flow pair from the road's flow at the camera's height (the
+    self-calibration's, or with a camera file's camera held)."""
+    if choice.estimate is not None:
+        return choice.estimate.speeds
+    if choice.cues is None or choice.camera is None:
+        return []
+    if cal.check_cues(choice.cues, Path(".")) is not None:
+        return []
+    est = cal.fit_cues(replace(choice.cues, held={}), info, _prior_of(choice.camera),
+                       cal.calibration_config(settings))
+    return est.speeds
 
 
 def needs_sync(inputs: Inputs, trace: GpsTrace | None) -> bool:
@@ -189,7 +205,7 @@ def run_calibrate(inputs: Inputs, out_path: Path, settings: Settings | None = No
     if not choice.calibrating:  # a whole camera file: calibrate with it as a prior
         choice = CameraChoice(camera=None, prior=_prior_of(choice.camera))
     check_output_file(out_path)
-    measure(choice, inputs, info, settings)
+    measure_cues_for(choice, inputs, info, settings)
     why = cal.check_cues(choice.cues, video)
     if why is not None:
         raise InputError(video, why, "calibrate on a longer clip of driving in daylight")
@@ -202,8 +218,8 @@ def run_calibrate(inputs: Inputs, out_path: Path, settings: Settings | None = No
                             params=settings.trace)
     finish_camera(choice, inputs, info, settings, trace, ego)
     write_camera_file(choice.estimate, Path(out_path), Path(video).name)
-    lines = [f"{video}: {info.width}x{info.height}, {len(choice.cues.pairs)} frame pairs and "
-             f"{len(choice.cues.lines)} frames measured in {time.perf_counter() - start:.1f} s",
+    lines = [(f"{video}: {info.width}x{info.height}, {len(choice.cues.pairs)} frame pairs and "
+              f"{len(choice.cues.lines)} frames measured in {time.perf_counter() - start:.1f} s"),
              camera_line(choice)]
     lines += [f"{n.kind.value}: {n}" for n in choice.notes]
     lines.append(f"camera file -> {out_path}")

@@ -12,7 +12,7 @@ from pathlib import Path
 
 from vid2sim.base.defaults import EGO_RATE_HZ
 from vid2sim.base.errors import InputError
-from vid2sim.calib.config import CalibrationConfig
+from vid2sim.calib.calibconfig import CalibrationConfig
 from vid2sim.detect.lanes.track import LaneTrackConfig
 from vid2sim.detect.ranging import RangingConfig
 from vid2sim.detect.schedule import ScheduleConfig

@@ -21,8 +21,16 @@ from pathlib import Path
 
 import numpy as np
 
+from vid2sim.app.camerafile import write_camera_file
 from vid2sim.app.inputs import Inputs
-from vid2sim.app.loaders import load_boxes, load_camera_for, load_video_info, need_video
+from vid2sim.app.loaders import load_boxes, load_video_info, need_video
+from vid2sim.app.selfcal import (
+    CameraChoice,
+    camera_line,
+    finish_camera,
+    measure_cues_for,
+    start_camera,
+)
 from vid2sim.app.settings import Settings
 from vid2sim.base.fileio import check_output_file, check_output_folder
 from vid2sim.core.records import RangingResult
@@ -107,6 +115,13 @@ def lead_summary(result: RangingResult, n_frames: int) -> dict[str, float]:
     }
 
 
+def _camera_without_gps(choice: CameraChoice, inputs: Inputs, info, settings: Settings):
+    """The camera file's, or the clip's self-calibration (no GPS: its scale from priors)."""
+    if choice.calibrating:
+        measure_cues_for(choice, inputs, info, settings)
+    return finish_camera(choice, inputs, info, settings)
+
+
 def run_track(inputs: Inputs, out_path: Path, settings: Settings | None = None,
               plot_dir: Path | None = None) -> str:
     """``vid2sim track``: detect and track vehicles, range them, write ``tracks.csv``.
@@ -119,11 +134,13 @@ def run_track(inputs: Inputs, out_path: Path, settings: Settings | None = None,
     inputs.check()
     video = need_video(inputs)
     info = load_video_info(inputs)
-    camera, notes = load_camera_for(inputs, info)
+    choice = start_camera(inputs, info, settings)
     detector, imported, source = load_boxes(inputs, settings)
     check_output_file(out_path)
     if plot_dir is not None:
         check_output_folder(plot_dir)
+    camera = _camera_without_gps(choice, inputs, info, settings)
+    notes = list(choice.notes)
     result, camera, stage_notes = detect_and_range(
         video, camera, detector=detector, detections=imported,
         detect_every=settings.detector.detect_every, fps=inputs.fps,
@@ -131,7 +148,11 @@ def run_track(inputs: Inputs, out_path: Path, settings: Settings | None = None,
         tracker_config=settings.tracker_config(), schedule=settings.detector.schedule())
     notes += stage_notes
     write_tracks_csv(result.boxes, out_path)
-    lines = [f"{video}: {info.n_frames} frames, boxes from {source}"]
+    lines = [f"{video}: {info.n_frames} frames, boxes from {source}", camera_line(choice)]
+    if choice.estimate is not None:
+        cam_path = Path(out_path).with_suffix(".camera.yaml")
+        write_camera_file(choice.estimate, cam_path, Path(video).name)
+        lines.append(f"camera file -> {cam_path}")
     lines += notes
     s = lead_summary(result, info.n_frames)
     lines.append(f"{s['tracks']} tracks, {len(result.boxes)} rows -> {out_path}")

@@ -14,9 +14,9 @@ from __future__ import annotations
 
 from threadpoolctl import threadpool_limits  # installed with scikit-learn
 
-from vid2sim.calib.config import CalibrationConfig
+from vid2sim.calib.calibconfig import CalibrationConfig
+from vid2sim.calib.cues import CalibrationInput, CameraPrior, LaneWidthPrior
 from vid2sim.calib.estimate import Solution, solve_camera
-from vid2sim.calib.inputs import CalibrationInput, CameraPrior, LaneWidthPrior
 from vid2sim.calib.result import camera_estimate, with_lane_widths
 from vid2sim.core.calibration import CameraEstimate, LaneWidthSample
 

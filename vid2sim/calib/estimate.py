@@ -26,7 +26,8 @@ import numpy as np
 
 from vid2sim.base.defaults import MAD_TO_SIGMA
 from vid2sim.calib import solve as fit
-from vid2sim.calib.config import CalibrationConfig
+from vid2sim.calib.calibconfig import CalibrationConfig
+from vid2sim.calib.cues import CalibrationInput
 from vid2sim.calib.groundmotion import (
     GLOBALS,
     G,
@@ -38,7 +39,6 @@ from vid2sim.calib.groundmotion import (
     predict_b,
     road_points,
 )
-from vid2sim.calib.inputs import CalibrationInput
 from vid2sim.calib.lines import chain_rms, non_radial_chains, pack_chains, road_vanishing_point
 
 #: Largest growth of a road point's image between a pair's frames that its track is trusted
@@ -248,7 +248,7 @@ def solve_camera(inp: CalibrationInput, cfg: CalibrationConfig | None = None) ->
     sol = Solution(g=g, cov=cov, m=m, problem=pr, cue=cue, observable=observable,
                    n_vp_frames=n_vp, n_chains=0 if pr.chains is None else len(pr.chains[0]))
     if has_flow:
-        pred, ok = predict_b(g, m, pr.pairs, pr.c)
+        pred, _ = predict_b(g, m, pr.pairs, pr.c)
         sol.flow_rms_px = float(np.sqrt(np.mean(np.sum((pr.pairs.points_b - pred) ** 2, 1))))
         sol.n_points = len(pr.pairs.pair)
     return sol

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vid2sim.calib import geometry as geo
+from vid2sim.calib import cameramodel as geo
 from vid2sim.core.calibration import FlowPair
 
 #: Global parameters, in the order of the parameter vector.

@@ -20,7 +20,7 @@ import math
 import numpy as np
 
 from vid2sim.base.defaults import MAD_TO_SIGMA
-from vid2sim.calib import geometry as geo
+from vid2sim.calib import cameramodel as geo
 from vid2sim.core.calibration import FrameLines
 
 
@@ -38,7 +38,7 @@ def frame_vanishing_point(segments: np.ndarray, f: float, c: np.ndarray, k1: flo
     left, right = slope < 0, slope > 0  # rising to the right: a line on the left
     if not left.any() or not right.any():
         return None
-    hom = lambda p: np.column_stack((p, np.ones(len(p))))  # noqa: E731
+    hom = lambda p: np.column_stack((p, np.ones(len(p))))
     lines = np.cross(hom(a), hom(b))
     x = np.cross(lines[left][:, None, :], lines[right][None, :, :]).reshape(-1, 3)
     w = (segments[left, 4][:, None] * segments[right, 4][None, :]).reshape(-1)

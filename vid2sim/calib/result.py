@@ -8,10 +8,10 @@ from dataclasses import replace
 import numpy as np
 
 from vid2sim.base.defaults import MAD_TO_SIGMA
-from vid2sim.calib.config import CalibrationConfig
+from vid2sim.calib.calibconfig import CalibrationConfig
+from vid2sim.calib.cues import CalibrationInput, LaneWidthPrior
 from vid2sim.calib.estimate import Solution
 from vid2sim.calib.groundmotion import G, P
-from vid2sim.calib.inputs import CalibrationInput, LaneWidthPrior
 from vid2sim.core.calibration import (
     CameraEstimate,
     LaneWidthSample,

@@ -32,7 +32,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.sparse import lil_matrix
 
-from vid2sim.calib import geometry as geo
+from vid2sim.calib import cameramodel as geo
 from vid2sim.calib.groundmotion import GLOBALS, PAIR_PARAMS, G, P, PairSet, predict_b, unpack
 from vid2sim.calib.lines import plumb_residuals
 
@@ -152,7 +152,7 @@ def residual_blocks(pr: Problem, g: np.ndarray, m: np.ndarray) -> dict[str, np.n
 def _sparsity(pr: Problem, lay: _Layout, blocks: dict[str, np.ndarray]) -> tuple[lil_matrix,
                                                                                   dict]:
     """The Jacobian's pattern, and each block's row range."""
-    rows, spans, r0 = [], {}, 0
+    spans, r0 = {}, 0
     for name, r in blocks.items():
         spans[name] = (r0, r0 + len(r))
         r0 += len(r)

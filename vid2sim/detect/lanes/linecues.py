@@ -126,7 +126,7 @@ def _direction_components(edges: np.ndarray, direction: np.ndarray, min_len: flo
         inside = ((dir_all - 22.5 * b) % 360.0) < 45.0
         mask = np.zeros(edges.shape, np.uint8)
         mask[ys_all[inside], xs_all[inside]] = 1
-        n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+        _, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
         big = np.flatnonzero((stats[:, cv2.CC_STAT_AREA] >= 0.8 * min_len)
                              & (np.hypot(stats[:, 2], stats[:, 3]) >= min_len))
         big = big[big > 0]
