@@ -130,22 +130,6 @@ def check_cues(cues: Cues, video: Path) -> str | None:
     return None
 
 
-def motion_from_ego(ego: EgoTrack, pairs: list[FlowPair], cfg: CalibrationConfig,
-                    yaw_rate_std: float) -> list[EgoMotionSample]:
-    """Each pair's GPS motion on the video clock (pairs outside the GPS's span get none)."""
-    path = np.concatenate(([0.0], np.cumsum(np.hypot(np.diff(ego.x_m), np.diff(ego.y_m)))))
-    heading = np.unwrap(ego.heading_rad)
-    out = []
-    for p in pairs:
-        if not (ego.t_s[0] <= p.t_a_s and p.t_b_s <= ego.t_s[-1]):
-            continue
-        d = float(np.interp(p.t_b_s, ego.t_s, path) - np.interp(p.t_a_s, ego.t_s, path))
-        dpsi = float(np.interp(p.t_b_s, ego.t_s, heading) - np.interp(p.t_a_s, ego.t_s, heading))
-        out.append(EgoMotionSample(p.frame_a, d, dpsi, cfg.gps_speed_std_mps * p.dt_s
-                                   + cfg.gps_scale_std * abs(d), yaw_rate_std * p.dt_s))
-    return out
-
-
 def _ins_heading(trace: GpsTrace) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """(UTC time, forward speed, heading CCW [rad]) of a KITTI OXTS folder's inertial unit."""
     if trace.format != "kitti_oxts" or trace.path is None:
@@ -162,26 +146,36 @@ def _ins_heading(trace: GpsTrace) -> tuple[np.ndarray, np.ndarray, np.ndarray] |
     return t, table[:, OXTS_VF], np.unwrap(table[:, OXTS_YAW])
 
 
-def motion_from_fixes(trace: GpsTrace, t0_utc_s: float, pairs: list[FlowPair],
-                      cfg: CalibrationConfig, yaw_rate_std: float) -> list[EgoMotionSample] | None:
-    """Each pair's motion from the receiver's own speed and heading, when it has them: an
-    inertial unit's heading (KITTI OXTS), else the fixes' Doppler speed and course. Sharper
-    than the smoothed trajectory, whose heading lags a turn and whose speed lags braking.
-    (On KITTI raw 0001 the focal length came out 7 % short from the smoothed track's heading
-    changes, 11 % from the course, whose change over the turn exceeds the heading's by 12 %
-    as the car's sideslip changes, 3 % from the OXTS heading.) None if the fixes lack them."""
+def gps_series(trace: GpsTrace, t0_utc_s: float, ego: EgoTrack | None = None
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """(time from ``t0_utc_s`` [s], speed [m/s], heading [rad, counter-clockwise, unwrapped])
+    as sharp as the trace has them: an inertial unit's heading and forward speed (KITTI
+    OXTS), else the fixes' Doppler speed and course, else the smoothed trajectory ``ego``
+    (already on that clock). The smoothed track's heading lags a turn and its speed a
+    braking: on KITTI raw 0001 the focal length came out 7 % short from its heading
+    changes, 11 % from the course (whose change over the turn exceeds the heading's by 12 %
+    as the car's sideslip changes), 3 % from the OXTS heading."""
     ins = _ins_heading(trace)
     fixes = trace.fixes
     if ins is not None:
-        t, speed, heading = ins[0] - t0_utc_s, ins[1], ins[2]
-    elif len(fixes) >= 2 and all(f.speed_mps is not None and f.course_deg is not None
-                                 for f in fixes):
+        return ins[0] - t0_utc_s, ins[1], ins[2]
+    if len(fixes) >= 2 and all(f.speed_mps is not None and f.course_deg is not None
+                               for f in fixes):
         t = np.array([f.t_utc_s - t0_utc_s for f in fixes])
         speed = np.array([f.speed_mps for f in fixes], float)
         # course: degrees clockwise from north -> counter-clockwise radians, unwrapped
-        heading = np.unwrap(-np.radians(np.array([f.course_deg for f in fixes], float)))
-    else:
+        return t, speed, np.unwrap(-np.radians(np.array([f.course_deg for f in fixes], float)))
+    if ego is None:
         return None
+    return np.asarray(ego.t_s, float), np.asarray(ego.speed_mps, float), np.unwrap(
+        ego.heading_rad)
+
+
+def motion_from_series(series: tuple[np.ndarray, np.ndarray, np.ndarray],
+                       pairs: list[FlowPair], cfg: CalibrationConfig, yaw_rate_std: float
+                       ) -> list[EgoMotionSample]:
+    """Each pair's GPS motion on the video clock (pairs outside the GPS's span get none)."""
+    t, speed, heading = series
     out = []
     for p in pairs:
         if not (t[0] <= p.t_a_s and p.t_b_s <= t[-1]):
@@ -209,24 +203,18 @@ def lane_widths(camera: Camera, held: dict[int, np.ndarray]) -> list[LaneWidthSa
     return out
 
 
-def visual_profiles(est_speeds: list[tuple[float, float]], pairs: list[FlowPair],
-                    yaw_changes: dict[int, float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(t, speed, heading rate) of the pairs the fit used (visual, in the fit's scales)."""
-    by_t = {round(t, 6): v for t, v in est_speeds}
-    t, v, w = [], [], []
+def visual_profiles(est: CameraEstimate, pairs: list[FlowPair]
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(t_a, t_b, speed, heading change) of the pairs the fit used (visual, in the fit's
+    scales)."""
+    by_t = {round(t, 6): v for t, v in est.speeds}
+    rows = []
     for p in pairs:
         tm = round(0.5 * (p.t_a_s + p.t_b_s), 6)
-        if tm in by_t and p.frame_a in yaw_changes and p.dt_s > 0:
-            t.append(tm)
-            v.append(by_t[tm])
-            w.append(yaw_changes[p.frame_a] / p.dt_s)
-    return np.array(t), np.array(v), np.array(w)
-
-
-def gps_profiles(ego: EgoTrack) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(t, speed, heading rate) of a trajectory smoothed on the GPS's own clock."""
-    rate = np.gradient(np.unwrap(ego.heading_rad), ego.t_s)
-    return np.asarray(ego.t_s, float), np.asarray(ego.speed_mps, float), rate
+        if tm in by_t and p.frame_a in est.yaw_changes:
+            rows.append((p.t_a_s, p.t_b_s, by_t[tm], est.yaw_changes[p.frame_a]))
+    arr = np.array(rows, float).reshape(-1, 4)
+    return arr[:, 0], arr[:, 1], arr[:, 2], arr[:, 3]
 
 
 def yaw_rate_std_for(trace: GpsTrace | None, cfg: CalibrationConfig) -> float:
@@ -254,13 +242,15 @@ def fit_cues(cues: Cues, info: VideoInfo, prior: CameraPrior, cfg: CalibrationCo
     return est
 
 
-def sync_clock(cues: Cues, info: VideoInfo, prior: CameraPrior, ego_gps_clock: EgoTrack,
-               cfg: CalibrationConfig) -> TimeOffset:
-    """The video time of the GPS's first fix, from the visual and GPS motion profiles."""
+def sync_clock(cues: Cues, info: VideoInfo, prior: CameraPrior, trace: GpsTrace,
+               ego_gps_clock: EgoTrack, cfg: CalibrationConfig) -> TimeOffset:
+    """The video time of the GPS's first fix, from the visual and GPS motion profiles
+    (``ego_gps_clock``: the trajectory smoothed with the first fix at t = 0)."""
     visual = fit_cues(replace(cues, held={}), info, prior, cfg)
-    t, v, w = visual_profiles(visual.speeds, cues.pairs, visual.yaw_changes)
-    gt, gv, gw = gps_profiles(ego_gps_clock)
-    return estimate_time_offset(t, v, w, gt - gt[0], gv, gw)
+    ta, tb, v, w = visual_profiles(visual, cues.pairs)
+    first = min(f.t_utc_s for f in trace.fixes)
+    series = gps_series(trace, first, ego_gps_clock)
+    return estimate_time_offset(ta, tb, v, w, *series)
 
 
 def lane_prior_from_roads(roads: list, road_source: str | None,

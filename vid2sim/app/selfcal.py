@@ -116,7 +116,7 @@ def sync_offset(choice: CameraChoice, inputs: Inputs, info: VideoInfo, settings:
     ego0, _ = smooth_ego(trace, rate_hz=settings.rate_hz, gps_offset_s=0.0,
                          params=settings.trace)
     prior = choice.prior if choice.prior is not None else _prior_of(choice.camera)
-    off = cal.sync_clock(cues, info, prior, ego0, cfg)
+    off = cal.sync_clock(cues, info, prior, trace, ego0, cfg)
     choice.offset = off
     if off.observable:
         choice.notes.append(Note.estimate(
@@ -157,8 +157,8 @@ def finish_camera(choice: CameraChoice, inputs: Inputs, info: VideoInfo, setting
         if cal.gps_moves(ego, duration):
             yaw_std = cal.yaw_rate_std_for(trace, cfg)
             t0, _ = video_t0_utc(trace, inputs.gps_offset_s)
-            motion = (cal.motion_from_fixes(trace, t0, choice.cues.pairs, cfg, yaw_std)
-                      or cal.motion_from_ego(ego, choice.cues.pairs, cfg, yaw_std))
+            motion = cal.motion_from_series(cal.gps_series(trace, t0, ego), choice.cues.pairs,
+                                            cfg, yaw_std)
         else:
             choice.notes.append(Note.warning(
                 "the GPS never moves during the clip: not used for the camera's scale"))

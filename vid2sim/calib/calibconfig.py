@@ -5,6 +5,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 from vid2sim.base.errors import ImpossibleValueError
 
 
@@ -100,6 +102,20 @@ class CalibrationConfig:
     ground_range_h: tuple[float, float] = (2.0, 25.0)
     ground_half_width_h: float = 1.0
     outlier_sigmas: float = 3.0
+
+    #: the one-sigma the clip alone must give a parameter for it to count as observed (a
+    #: focal length known to 8 % scales ranges by as much: beyond it, the prior's value
+    #: is reported as the prior): ln f, k1, k2, pitch, yaw, roll [rad], ln h
+    useful_log_f_std: float = 0.08
+    useful_k1_std: float = 0.1
+    useful_angle_std_deg: float = 1.0
+    useful_log_h_std: float = 0.10
+
+    def useful_std(self) -> np.ndarray:
+        """The observability thresholds in the order of the fit's globals."""
+        a = math.radians(self.useful_angle_std_deg)
+        return np.array([self.useful_log_f_std, self.useful_k1_std, 0.5 * self.useful_k1_std,
+                         a, a, a, self.useful_log_h_std])
 
     def check(self) -> None:
         """Raise :class:`ImpossibleValueError` for settings no calibration can use."""

@@ -243,8 +243,7 @@ def solve_camera(inp: CalibrationInput, cfg: CalibrationConfig | None = None) ->
         g, m, _, _ = fit.solve(pr, g, m, free, max_nfev=EARLY_ROUND_EVALUATIONS)
         _reject(pr, g, m, cfg)
     g, m, (res, lay), spans = fit.solve(pr, g, m, rounds[-1])
-    _, _, broad, _ = _prior(replace(inp, prior=replace(inp.prior, soft={})), cfg)
-    cov, cue, observable = fit.covariance(pr, g, m, res, lay, spans, broad ** 2)
+    cov, cue, observable = fit.covariance(pr, g, m, res, lay, spans, cfg.useful_std())
     sol = Solution(g=g, cov=cov, m=m, problem=pr, cue=cue, observable=observable,
                    n_vp_frames=n_vp, n_chains=0 if pr.chains is None else len(pr.chains[0]))
     if has_flow:

@@ -97,6 +97,9 @@ def camera_estimate(sol: Solution, inp: CalibrationInput, cfg: CalibrationConfig
     """The :class:`CameraEstimate` of a solution: camera, parameters, notes, speeds."""
     gps = bool(inp.motion)
     params = {k: _parameter(sol, k, cfg, gps_scale=gps and k == "height_m") for k in _KEYS}
+    for key, value in inp.prior.values.items():  # held exactly as the file gives them
+        if key in params:
+            params[key] = replace(params[key], value=float(value))
     k2 = params["k2"]
     if k2.source is ParameterSource.ESTIMATED and not abs(k2.value) > 2.0 * k2.std:
         params["k2"] = ParameterEstimate(0.0, k2.std, ParameterSource.PRIOR, "prior")

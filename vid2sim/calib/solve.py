@@ -19,8 +19,9 @@ quadratic) and points whose residual
 exceeds a few robust sigmas of their pair dropped between rounds. The covariance is the
 sandwich ``A^-1 B A^-1`` with ``B`` summed over independent units (a pair's points share
 their errors, as do a chain's), so the spread follows the real scatter of the pairs and not
-the count of points. A parameter whose variance without the ``prior`` rows is more than
-four times its prior's is reported as not observable in the clip.
+the count of points. A parameter that the data alone (without the ``prior`` rows) do not
+give to a useful one-sigma (:class:`~vid2sim.calib.CalibrationConfig`) is reported as not
+observable in the clip.
 """
 
 from __future__ import annotations
@@ -219,9 +220,6 @@ def solve(pr: Problem, g0: np.ndarray, m0: np.ndarray, free_g: np.ndarray,
 #: Blocks whose rows are priors, not measurements (the sandwich takes their information as
 #: it is; a parameter observable only through ``prior`` is reported as not observable).
 PRIOR_BLOCKS = ("prior", "motion prior")
-#: A parameter is observable when the data alone give it a variance below this many times
-#: its prior variance.
-OBSERVABLE_VARIANCE_RATIO = 4.0
 
 
 def _clusters(pr: Problem, spans: dict, n_rows: int) -> np.ndarray:
@@ -253,12 +251,11 @@ def _variances(a: np.ndarray, n_g: int) -> np.ndarray:
 
 
 def covariance(pr: Problem, g: np.ndarray, m: np.ndarray, res, lay: _Layout, spans: dict,
-               prior_var: np.ndarray) -> tuple[np.ndarray, dict[str, str], dict[str, bool]]:
+               useful_std: np.ndarray) -> tuple[np.ndarray, dict[str, str], dict[str, bool]]:
     """Sandwich covariance of the globals, each free global's dominant cue, observability.
 
-    ``prior_var`` (NG,): the variance a parameter must beat to count as observed: the
-    broad default prior's (not a cached calibration's, which would make every clip of a
-    known camera look as if it said nothing)."""
+    ``useful_std`` (NG,): the one-sigma the data alone (without the ``prior`` rows) must
+    reach for a parameter to count as observed in the clip."""
     jac = res.jac.toarray() if hasattr(res.jac, "toarray") else np.asarray(res.jac)
     rw = res.fun
     a_all = jac.T @ jac
@@ -284,8 +281,7 @@ def covariance(pr: Problem, g: np.ndarray, m: np.ndarray, res, lay: _Layout, spa
         without = _variances(a_all - info, ng)
         if name == "prior":
             for j, gi in enumerate(lay.free_g):
-                observable[GLOBALS[gi]] = bool(without[j] <= OBSERVABLE_VARIANCE_RATIO
-                                               * prior_var[gi])
+                observable[GLOBALS[gi]] = bool(without[j] <= useful_std[gi] ** 2)
         with np.errstate(divide="ignore", invalid="ignore"):
             ratio = without / base
         for j, gi in enumerate(lay.free_g):

@@ -1,17 +1,18 @@
 """The GPS clock against the video's: match the visual ego-motion's profile to the GPS's.
 
 The road's flow gives, per frame pair, the ego's forward motion in camera heights and its
-heading change in units of the provisional focal length: the speed and the heading rate up
-to one unknown scale each. The GPS gives both in metres and radians on its own clock. For a
-trial offset ``tau`` (video time of the GPS's t = 0) the GPS profiles are read at the pairs'
-times minus ``tau``, each visual profile gets its best scale (least squares), and the
+heading change in units of the provisional focal length: the speed and the heading change
+up to one unknown scale each. The GPS gives both in metres and radians on its own clock.
+For a trial offset ``tau`` (video time of the GPS's t = 0) the GPS is read at each pair's
+two frame times minus ``tau``, each visual profile gets its best scale (least squares), and
+the
 misfit, in units of its own noise, is summed; the offset is the minimum over a coarse then a
 fine grid. Its one-sigma comes from the misfit's curvature there, inflated for the residuals'
 correlation from pair to pair (they are smooth profiles, not independent samples).
 
-When the ego drives at a steady speed along a straight road, or speeds up at a steady rate
-(a ramp shifted in time is a ramp scaled), every offset fits alike: the offset is then
-reported as not observable, with the numbers that say why.
+When the ego drives at a steady speed along a straight road, every offset fits alike (the
+profiles have no feature to line up): the offset is then reported as not observable, with
+the numbers that say why.
 """
 
 from __future__ import annotations
@@ -34,7 +35,8 @@ class SyncConfig:
     :param speed_noise_mps: one-sigma of a pair's visual speed beyond its scale [m/s]
         (road flow on KITTI raw 0001: 0.3-0.5 m/s per pair)
     :param speed_noise_frac: and relative to the speed
-    :param yaw_rate_noise: one-sigma of a pair's visual heading rate [rad/s]
+    :param yaw_rate_noise: one-sigma of a pair's heading change per second between its
+        frames, visual against GPS [rad/s]
     :param max_std_s: an offset less certain than this is not observable [s]
     :param rival_chi2: another minimum farther than ``rival_gap_s`` within this much of
         the best misfit (in sigmas squared) makes the offset ambiguous
@@ -52,51 +54,70 @@ class SyncConfig:
     rival_gap_s: float = 1.0
 
 
-def _misfit(tau: float, t: np.ndarray, v_vis: np.ndarray, w_vis: np.ndarray,
-            gps_t: np.ndarray, gps_v: np.ndarray, gps_w: np.ndarray, cfg: SyncConfig
-            ) -> tuple[float, np.ndarray, int]:
-    """Chi-square of the best-scaled visual profiles against the GPS's at offset ``tau``
+def _gps_increments(tau: float, t_a: np.ndarray, t_b: np.ndarray, gps_t: np.ndarray,
+                    gps_v: np.ndarray, gps_h: np.ndarray) -> tuple[np.ndarray, np.ndarray,
+                                                               np.ndarray]:
+    """Mean speed and heading change over each pair's two frames, from the GPS read at
+    the pairs' times minus ``tau``, and which pairs lie inside the GPS's span."""
+    ua, ub = t_a - tau, t_b - tau
+    inside = (ua >= gps_t[0]) & (ub <= gps_t[-1])
+    speed = 0.5 * (np.interp(ua, gps_t, gps_v) + np.interp(ub, gps_t, gps_v))
+    dpsi = np.interp(ub, gps_t, gps_h) - np.interp(ua, gps_t, gps_h)
+    return speed, dpsi, inside
+
+
+def _misfit(tau: float, t_a: np.ndarray, t_b: np.ndarray, v_vis: np.ndarray,
+            dpsi_vis: np.ndarray, gps_t: np.ndarray, gps_v: np.ndarray, gps_h: np.ndarray,
+            cfg: SyncConfig) -> tuple[float, np.ndarray, int]:
+    """Chi-square of the best-fitted visual profiles against the GPS's at offset ``tau``
     (averaged over the overlapping pairs and scaled to all of them, so that offsets with
-    less overlap compare fairly), the normalised residuals, and the pairs used."""
-    u = t - tau
-    inside = (u >= gps_t[0]) & (u <= gps_t[-1])
+    less overlap compare fairly), the normalised residuals, and the pairs used.
+
+    The visual speed gets a scale and an intercept (a flow bias that grows with speed
+    would otherwise read as a time shift of a braking or speeding-up ego); the heading
+    change a scale (straight is zero in both)."""
+    vg, hg, inside = _gps_increments(tau, t_a, t_b, gps_t, gps_v, gps_h)
     n = int(inside.sum())
-    if n < 3:
+    if n < 4:
         return math.inf, np.zeros(0), 0
-    vg = np.interp(u[inside], gps_t, gps_v)
-    wg = np.interp(u[inside], gps_t, gps_w)
-    vv, wv = v_vis[inside], w_vis[inside]
-    a = float(np.dot(vv, vg) / max(np.dot(vv, vv), 1e-12))
-    b = float(np.dot(wv, wg) / max(np.dot(wv, wv), 1e-12))
-    a = min(max(a, 0.5), 2.0) if a > 0 else 1.0
+    vg, hg, vv, hv = vg[inside], hg[inside], v_vis[inside], dpsi_vis[inside]
+    design = np.column_stack((vv, np.ones(n)))
+    coef = np.linalg.lstsq(design, vg, rcond=None)[0]
+    if coef[0] <= 0:  # a focal length and a height are positive: so are both scales
+        coef = np.array([0.0, float(np.mean(vg))])
+    b = max(float(np.dot(hv, hg) / max(np.dot(hv, hv), 1e-18)), 0.0)
+    dt = np.maximum(t_b - t_a, 1e-3)[inside]
     sv = cfg.speed_noise_mps + cfg.speed_noise_frac * np.abs(vg)
-    r = np.concatenate(((a * vv - vg) / sv, (b * wv - wg) / cfg.yaw_rate_noise))
-    return float(np.mean(r ** 2)) * 2 * len(t), r, n
+    r = np.concatenate(((design @ coef - vg) / sv, (b * hv - hg) / (cfg.yaw_rate_noise * dt)))
+    return float(np.mean(r ** 2)) * 2 * len(t_a), r, n
 
 
-def estimate_time_offset(t_s: np.ndarray, speed: np.ndarray, yaw_rate: np.ndarray,
-                         gps_t_s: np.ndarray, gps_speed: np.ndarray, gps_yaw_rate: np.ndarray,
-                         config: SyncConfig | None = None) -> TimeOffset:
+def estimate_time_offset(t_a_s: np.ndarray, t_b_s: np.ndarray, speed: np.ndarray,
+                         yaw_change: np.ndarray, gps_t_s: np.ndarray, gps_speed: np.ndarray,
+                         gps_heading: np.ndarray, config: SyncConfig | None = None
+                         ) -> TimeOffset:
     """Offset of the GPS clock (``gps_t_s``: seconds from its first fix) against the video's
-    (``t_s``: pairs' video times), i.e. the video time of the first fix.
+    (``t_a_s``, ``t_b_s``: each pair's two frame times), i.e. the video time of the first fix.
 
-    ``speed`` and ``yaw_rate`` are the visual profiles in any scale; the GPS's in m/s and
-    rad/s."""
+    ``speed`` and ``yaw_change`` are the pairs' visual speed and heading change in any
+    scale; ``gps_speed`` [m/s] and ``gps_heading`` [rad, counter-clockwise, unwrapped] the
+    GPS's at its times."""
     cfg = config or SyncConfig()
-    t, v, w = (np.asarray(x, float) for x in (t_s, speed, yaw_rate))
-    gt, gv, gw = (np.asarray(x, float) for x in (gps_t_s, gps_speed, gps_yaw_rate))
+    ta, tb, v, w = (np.asarray(x, float) for x in (t_a_s, t_b_s, speed, yaw_change))
+    gt, gv, gw = (np.asarray(x, float) for x in (gps_t_s, gps_speed, gps_heading))
+    t = 0.5 * (ta + tb)
     if len(t) < 5 or len(gt) < 5:
         return TimeOffset(0.0, math.inf, False, "too few samples to compare the clocks")
     span = gt[-1] - gt[0]
-    lo = t[0] - span + cfg.min_overlap * (t[-1] - t[0])
-    hi = t[-1] - cfg.min_overlap * (t[-1] - t[0])
-    taus = np.arange(lo, hi + cfg.coarse_step_s, cfg.coarse_step_s)
+    lo = gt[0] + t[0] - span + cfg.min_overlap * (t[-1] - t[0])
+    hi = gt[0] + t[-1] - cfg.min_overlap * (t[-1] - t[0])
+    taus = np.arange(lo - gt[0], hi - gt[0] + cfg.coarse_step_s, cfg.coarse_step_s)
     need = cfg.min_overlap * len(t)
 
     def curve(grid: np.ndarray) -> np.ndarray:
         out = np.full(len(grid), np.inf)
         for i, tau in enumerate(grid):
-            chi2, _, n = _misfit(tau, t, v, w, gt, gv, gw, cfg)
+            chi2, _, n = _misfit(tau, ta, tb, v, w, gt, gv, gw, cfg)
             if n >= need:
                 out[i] = chi2
         return out
@@ -110,16 +131,19 @@ def estimate_time_offset(t_s: np.ndarray, speed: np.ndarray, yaw_rate: np.ndarra
                        cfg.fine_step_s)
     fine = curve(fine_t)
     i = int(np.argmin(fine))
-    return _judge(fine_t, fine, i, taus, coarse, t, v, w, gt, gv, gw, cfg)
+    return _judge(fine_t, fine, i, taus, coarse, (ta, tb, v, w, gt, gv, gw), cfg)
 
 
-def _judge(fine_t, fine, i, taus, coarse, t, v, w, gt, gv, gw, cfg: SyncConfig
-           ) -> TimeOffset:
+def _judge(fine_t, fine, i, taus, coarse, data: tuple, cfg: SyncConfig) -> TimeOffset:
     """The offset at the fine minimum with its one-sigma, or why it is not observable."""
     tau = float(fine_t[i])
-    chi2_min, r, _ = _misfit(tau, t, v, w, gt, gv, gw, cfg)
-    # misfit per residual (1 if the noise levels are right), scaling the curve's width
-    scale = max(float(np.sum(r ** 2)) / max(len(r) - 2, 1), 1e-6)
+    ta, tb, v, w, gt, gv, gw = data
+    t = 0.5 * (ta + tb)
+    chi2_min, r, _ = _misfit(tau, ta, tb, v, w, gt, gv, gw, cfg)
+    # misfit per residual: above 1 the noise levels were too small and the curve's width
+    # grows with it; below 1 they are kept (they are floors for what the profiles do not
+    # model: flow biases, a GPS's smoothing)
+    scale = max(float(np.sum(r ** 2)) / max(len(r) - 2, 1), 1.0)
     # residual correlation along each profile: fewer independent samples than pairs
     half = len(r) // 2
     rho = np.nanmean([_lag1(r[:half]), _lag1(r[half:])])
@@ -134,7 +158,8 @@ def _judge(fine_t, fine, i, taus, coarse, t, v, w, gt, gv, gw, cfg: SyncConfig
     rivals = taus[(np.abs(taus - tau) > cfg.rival_gap_s)
                   & (coarse < chi2_min + cfg.rival_chi2 * scale * inflate)]
     spread_v = float(np.ptp(np.interp(t - tau, gt, gv)))
-    spread_w = math.degrees(float(np.ptp(np.interp(t - tau, gt, gw))))
+    rate = np.gradient(gw, gt) if len(gt) > 2 else np.zeros(len(gt))
+    spread_w = math.degrees(float(np.ptp(np.interp(t - tau, gt, rate))))
     why = (f"speed varies by {spread_v:.1f} m/s and the heading rate by {spread_w:.1f} deg/s "
            "over the clip")
     if not std <= cfg.max_std_s:
