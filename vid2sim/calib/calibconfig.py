@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from vid2sim.base.errors import ImpossibleValueError
+from vid2sim.core.camera import DEFAULT_HEIGHT_M, DEFAULT_HFOV_DEG
 
 
 @dataclass(frozen=True, slots=True)
@@ -17,12 +18,14 @@ class CalibrationConfig:
     Priors (used where the video cannot tell, and always named in a warning then):
 
     :param hfov_prior_deg: horizontal field of view a camera is assumed to have before the
-        data speaks: consumer dash-cams record 90-140 deg diagonally, 75-110 deg across
-        after their own crop; phone main cameras 63-75 deg across (26 mm equivalent)
+        data speaks: the project's default camera's (:data:`vid2sim.core.camera.
+        DEFAULT_HFOV_DEG`; consumer dash-cams record 90-140 deg diagonally, 75-110 deg
+        across after their own crop; phone main cameras 63-75 deg across)
     :param log_f_prior_std: one-sigma of ln(focal length) about it (0.35: 50-120 deg within
         two sigma)
-    :param height_prior_m: camera above the road: a windscreen dash-cam in a passenger car
-        sits 1.2-1.4 m high, in an SUV or van 1.5-2.0 m, a roof rig (KITTI) 1.65 m
+    :param height_prior_m: camera above the road: the default camera's (a windscreen
+        dash-cam in a passenger car sits 1.2-1.4 m high, in an SUV or van 1.5-2.0 m, a
+        roof rig such as KITTI's 1.65 m)
     :param log_h_prior_std: one-sigma of ln(height) about it (0.2)
     :param k1_prior_std: one-sigma of the radial coefficient k1 about 0 (real lenses -0.4 to
         +0.1 after the maker's correction, OpenCV's model at normalised radius)
@@ -74,9 +77,9 @@ class CalibrationConfig:
         pair is dropped (cars, shadows, bad tracks)
     """
 
-    hfov_prior_deg: float = 80.0
+    hfov_prior_deg: float = DEFAULT_HFOV_DEG
     log_f_prior_std: float = 0.35
-    height_prior_m: float = 1.35
+    height_prior_m: float = DEFAULT_HEIGHT_M
     log_h_prior_std: float = 0.2
     k1_prior_std: float = 0.25
     k2_prior_std: float = 0.05

@@ -132,18 +132,20 @@ def target_camera(source: Camera, width_px: int, height_px: int, hfov_deg: float
 
 
 def draw_target_camera(source: Camera, seed: int, distorted: bool = True,
-                       tries: int = 200) -> TargetDraw:
+                       tries: int = 200,
+                       hfov_range_deg: tuple[float, float] = HFOV_RANGE_DEG) -> TargetDraw:
     """A random target camera that sees only inside the source image.
 
     Field of view, width, distortion (``distorted``: k1 drawn, k2 = -k1 / 10 as real
     lenses' second term is small against the first; else a pinhole), mounting angles and
-    principal point are drawn from the module's ranges; the height is the tallest that
+    principal point are drawn from the module's ranges (the field of view from
+    ``hfov_range_deg``: narrower than the source's); the height is the tallest that
     the source's vertical field of view allows (at most 0.42 of the width: dash-cam
     strips are 16:9 or wider after their bonnet crop).
     """
     rng = np.random.default_rng(seed)
     for _ in range(tries):
-        hfov = float(rng.uniform(*HFOV_RANGE_DEG))
+        hfov = float(rng.uniform(*hfov_range_deg))
         width = int(rng.choice(WIDTHS_PX))
         k1 = float(rng.uniform(*K1_RANGE)) if distorted else 0.0
         dist = (k1, -k1 / 10.0, 0.0, 0.0, 0.0) if distorted else (0.0,) * 5
