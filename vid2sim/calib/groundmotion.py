@@ -159,3 +159,4 @@ def growth(g: np.ndarray, m: np.ndarray, ps: PairSet, c: np.ndarray) -> np.ndarr
     with np.errstate(invalid="ignore", divide="ignore"):
         out = np.where(down & (ahead > 0), m[ps.pair, P["s"]] / ahead, np.inf)
     return np.abs(out)
+

@@ -45,8 +45,9 @@ class GroundFlowConfig:
     :param max_fb_error_px: forward-backward round trip allowed [px, downscaled]
     :param homography_tolerance_px: inlier distance of the road's homography that guides
         the second tracking [px, downscaled]
-    :param homography_points: corners tracked first, for the homography (a plane's eight
-        degrees of freedom need few; each tracked point costs ~0.06 ms)
+    :param plane_tolerance_px, plane_tolerance_frac: a point whose first track lies within
+        this distance (or share of its motion) of the homography's prediction moves with
+        the road and is tracked again against the warped frame [px, downscaled]
     :param warped_levels: pyramid levels of the second tracking, against the warped frame
         (what is left to follow is a few pixels)
     """
@@ -62,8 +63,9 @@ class GroundFlowConfig:
     levels: int = 4
     max_fb_error_px: float = 0.5
     homography_tolerance_px: float = 2.0
-    homography_points: int = 150
     warped_levels: int = 2
+    plane_tolerance_px: float = 3.0
+    plane_tolerance_frac: float = 0.25
 
 
 def grey_small(image_bgr: np.ndarray, max_width_px: int) -> tuple[np.ndarray, float]:
@@ -92,32 +94,44 @@ def lower_image_flow(image_a: np.ndarray, image_b: np.ndarray, frame_a: int, fra
     if len(pb) < 4:
         return FlowPair(frame_a, frame_b, t_a_s, t_b_s, empty, empty)
     lk = {"winSize": (cfg.window_px, cfg.window_px), "maxLevel": cfg.levels}
-    first = np.ascontiguousarray(pb[::max(1, len(pb) // cfg.homography_points)])
-    pa, ok = _track(gb, ga, first, None, lk, cfg.max_fb_error_px)
+    pa, ok = _track(gb, ga, pb, None, lk, cfg.max_fb_error_px)
     if ok.sum() >= 8:
-        # The road is a plane, so its motion between the frames is a homography (Hartley &
-        # Zisserman, sec. 13.1). Frame a is warped by the dominant homography of the first
-        # tracks onto frame b, and the points tracked again there: what remains is a small
-        # shift without the growth that Lucas-Kanade (a translation model) cannot follow
-        # (the near road of a 10 fps camera at speed grows by a fifth and its first tracks
-        # lag by several per cent).
-        hom, _ = cv2.findHomography(first[ok], pa[ok], cv2.RANSAC,
-                                    cfg.homography_tolerance_px)
-        if hom is not None and np.all(np.isfinite(hom)) and abs(np.linalg.det(hom)) > 1e-6:
-            warped = cv2.warpPerspective(ga, hom, (w, h), flags=cv2.INTER_LINEAR
-                                         | cv2.WARP_INVERSE_MAP, borderMode=cv2.BORDER_REPLICATE)
-            fine = {"winSize": lk["winSize"], "maxLevel": cfg.warped_levels}
-            q, ok = _track(gb, warped, pb, None, fine, cfg.max_fb_error_px)
-            pa = cv2.perspectiveTransform(q.reshape(-1, 1, 2).astype(np.float64), hom)
-            pa = pa.astype(np.float32)
-        else:
-            pa, ok = _track(gb, ga, pb, None, lk, cfg.max_fb_error_px)
-    else:
-        pa, ok = _track(gb, ga, pb, None, lk, cfg.max_fb_error_px)
+        pa, ok = _on_the_road_plane(ga, gb, pb, pa, ok, lk, cfg)
     pa, pb = pa.reshape(-1, 2)[ok], pb.reshape(-1, 2)[ok]
     inside = ((pa[:, 0] >= 0) & (pa[:, 0] <= w - 1) & (pa[:, 1] >= 0) & (pa[:, 1] <= h - 1))
     return FlowPair(frame_a, frame_b, t_a_s, t_b_s, _full_pixels(pa[inside], scale),
                     _full_pixels(pb[inside], scale))
+
+
+def _on_the_road_plane(ga: np.ndarray, gb: np.ndarray, pb: np.ndarray, pa: np.ndarray,
+                       ok: np.ndarray, lk: dict, cfg: GroundFlowConfig
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """Track again, against frame a warped onto frame b by the road's homography, the
+    points that move as the road does.
+
+    The road is a plane, so its motion between the frames is a homography (Hartley &
+    Zisserman, sec. 13.1): the dominant one of the first tracks. Against the warped frame
+    what remains of a road point's motion is a small shift without the growth that
+    Lucas-Kanade (a translation model) cannot follow (the near road of a 10 fps camera at
+    speed grows by a fifth, and its first tracks lag by several per cent). Points off the
+    plane (facades, trees, cars) keep their first tracks: the warp means nothing for them.
+    """
+    hom, _ = cv2.findHomography(pb[ok], pa[ok], cv2.RANSAC, cfg.homography_tolerance_px)
+    if hom is None or not np.all(np.isfinite(hom)) or abs(np.linalg.det(hom)) < 1e-6:
+        return pa, ok
+    h, w = gb.shape
+    warped = cv2.warpPerspective(ga, hom, (w, h), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+                                 borderMode=cv2.BORDER_REPLICATE)
+    fine = {"winSize": lk["winSize"], "maxLevel": cfg.warped_levels}
+    q, ok2 = _track(gb, warped, pb, None, fine, cfg.max_fb_error_px)
+    on_plane = cv2.perspectiveTransform(pb.reshape(-1, 1, 2).astype(np.float64), hom)
+    again = cv2.perspectiveTransform(q.reshape(-1, 1, 2).astype(np.float64), hom)
+    motion = np.linalg.norm((on_plane - pb).reshape(-1, 2), axis=1)
+    near = np.linalg.norm((on_plane - pa).reshape(-1, 2), axis=1) <= np.maximum(
+        cfg.plane_tolerance_px, cfg.plane_tolerance_frac * motion)
+    road = ok2 & (near | ~ok)  # on the plane by its first track, or lost without the warp
+    out = np.where(road[:, None, None], again.astype(np.float32), pa)
+    return out, np.where(road, True, ok)
 
 
 def _corners(grey: np.ndarray, cfg: GroundFlowConfig) -> np.ndarray:
