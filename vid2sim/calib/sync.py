@@ -41,6 +41,12 @@ class SyncConfig:
     :param rival_chi2: another minimum farther than ``rival_gap_s`` within this much of
         the best misfit (in sigmas squared) makes the offset ambiguous
     :param rival_gap_s: see ``rival_chi2``
+    :param min_explained: the fitted visual profiles must explain at least this share of
+        the GPS profiles' variance beyond their noise (else they do not show the same
+        motion: a rendered road without texture, a parked car)
+    :param min_gps_speed_mps, min_speed_ratio: where the GPS moves faster than this and
+        the visual speed (at the provisional camera, within a factor of two of the truth)
+        stays below this share of it, the flow did not follow the road
     """
 
     coarse_step_s: float = 0.25
@@ -52,6 +58,9 @@ class SyncConfig:
     max_std_s: float = 0.5
     rival_chi2: float = 4.0
     rival_gap_s: float = 1.0
+    min_explained: float = 0.6
+    min_gps_speed_mps: float = 1.0
+    min_speed_ratio: float = 0.2
 
 
 def _gps_increments(tau: float, t_a: np.ndarray, t_b: np.ndarray, gps_t: np.ndarray,
@@ -122,6 +131,13 @@ def estimate_time_offset(t_a_s: np.ndarray, t_b_s: np.ndarray, speed: np.ndarray
                 out[i] = chi2
         return out
 
+    moving = float(np.median(np.abs(gv)))
+    if moving > cfg.min_gps_speed_mps and float(np.median(np.abs(v))) < (
+            cfg.min_speed_ratio * moving):
+        return TimeOffset(0.0, math.inf, False, f"the road's flow shows the ego almost still "
+                          f"({float(np.median(np.abs(v))):.1f} m/s at the provisional camera) "
+                          f"while the GPS says {moving:.1f} m/s: too little road texture to "
+                          "follow")
     coarse = curve(taus)
     if not np.isfinite(coarse).any():
         return TimeOffset(0.0, math.inf, False, "the GPS does not overlap the video at any "
@@ -162,6 +178,14 @@ def _judge(fine_t, fine, i, taus, coarse, data: tuple, cfg: SyncConfig) -> TimeO
     spread_w = math.degrees(float(np.ptp(np.interp(t - tau, gt, rate))))
     why = (f"speed varies by {spread_v:.1f} m/s and the heading rate by {spread_w:.1f} deg/s "
            "over the clip")
+    explained, features = _explained(tau, data, cfg)
+    if features == 0:
+        return TimeOffset(tau, std, False, f"the motion is too uniform to tell the clocks "
+                          f"apart ({why}: within the noise of both)")
+    if explained < cfg.min_explained:
+        return TimeOffset(tau, std, False, f"the visual motion does not follow the GPS's at any "
+                          f"offset (at best {100 * explained:.0f} % of the GPS's speed and "
+                          f"heading changes beyond their noise explained; {why})")
     if not std <= cfg.max_std_s:
         return TimeOffset(tau, std, False, f"the motion is too uniform to tell the clocks "
                           f"apart ({why}; one-sigma {std:.2f} s)")
@@ -169,6 +193,29 @@ def _judge(fine_t, fine, i, taus, coarse, data: tuple, cfg: SyncConfig) -> TimeO
         return TimeOffset(tau, std, False, f"offsets {tau:+.2f} s and {float(rivals[0]):+.2f} s "
                           f"fit alike ({why})")
     return TimeOffset(tau, std, True, why)
+
+
+def _explained(tau: float, data: tuple, cfg: SyncConfig) -> tuple[float, float]:
+    """Share of the GPS profiles' variance beyond their noise that the fitted visual
+    profiles explain at ``tau``, and that variance in units of the noise (0: the profiles
+    have no feature to line up)."""
+    ta, tb, v, w, gt, gv, gw = data
+    vg, hg, inside = _gps_increments(tau, ta, tb, gt, gv, gw)
+    if inside.sum() < 4:
+        return 0.0, 0.0
+    vg, hg, vv, hv = vg[inside], hg[inside], v[inside], w[inside]
+    dt = np.maximum(tb - ta, 1e-3)[inside]
+    out, weight = 0.0, 0.0
+    for obs, gps, noise in ((vv, vg, cfg.speed_noise_mps), (hv, hg, cfg.yaw_rate_noise * dt)):
+        signal = float(np.var(gps)) - float(np.mean(np.square(noise)))
+        if signal <= 0:
+            continue
+        design = np.column_stack((obs, np.ones(len(obs))))
+        fit = design @ np.linalg.lstsq(design, gps, rcond=None)[0]
+        share = 1.0 - float(np.mean((gps - fit) ** 2) - np.mean(np.square(noise))) / signal
+        out += signal / float(np.mean(np.square(noise))) * min(max(share, 0.0), 1.0)
+        weight += signal / float(np.mean(np.square(noise)))
+    return (out / weight if weight > 0 else 0.0), weight
 
 
 def _lag1(x: np.ndarray) -> float:
