@@ -41,8 +41,12 @@ from vid2sim.app.inputs import Inputs
 from vid2sim.app.selfcal import run_calibrate
 from vid2sim.app.settings import Settings
 from vid2sim.core.camera import Camera, load_camera
-from vid2sim.samples.reimage import draw_target_camera, reimage_frame, reimage_maps
-from vid2sim.samples.reimage import write_reimaged_video
+from vid2sim.samples.reimage import (
+    draw_target_camera,
+    reimage_frame,
+    reimage_maps,
+    write_reimaged_video,
+)
 
 RANGES_M = (10.0, 20.0, 40.0)
 
@@ -63,7 +67,7 @@ def range_errors(truth: Camera, est: Camera) -> list[float]:
 
 def score(name: str, truth: Camera, est_path: Path, cpu_s: float) -> dict:
     est = load_camera(est_path)
-    import yaml  # noqa: PLC0415 - the estimate's extra keys
+    import yaml
 
     rec = yaml.safe_load(est_path.read_text())
     src = rec.get("source", {})
@@ -107,7 +111,7 @@ def kitti_clips(raw: Path, cache: Path, seeds: list[int], modes: list[str]) -> l
 
 
 def dgp_clip(shared: Path, cache: Path) -> dict | None:
-    from vid2sim.evaluate.ranging.dgp import ground_camera, read_dgp_scene  # noqa: PLC0415
+    from vid2sim.evaluate.ranging.dgp import ground_camera, read_dgp_scene
 
     scene = shared / "tri_dgp_front" / "scene_01"
     if not scene.is_dir():
@@ -133,11 +137,11 @@ def composite_build(raw: Path, shared: Path, cache: Path, seed: int, cam_seed: i
     re-imaged through a distorted camera, ``vid2sim build`` with the OXTS and keyframes of
     the pasted car's truth box (mapped through the same camera) but no camera file: the lead
     range against the composite's exact truth, and the keyframes' mean IoU."""
-    from vid2sim.app.build import build  # noqa: PLC0415 - the whole pipeline, here only
-    from vid2sim.app.settings import DetectorSettings  # noqa: PLC0415
-    from vid2sim.core.tables import read_tracks_csv  # noqa: PLC0415
-    from vid2sim.samples import composite as cp  # noqa: PLC0415
-    from vid2sim.samples.reimage import map_box  # noqa: PLC0415
+    from vid2sim.app.build import build
+    from vid2sim.app.settings import DetectorSettings
+    from vid2sim.core.tables import read_tracks_csv
+    from vid2sim.samples import composite as cp
+    from vid2sim.samples.reimage import map_box
 
     source = load_camera(raw / "camera.yaml")
     source = replace(source, image_height=374)
@@ -187,10 +191,10 @@ def ego_speed_check(raw: Path) -> str:
     (``image_00_timestamps.txt``): speeds per container second are 3.3 % below speeds per
     real second. Both are shown: against ``vf`` as is, and with the pairs timed by the
     camera's own timestamps."""
-    from vid2sim.app.buildgeo import smoothed_speeds  # noqa: PLC0415
-    from vid2sim.app.selfcal import measure_cues_for, start_camera, visual_ego_speeds  # noqa
-    from vid2sim.detect.video import video_info  # noqa: PLC0415
-    from vid2sim.geo.readers import OXTS_VF, kitti_time_s, read_kitti_oxts_table  # noqa
+    from vid2sim.app.buildgeo import smoothed_speeds
+    from vid2sim.app.selfcal import measure_cues_for, start_camera, visual_ego_speeds
+    from vid2sim.detect.video import video_info
+    from vid2sim.geo.readers import OXTS_VF, kitti_time_s, read_kitti_oxts_table
 
     inputs = Inputs(video=raw / "video.mp4", camera=raw / "camera.yaml")
     settings = Settings(progress=False, camera_cache=False)

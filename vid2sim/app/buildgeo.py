@@ -24,6 +24,14 @@ from vid2sim.base.errors import InputError
 from vid2sim.core.camera import Camera
 from vid2sim.core.records import EgoTrack, GpsTrace, Note, Origin, RoadResult, VideoInfo
 
+#: The road's flow must give the ego's speed on at least this share of the flow pairs (and
+#: this many) for a camera-only scenario to drive at it.
+MIN_SPEED_COVERAGE = 0.5
+MIN_SPEED_PAIRS = 5
+#: A visual speed below this [m/s] while the tracked scene moves more than this a pair
+#: [px] (median over pairs) means the road's flow stuck to edges, not that the ego stood.
+STILL_SPEED_MPS = 1.0
+MOVING_SCENE_PX = 2.0
 #: Smoothing of the visual ego speed for a camera-only scenario [s]: a pair's speed
 #: scatters by 3-5 %; a car's speed changes little within a second.
 VISUAL_SPEED_WINDOW_S = 1.0
@@ -128,8 +136,19 @@ def _camera_only(stages, inputs: Inputs, settings: Settings, info: VideoInfo,
                         settings)
     speed = inputs.ego_speed_mps
     if speed == 0 and choice.cues is not None:
+        pairs = len(choice.cues.pairs)
         t, v = smoothed_speeds(selfcal.visual_ego_speeds(choice, info, settings))
-        if len(t) >= 2:
+        scene_px = float(np.median([np.median(np.linalg.norm(p.points_b - p.points_a, axis=1))
+                                    for p in choice.cues.pairs if len(p.points_a)] or [0.0]))
+        still = len(t) and np.median(v) < STILL_SPEED_MPS and scene_px > MOVING_SCENE_PX
+        if len(t) < max(MIN_SPEED_PAIRS, MIN_SPEED_COVERAGE * pairs) or still:
+            notes.append(Note.warning(
+                f"no GPS: the road's flow gave the ego's speed on {len(t)} of {pairs} frame "
+                + ("pairs, but near zero while the scene moves "
+                   f"{scene_px:.1f} px a pair" if still else "pairs, too few to trust")
+                + " (too little road texture): the scenario is camera-relative (pass "
+                "--ego-speed)"))
+        else:
             notes.append(Note.assumption(
                 f"no GPS: the ego drives a straight road heading east from an arbitrary "
                 f"origin (lat 0, lon 0) at the speed the road's flow gives at the camera's "

@@ -33,7 +33,7 @@ from vid2sim.app.selfcal import (
 )
 from vid2sim.app.settings import Settings
 from vid2sim.base.fileio import check_output_file, check_output_folder
-from vid2sim.core.records import RangingResult
+from vid2sim.core.records import NoteKind, RangingResult
 from vid2sim.core.tables import write_detections_csv, write_tracks_csv
 from vid2sim.core.videofile import skipped_frames_note
 from vid2sim.detect.pipeline import detect_and_range, run_detect
@@ -153,7 +153,8 @@ def run_track(inputs: Inputs, out_path: Path, settings: Settings | None = None,
         cam_path = Path(out_path).with_suffix(".camera.yaml")
         write_camera_file(choice.estimate, cam_path, Path(video).name)
         lines.append(f"camera file -> {cam_path}")
-    lines += notes
+    lines += [f"warning: {n}" if getattr(n, "kind", None) is NoteKind.WARNING else str(n)
+              for n in notes]
     s = lead_summary(result, info.n_frames)
     lines.append(f"{s['tracks']} tracks, {len(result.boxes)} rows -> {out_path}")
     lines.append(f"horizon {result.horizon_y_px:.1f} px (pitch {result.pitch_deg_estimated:+.2f} "

@@ -271,7 +271,7 @@ def solve_camera(inp: CalibrationInput, cfg: CalibrationConfig | None = None) ->
     cov, cue, observable = fit.covariance(pr, g, m, res, lay, spans, cfg.useful_std())
     sol = Solution(g=g, cov=cov, m=m, problem=pr, cue=cue, observable=observable,
                    n_vp_frames=n_vp, n_chains=0 if pr.chains is None else len(pr.chains[0]))
-    if has_flow:
+    if pr.pairs is not None and len(pr.pairs.pair):
         pred, _ = predict_b(g, m, pr.pairs, pr.c)
         sol.flow_rms_px = float(np.sqrt(np.mean(np.sum((pr.pairs.points_b - pred) ** 2, 1))))
         sol.n_points = len(pr.pairs.pair)

@@ -65,10 +65,14 @@ def test_track_command_writes_tracks_csv_and_plots(clip, tmp_path, capsys):
 
 
 def test_track_without_camera_says_so(clip, tmp_path, capsys):
+    """Without a camera file the camera is calibrated on the clip; without GPS its scale
+    cannot be, and a warning names the prior used."""
     frames, det, _ = clip
     out = tmp_path / "tracks.csv"
     assert main(["track", str(frames), "--detections", str(det), "--out", str(out)]) == 0
-    assert "no --camera" in capsys.readouterr().out
+    text = capsys.readouterr().out
+    assert "camera estimated" in text or "camera not calibrated" in text
+    assert "warning: camera" in text and "prior" in text
     assert out.exists()
 
 

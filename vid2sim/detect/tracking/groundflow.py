@@ -36,6 +36,10 @@ class GroundFlowConfig:
     :param max_points: corners per pair (a few hundred fill the road triangle)
     :param grid: corners are picked in this many columns and rows of cells, each its share
         (the road's weak texture would otherwise lose to trees and car edges)
+    :param min_corner_ratio: a corner's smaller structure-tensor eigenvalue is at least this
+        share of the larger one (over ``corner_block_px``): points on a straight edge (a
+        lane line, a kerb) are dropped, whose motion along the edge cannot be seen (on the
+        rendered demo they were most points, and read the ego as standing still)
     :param quality: Shi-Tomasi quality relative to a cell's best corner (asphalt is weak
         texture beside lane markings; the forward-backward check removes bad tracks)
     :param min_distance_frac: corners at least this fraction of the width apart
@@ -56,6 +60,8 @@ class GroundFlowConfig:
     top_frac: float = 0.3
     bottom_frac: float = 0.97
     max_points: int = 400
+    min_corner_ratio: float = 0.15
+    corner_block_px: int = 7
     grid: tuple[int, int] = (8, 3)
     quality: float = 0.003
     min_distance_frac: float = 0.008
@@ -153,7 +159,17 @@ def _corners(grey: np.ndarray, cfg: GroundFlowConfig) -> np.ndarray:
                 out.append(found.reshape(-1, 2) + (c0, r0))
     if not out:
         return np.zeros((0, 1, 2), np.float32)
-    return np.concatenate(out).reshape(-1, 1, 2).astype(np.float32)
+    pts = np.concatenate(out)
+    # Not on an edge: along a painted line or a kerb the motion cannot be seen (the
+    # aperture problem) and Lucas-Kanade reports none; a corner's structure tensor has two
+    # comparable eigenvalues, an edge's one.
+    eig = cv2.cornerEigenValsAndVecs(grey, cfg.corner_block_px, 3)
+    xi = np.clip(np.rint(pts[:, 0]).astype(int), 0, w - 1)
+    yi = np.clip(np.rint(pts[:, 1]).astype(int), 0, h - 1)
+    lam = eig[yi, xi, :2]
+    big, small = np.maximum(lam[:, 0], lam[:, 1]), np.minimum(lam[:, 0], lam[:, 1])
+    keep = small >= cfg.min_corner_ratio * np.maximum(big, 1e-12)
+    return pts[keep].reshape(-1, 1, 2).astype(np.float32)
 
 
 def _track(grey_from: np.ndarray, grey_to: np.ndarray, pts: np.ndarray,
