@@ -17,7 +17,7 @@ import os
 import shutil
 import tempfile
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -61,6 +61,8 @@ class CampaignOptions:
     seed: int = 0
     jobs: int = 1
     write_scenarios: bool = False
+    #: the camera error model (its ``level`` is ``sensor_noise`` or the varied noise)
+    sensor: SensorConfig = field(default_factory=SensorConfig)
 
 
 @dataclass
@@ -153,7 +155,7 @@ def _episode(entry: ScenarioEntry, spec: PolicySpec, opts: CampaignOptions,
         return EpisodeResult(None, skip_reason=reason), None
     level = values.get("noise", opts.sensor_noise)
     result = run_episode(varied, spec, reactive=opts.reactive,
-                         sensor=SensorConfig(level=float(level)), seed=seed)
+                         sensor=replace(opts.sensor, level=float(level)), seed=seed)
     return result, varied
 
 

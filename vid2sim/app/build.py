@@ -39,7 +39,8 @@ from vid2sim.app.loaders import (
 )
 from vid2sim.app.recording import video_clock, video_span_s, with_embedded_gps
 from vid2sim.app.settings import Settings
-from vid2sim.app.tracking import lead_summary
+from vid2sim.app.settings_file import changed_settings, settings_tree
+from vid2sim.app.tracking import detect_and_range_with, lead_summary
 from vid2sim.base.errors import InputError
 from vid2sim.base.fileio import staged_folder, write_text_atomic
 from vid2sim.core import scenario as scenario_io
@@ -49,7 +50,6 @@ from vid2sim.core.scenario import Event, Source, dumps_canonical
 from vid2sim.core.tables import write_tracks_csv
 from vid2sim.detect.assign import relane
 from vid2sim.detect.lanes.track import lane_track
-from vid2sim.detect.pipeline import detect_and_range
 from vid2sim.evaluate.frames import sample_frame_figures
 from vid2sim.evaluate.replay import run_eval
 from vid2sim.evaluate.report import write_report
@@ -272,11 +272,8 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
 
     # ---- detect, track, range
     ranging, camera, ranging_notes = stages.run(
-        "detect, track and range", detect_and_range, video, camera, detector=detector,
-        detections=imported, detect_every=settings.detector.detect_every, fps=inputs.fps,
-        progress=settings.progress, config=settings.ranging,
-        tracker_config=settings.tracker_config(), schedule=settings.detector.schedule(),
-        assign_lanes=inputs.gps is None)
+        "detect, track and range", detect_and_range_with, settings, inputs, video, camera,
+        detector, imported, assign_lanes=inputs.gps is None)
     notes.extend(ranging_notes)
     notes.extend(ranging.warnings)
     notes.append(Note.estimate(
@@ -285,7 +282,7 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
     camera_used = camera.with_pitch(ranging.pitch_deg_estimated)
     # ---- the ego's lateral position from the lane markings (GPS keeps the along-track one)
     lateral = stages.run("ego lateral position", fuse_lateral, ego, ranging.lanes, road_result,
-                         speed_known=inputs.gps is not None,
+                         config=settings.lateral, speed_known=inputs.gps is not None,
                          refilter=lambda track, speed: lane_track(
                              track.observations, settings.lanes, speed_mps=speed))
     ego = lateral.ego
@@ -305,14 +302,16 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
                "detector_used": boxes_label,
                "fps": info.fps, "video_clock": clock}
     source = Source(inputs=inputs.fingerprints(), tool_version=__version__, options=options,
-                    assumptions=[str(a) for a in assumptions])
+                    assumptions=[str(a) for a in assumptions],
+                    settings=settings_tree(settings))
     scenario, assemble_warnings = stages.run("assemble scenario", assemble_scenario, ego, roads,
                                              ranging.boxes, camera_used, source=source,
                                              config=settings.assemble,
                                              ego_noise_m=ego_noise_m)
     warnings.extend(assemble_warnings)
     # ---- the street: the road's lanes from the video (and map), parked cars on their strip
-    scene = stages.run("road cross-section", lay_out_scene, scenario, lateral)
+    scene = stages.run("road cross-section", lay_out_scene, scenario, lateral,
+                       settings.layout_config())
     scenario = scene.scenario
     warnings.extend(notes_of(scene.notes, NoteKind.WARNING))
     scenario.source.assumptions.extend(str(n) for n in scene.notes
@@ -322,7 +321,8 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
     # used) and the ego's own
     scenario.events = stages.run("lane-change events", scenario_events, ranging.boxes,
                                  ranging.lanes, scenario.actors, lateral.lane_changes,
-                                 settings.ranging.lane_width_m, scenario.ego.trajectory)
+                                 settings.ranging.lane_width_m, scenario.ego.trajectory,
+                                 settings.events)
 
     # ---- write into the staging folder (moved into place by the caller)
     files = stages.run("write scenario and tables", _write_tables, staging, scenario, ranging,
@@ -333,7 +333,10 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
     files["opendrive"] = Path(xodr.name)
     figures = stages.run("figures", stage_figures, staging / "figures", road_result, trace, ego,
                          ranging.boxes)
-    report_inputs = {**inputs.labelled_paths(), "output folder": str(out_dir)}
+    changed = changed_settings(settings)
+    report_inputs = {**inputs.labelled_paths(), "output folder": str(out_dir),
+                     "settings changed from the defaults": ", ".join(
+                         f"{k} = {v}" for k, v in changed.items()) or "none"}
     metrics = None
     if inputs.keyframes is not None:
         # run_eval writes metrics.json, the keyframe overlays and the one report.html,
@@ -354,7 +357,8 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
         frames = stages.run("sampled frames", sample_frame_figures,
                             staging / "figures" / "frames", video, camera_used, ranging.boxes,
                             ranging.lanes, scenario, info.fps, info.n_frames,
-                            video_fps=inputs.fps, progress=settings.progress,
+                            video_fps=inputs.fps, config=settings.frames,
+                            progress=settings.progress,
                             frame_times_s=ranging.frame_times_s)
         stages.run("report", write_report, staging / "report.html", scenario=scenario,
                    metrics=None, extra_figures=figures, warnings=warnings, inputs=report_inputs,

@@ -55,7 +55,8 @@ def match_road(trace, ego, inputs: Inputs, settings: Settings):
     """The road stage on the run's GPS time base (shared by ``road`` and ``build``)."""
     return geo_roads.build_road(
         trace, ego, inputs.map, allow_download=settings.allow_download,
-        cache_dir=settings.osm_cache_dir, gps_offset_s=inputs.gps_offset_s)
+        cache_dir=settings.osm_cache_dir, gps_offset_s=inputs.gps_offset_s,
+        config=settings.matching)
 
 
 def run_road(inputs: Inputs, out_path: Path, settings: Settings | None = None,

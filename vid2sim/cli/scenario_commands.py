@@ -11,6 +11,7 @@ from vid2sim.cli.group import cli
 from vid2sim.cli.options import (
     EXISTING_PATH,
     check_out_dir,
+    config_option,
     detector_options,
     echo,
     frame_source_options,
@@ -92,6 +93,7 @@ def export(scenario_file: Path, fmt: str, out_dir: Path) -> None:
                    "parameters in ParameterDeclarations) + road.xodr under OUT/scenarios/.")
 @click.option("--out", "out_dir", type=EXISTING_PATH, required=True,
               help="Output folder: results.csv, summary.html.")
+@config_option
 def test_policy_cmd(scenarios: tuple[Path, ...], policy: str, reactive: bool,
                     sensor_noise: float, vary: str | None, samples: int | None, seed: int,
                     jobs: int | None, write_scenarios: bool, out_dir: Path) -> None:
@@ -103,7 +105,7 @@ def test_policy_cmd(scenarios: tuple[Path, ...], policy: str, reactive: bool,
     opts = CampaignOptions(inputs=tuple(scenarios), policy=policy, out_dir=out_dir,
                            reactive=reactive, sensor_noise=sensor_noise, vary=vary,
                            samples=samples, seed=seed, jobs=jobs or default_jobs(),
-                           write_scenarios=write_scenarios)
+                           write_scenarios=write_scenarios, sensor=settings_from().sensor)
     echo(run_campaign(opts, progress=show_progress()))
 
 
@@ -134,6 +136,7 @@ def test_policy_cmd(scenarios: tuple[Path, ...], policy: str, reactive: bool,
                    "(for the trajectory and map matching alike).")
 @click.option("--offline", is_flag=True, help="Never download a map.")
 @click.option("--out", "out_dir", type=EXISTING_PATH, required=True, help="Output folder.")
+@config_option
 def build(videos: tuple[Path, ...], gps: Path | None, map_path: Path | None, camera_path: Path | None,
           detections_path: Path | None, fps: float | None, keyframes: Path | None,
           ego_speed_mps: float, gps_offset_s: float | None, offline: bool, out_dir: Path,
@@ -161,6 +164,7 @@ def build(videos: tuple[Path, ...], gps: Path | None, map_path: Path | None, cam
 @click.option("--detector", default=None, help="Detector name or .onnx path.")
 @click.option("--use-detections", is_flag=True,
               help="Use the sample's noisy detection file even when weights are available.")
+@config_option
 def demo(out_dir: Path, seed: int, model_dir: Path | None, detector: str | None,
          use_detections: bool) -> None:
     """Offline end-to-end demo: generate a synthetic geotagged drive on real Helsinki streets

@@ -277,6 +277,11 @@ def _inputs_html(scenario: Scenario, inputs: Any) -> str:
         parts.append("<p class='small'>options</p><pre>"
                      + _e(json.dumps(src.options, indent=1, sort_keys=True, default=str))
                      + "</pre>")
+    if src.settings:
+        parts.append("<details><summary class='small'>every setting the scenario was made with "
+                     "(<code>source.settings</code>; <code>vid2sim settings</code> prints the "
+                     "defaults, <code>--config</code> changes them)</summary><pre>"
+                     + _e(json.dumps(src.settings, indent=1, default=str)) + "</pre></details>")
     if src.assumptions:
         parts.append("<p><b>Assumptions</b></p><ul>"
                      + "".join(f"<li>{_e(a)}</li>" for a in src.assumptions) + "</ul>")
