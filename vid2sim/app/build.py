@@ -260,6 +260,7 @@ def _ego_and_road(inputs: Inputs, settings: Settings, video_duration_s: float, n
     return ego, roads, road_result, trace, ego_noise_m
 
 
+
 def _write_outputs(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings,
                    info: VideoInfo, camera_used: Camera, ranging, scenario, road_result, trace,
                    ego, warnings: list[str], stages: _Stages) -> tuple[dict[str, Path], dict | None]:
@@ -329,7 +330,8 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
         "detect, track and range", detect_and_range, video, camera, detector=detector,
         detections=imported, detect_every=settings.detector.detect_every, fps=inputs.fps,
         progress=settings.progress, config=settings.ranging,
-        tracker_config=settings.tracker_config(), schedule=settings.detector.schedule())
+        tracker_config=settings.tracker_config(), schedule=settings.detector.schedule(),
+        assign_lanes=inputs.gps is None)
     notes.extend(ranging_notes)
     notes.extend(ranging.warnings)
     notes.append(Note.estimate(

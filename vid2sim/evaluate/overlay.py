@@ -30,7 +30,6 @@ import numpy as np
 
 from vid2sim.core.boxes import iou_matrix
 from vid2sim.core.camera import Camera
-from vid2sim.core.lead import lane_index
 from vid2sim.core.outline import CAR_SHAPE, CLASS_SHAPES, OutlineShape
 from vid2sim.core.records import Keyframe, ProjectedBox, RangedBox
 from vid2sim.core.scenario import Scenario
@@ -188,7 +187,7 @@ class _Labels:
 
 
 def _draw_detection(img: np.ndarray, b: RangedBox, scale: float, labels: _Labels) -> None:
-    lane = lane_index(b.lane)
+    lane = b.lane
     colour = _LANE_BGR.get(lane, _UNKNOWN_BGR) if lane is not None else _UNKNOWN_BGR
     p1, p2 = (round(b.x1), round(b.y1)), (round(b.x2), round(b.y2))
     cv2.rectangle(img, p1, p2, colour, (3 if b.is_lead else 1) * max(1, round(scale)),
