@@ -92,11 +92,16 @@ def export(scenario_file: Path, fmt: str, out_dir: Path) -> None:
 @click.option("--write-scenarios", is_flag=True,
               help="Also write each variant as scenario.json + scenario.xosc (varied "
                    "parameters in ParameterDeclarations) + road.xodr under OUT/scenarios/.")
+@click.option("--render", "render", default=None, metavar="worst|all|N",
+              help="Episode videos (OUT/episodes/NNNN.mp4, linked in summary.html) of the "
+                   "worst episode, the N worst, or all: the drive from above with the "
+                   "recorded ego as a ghost, gap/TTC strip, AEB and collision marked.")
 @click.option("--out", "out_dir", type=EXISTING_PATH, required=True,
               help="Output folder: results.csv, summary.html.")
 def test_policy_cmd(scenarios: tuple[Path, ...], policy: str, reactive: bool,
                     sensor_noise: float, vary: str | None, samples: int | None, seed: int,
-                    jobs: int | None, write_scenarios: bool, out_dir: Path) -> None:
+                    jobs: int | None, write_scenarios: bool, render: str | None,
+                    out_dir: Path) -> None:
     """Score a driving policy on SCENARIO_OR_DIR... (scenario.json files, or folders searched
     for them) and on variations of them: results.csv (one row per episode) and summary.html."""
     from vid2sim.adas.campaign import CampaignOptions, default_jobs, run_campaign
@@ -105,7 +110,7 @@ def test_policy_cmd(scenarios: tuple[Path, ...], policy: str, reactive: bool,
     opts = CampaignOptions(inputs=tuple(scenarios), policy=policy, out_dir=out_dir,
                            reactive=reactive, sensor_noise=sensor_noise, vary=vary,
                            samples=samples, seed=seed, jobs=jobs or default_jobs(),
-                           write_scenarios=write_scenarios)
+                           write_scenarios=write_scenarios, render=render)
     echo(run_campaign(opts, progress=show_progress()))
 
 

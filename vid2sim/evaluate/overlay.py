@@ -203,7 +203,7 @@ def _draw_detection(img: np.ndarray, b: RangedBox, scale: float, labels: _Labels
 
 def draw_legend(img: np.ndarray, config: OverlayConfig, measured: bool) -> None:
     """One line at the top left saying what the colours mean, on a dark band."""
-    scale = max(img.shape[1] / 1280.0, 0.5) * 0.42
+    scale = max(img.shape[1] / 1280.0 * 0.42, 0.3)
     items = [("detected, by lane: 0", _LANE_BGR[0]), ("+1", _LANE_BGR[1]), ("-1", _LANE_BGR[-1]),
              ("other", _UNKNOWN_BGR), ("| scenario, IoU:", (235, 235, 235)),
              (f">={config.iou_good:g}", _GOOD_BGR), (f">={config.iou_fair:g}", _FAIR_BGR),

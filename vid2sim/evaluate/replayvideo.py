@@ -154,8 +154,11 @@ def _series(source: ReplaySource, times_s: np.ndarray) -> dict[str, np.ndarray]:
     n = len(times_s)
     out = {k: np.full(n, np.nan) for k in ("ego_mps", "range_m", "closing_mps")}
     out["lead"] = np.full(n, "", dtype=object)
+    t_ego = source.scenario.ego.trajectory.t
     for k, t in enumerate(times_s):
         ego, actors = clock.at(float(t))
+        if not t_ego[0] - 1e-3 <= t <= t_ego[-1] + 1e-3:
+            continue  # the ego is held at an end of its trajectory: no speed, no lead
         out["ego_mps"][k] = ego.speed_mps
         lead = clock.lead(ego, actors)
         if lead is not None:
@@ -195,6 +198,9 @@ def strip_line(t_s: float, frame: int | None, series: dict[str, np.ndarray], k: 
     parts = [f"t {t_s:5.1f} s"]
     if frame is not None:
         parts.append(f"frame {frame}")
+    if not np.isfinite(v):
+        parts.append("ego held: beyond its trajectory")
+        return "   ".join(parts)
     parts.append(f"ego {v:4.1f} m/s ({3.6 * v:3.0f} km/h)")
     lead = series["lead"][k]
     if lead:
