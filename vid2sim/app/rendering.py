@@ -124,10 +124,15 @@ def _check_video(video: Path, scenario: Scenario, camera: Camera) -> tuple[Video
 
 
 def _clip(scenario: Scenario, info: VideoInfo | None) -> _Clip:
-    """The clip's time base (the video's, else the scenario's at its recorded rate)."""
+    """The clip's time base: the video's; without one, the build's video as recorded (its
+    frame count and rate), else the ego trajectory's span at 10 frames/s."""
     if info is not None:
         return _Clip(0.0, (info.n_frames - 1) / info.fps, info.fps, info.n_frames)
-    rate = _recorded_fps(scenario) or 10.0
+    rate = _recorded_fps(scenario)
+    n = scenario.source.options.get("n_frames")
+    if rate is not None and isinstance(n, int) and not isinstance(n, bool) and n > 0:
+        return _Clip(0.0, (n - 1) / rate, rate, n)
+    rate = rate or 10.0
     ego = scenario.ego.trajectory
     return _Clip(float(ego.t[0]), float(ego.t[-1]), rate,
                  math.floor((ego.t[-1] - ego.t[0]) * rate + 1e-6) + 1)
