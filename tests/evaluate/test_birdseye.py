@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import assume, given
 from hypothesis import strategies as st
 
 from tests.evaluate.conftest import make_scenario
@@ -87,6 +87,7 @@ def test_lane_edges_hold_the_point(offset, heading, along):
                                   LaneSpec("driving", "forward", 4.0),
                                   LaneSpec("driving", "backward", 4.0),
                                   LaneSpec("border", "backward", 1.0)))
+    assume(min(abs(offset - e) for e in (-5.0, -3.0, 1.0, 5.0, 6.0)) > 1e-6)  # not on an edge
     view = BirdsEye([_road(heading, section)], 400, 300)
     c, s = math.cos(heading), math.sin(heading)
     x, y = along * c - offset * s, along * s + offset * c
@@ -162,3 +163,41 @@ def test_strip_cursor_spans_the_clip():
     col = [int(strip.x_px(x)) for x in (2.0, 8.0)]
     assert (a[60, col[0]] == 255).all() and not (a[60, col[1]] == 255).all()
     assert (b[60, col[1]] == 255).all()
+
+
+def test_the_lead_is_followed_along_the_ego_s_path_through_a_bend():
+    # both in the right lane of a 60 m bend; the lead 30 m ahead (centres), braking from 3 s,
+    # the recorded ego from 4 s: the range along the lane is known from their s(t) profiles
+    from vid2sim.samples.scenarios import BRAKING_LEAD, _s_profile, braking_lead_scenario
+
+    sc = braking_lead_scenario()
+    p = BRAKING_LEAD
+    t = np.round(np.arange(0.0, 12.0 + 1e-9, 0.1), 6)
+    _, s_ego = _s_profile(t, p["speed_mps"], p["lead_brake_s"] + p["reaction_s"],
+                          p["decel_mps2"], p["end_speed_mps"])
+    _, s_lead = _s_profile(t, p["speed_mps"], p["lead_brake_s"], p["decel_mps2"],
+                           p["end_speed_mps"])
+    def lane_s(s_c):
+        # arc length along the right lane (1.75 m right of the centerline: radius 61.75 m in
+        # the 60 m quarter bend that follows 80 m of straight) at centerline arc length s_c
+        bend = math.pi / 2 * 60.0
+        in_bend = np.clip(np.asarray(s_c) - 80.0, 0.0, bend)
+        return np.asarray(s_c) + in_bend * (1.75 / 60.0)
+
+    expected = lane_s(5.0 + p["lead_ahead_m"] + s_lead) - lane_s(5.0 + s_ego) - 4.4 / 2.0
+    clock = SceneClock(sc)
+    # while the lead is on the path the ego drove (beyond its last pose the path goes on
+    # straight, as the environment's, and leaves the bend)
+    on_path = 5.0 + p["lead_ahead_m"] + s_lead <= 5.0 + s_ego[-1]
+    assert on_path.sum() > 60  # 7 s, the bend and the braking included
+    for k, tk in enumerate(t):
+        ego, actors = clock.at(float(tk))
+        lead = clock.lead(ego, actors)
+        if not on_path[k]:
+            continue
+        assert lead is not None and lead.id == "lead", tk
+        # (0.15 m: the generator places the cars on a 1 m polyline of the circle)
+        assert lead.range_m == pytest.approx(expected[k], abs=0.15), tk
+    # the ego's axis leaves the lane in the bend: the report's straight-ahead rule loses it
+    axis = lead_series(sc)
+    assert (axis["lead_id"] != "lead").any()

@@ -182,9 +182,10 @@ def build_strip(source: ReplaySource, times_s: np.ndarray, series: dict[str, np.
     the TTC band and the scenario's events."""
     t0, t1 = float(times_s[0]), float(times_s[-1])
     det_t, det_r = _detected_lead(source.boxes(), t0, t1)
+    # the detections' dots first, the scenario's line over them
     plots = [Plot("lead range [m]", [
-                 Trace("scenario", times_s, series["range_m"], (90, 90, 255)),
-                 Trace("video (detected)", det_t, det_r, (0, 200, 255), "dots")]),
+                 Trace("video (detected)", det_t, det_r, (0, 200, 255), "dots"),
+                 Trace("scenario", times_s, series["range_m"], (90, 90, 255))]),
              Plot("ego speed [m/s]", [Trace("ego", times_s, series["ego_mps"], (80, 220, 80))])]
     moments = [Moment(e.t_s, f"{e.type.replace('_', '-')} {e.actor}",
                       _EVENT_BGR.get(e.type, (255, 255, 255)))
