@@ -169,7 +169,7 @@ def _chromium() -> str | None:
 
 @pytest.mark.skipif(_chromium() is None, reason="no chromium binary on PATH "
                     "(apt-get install chromium)")
-@pytest.mark.skipif(best_codec() != "h264", reason="no H.264 encoder (pip install av): "
+@pytest.mark.skipif(best_codec() != "h264", reason="PyAV's FFmpeg has no libx264: "
                     "browsers do not play MPEG-4 part 2")
 def test_the_report_s_video_plays_in_headless_chromium(short_build, tmp_path):
     _, out = short_build

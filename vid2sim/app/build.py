@@ -37,6 +37,7 @@ from vid2sim.app.loaders import (
     need_video,
     smooth_trace,
 )
+from vid2sim.app.recording import video_clock, video_span_s, with_embedded_gps
 from vid2sim.app.rendering import REPLAY_NAME, render_into_build
 from vid2sim.app.settings import Settings
 from vid2sim.app.tracking import lead_summary
@@ -197,7 +198,8 @@ BUILD_OUTPUTS: tuple[str, ...] = (
 
 
 def build(inputs: Inputs, out_dir: Path, settings: Settings | None = None,
-          report: Callable[[str], None] | None = None) -> BuildResult:
+          report: Callable[[str], None] | None = None,
+          extra_notes: list[Note] | None = None) -> BuildResult:
     """Run the whole pipeline for one video and write its outputs into ``out_dir``.
 
     Parameters
@@ -211,6 +213,8 @@ def build(inputs: Inputs, out_dir: Path, settings: Settings | None = None,
         Detector, tracker, ranging, smoothing and assembly settings (defaults otherwise).
     report : callable, optional
         Receives one line per stage as it starts (progress).
+    extra_notes : list of Note, optional
+        What the caller learnt about the inputs (segments joined), kept with the build's.
     """
     settings = settings or Settings()
     out_dir = Path(out_dir)
@@ -220,6 +224,9 @@ def build(inputs: Inputs, out_dir: Path, settings: Settings | None = None,
     video = need_video(inputs)
     info = load_video_info(inputs)
     camera, notes = load_camera_for(inputs, info)
+    # A recording that carries its GPS (GoPro, dash-cams) is its own GPS input.
+    inputs, gps_notes = with_embedded_gps(inputs)
+    notes.extend([*(extra_notes or []), *gps_notes])
     if inputs.keyframes is not None:
         load_keyframes_for(inputs.keyframes, video, info, inputs.fps)
     # The detector (or imported boxes) before any long work: missing weights fail fast.
@@ -319,7 +326,9 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
                 boxes_label: str, stages: _Stages) -> BuildResult:
     """The stages of :func:`build`, writing into ``staging`` (``out_dir`` once moved)."""
     video = need_video(inputs)
-    video_duration_s = (info.n_frames - 1) / info.fps if info.n_frames > 1 else 0.0
+    # The frames' clock is the container's (variable frame rates keep their times).
+    clock, container = video_clock(video, info)
+    video_duration_s = video_span_s(info, container)
 
     # ---- geo: ego trajectory and road
     ego, roads, road_result, trace, ego_noise_m = _ego_and_road(inputs, settings,
@@ -358,7 +367,7 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
     # ---- assemble
     options = {**inputs.recorded(), **settings.recorded(detector_used=detector is not None),
                "detector_used": boxes_label,
-               "fps": info.fps, "n_frames": info.n_frames}
+               "fps": info.fps, "n_frames": info.n_frames, "video_clock": clock}
     source = Source(inputs=inputs.fingerprints(), tool_version=__version__, options=options,
                     assumptions=[str(a) for a in assumptions])
     scenario, assemble_warnings = stages.run("assemble scenario", assemble_scenario, ego, roads,

@@ -188,8 +188,8 @@ def _summary(result: ReplayResult, cpu_s: float, span_s: float, notes: list[str]
               f"at {result.fps:g} frames/s, {codec} ({cpu_s:.1f} s CPU, "
               f"{cpu_s / max(span_s, 1e-9):.2f}x the clip's time)")]
     if not browser_playable(result.codec):
-        lines.append("warning: MPEG-4 part 2 plays in video players, not in browsers (install "
-                     "PyAV for H.264: pip install av)")
+        lines.append("warning: MPEG-4 part 2 plays in video players, not in browsers (PyAV's "
+                     "FFmpeg has no libx264 here: install one that has for H.264)")
     lines += [f"warning: {n}" for n in notes]
     if report is not None:
         lines.append(f"put the video into {report}")

@@ -87,7 +87,7 @@ class VideoOut:
     def _open_pyav(self) -> None:
         av = _pyav()
         if av is None:
-            raise ValueError("H.264 needs PyAV with libx264 (pip install av)")
+            raise ValueError("H.264 needs PyAV with FFmpeg's libx264")
         self._container = av.open(str(self.path), mode="w", format="mp4",
                                   options={"movflags": "+faststart"})
         rate = Fraction(self.fps).limit_denominator(1001)
