@@ -49,7 +49,7 @@ def make_env(scenario: Scenario, spec: PolicySpec, *, reactive: bool = False,
 
 def run_episode(scenario: Scenario, spec: PolicySpec, *, reactive: bool = False,
                 sensor: SensorConfig | None = None, seed: int | None = 0,
-                observer: Callable[[ReplayEnv, dict], None] | None = None) -> EpisodeResult:
+                observer: Callable[[ReplayEnv, StepInfo], None] | None = None) -> EpisodeResult:
     """Run ``spec`` on ``scenario`` once and score it. ``observer(env, info)`` is called after
     the reset and after every step (the episode videos draw each step with it).
 

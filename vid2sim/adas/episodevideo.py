@@ -38,6 +38,7 @@ from vid2sim.evaluate.scenetime import SceneClock
 from vid2sim.evaluate.timeline import Moment, Plot, Strip, Trace
 from vid2sim.evaluate.videoout import VideoOut
 from vid2sim.export.highway import ReplayEnv
+from vid2sim.export.highway.info import StepInfo
 
 #: Size of an episode video's parts [px]: a bird's-eye view 60 m ahead at 8 px/m over a
 #: strip tall enough for two plots.
@@ -81,11 +82,6 @@ def pick(results: Sequence[EpisodeResult | None], choice: RenderChoice) -> list[
     return run if choice.all else run[:choice.worst]
 
 
-def _value(info, name: str):
-    """A field of the environment's per-step info (a dict, or a record read by attribute)."""
-    return info[name] if isinstance(info, dict) else getattr(info, name)
-
-
 def episode_strip(result: EpisodeResult, recorded: EpisodeResult | None, width: int,
                   height: int, config: ReplayVideoConfig) -> Strip:
     """The strip of an episode: gap and speeds (policy against the recorded drive), TTC,
@@ -125,13 +121,13 @@ class EpisodeDrawer:
         self.canvas = np.zeros((h + EPISODE_STRIP_PX, w, 3), np.uint8)
         self.crashed_with = ""
 
-    def __call__(self, env, info) -> None:
-        t = float(_value(info, "t_s"))
+    def __call__(self, env, info: StepInfo) -> None:
+        t = float(info.t_s)
         states = env.vehicle_states()
         ego, others = states[0], states[1:]
-        lead = str(_value(info, "lead_id")) if _value(info, "has_lead") else ""
-        if _value(info, "crashed") and not self.crashed_with:
-            self.crashed_with = str(_value(info, "collision_with")) or "?"
+        lead = str(info.lead_id) if info.has_lead else ""
+        if info.crashed and not self.crashed_with:
+            self.crashed_with = str(info.collision_with) or "?"
         ghost, _ = self.ghost.at(t)
         marks = [Mark("log", *ghost.xyh, *self.ego_size, "ghost"),
                  Mark("ego", ego.x_m, ego.y_m, ego.heading_rad, ego.length_m, ego.width_m,
@@ -157,12 +153,12 @@ class EpisodeDrawer:
             y -= 30
 
     @staticmethod
-    def _line(t: float, info) -> str:
-        parts = [f"t {t:5.1f} s", f"ego {float(_value(info, 'ego_speed_mps')):4.1f} m/s"]
-        if _value(info, "has_lead"):
-            ttc = float(_value(info, "ttc_s"))
-            parts.append(f"lead {_value(info, 'lead_id')}: gap "
-                         f"{float(_value(info, 'gap_m')):.1f} m"
+    def _line(t: float, info: StepInfo) -> str:
+        parts = [f"t {t:5.1f} s", f"ego {float(info.ego_speed_mps):4.1f} m/s"]
+        if info.has_lead:
+            ttc = float(info.ttc_s)
+            parts.append(f"lead {info.lead_id}: gap "
+                         f"{float(info.gap_m):.1f} m"
                          + (f", TTC {ttc:.1f} s" if math.isfinite(ttc) else ""))
         else:
             parts.append("no lead")
