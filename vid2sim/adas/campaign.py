@@ -24,6 +24,7 @@ import numpy as np
 
 from vid2sim.adas.episode import EpisodeResult, run_episode
 from vid2sim.adas.episode_metrics import COLUMNS as METRIC_COLUMNS
+from vid2sim.adas.episodevideo import parse_render, render_episodes
 from vid2sim.adas.registry import PolicySpec, describe, parse_policy
 from vid2sim.adas.sensor import SensorConfig
 from vid2sim.adas.summary import write_summary
@@ -63,6 +64,8 @@ class CampaignOptions:
     write_scenarios: bool = False
     #: the camera error model (its ``level`` is ``sensor_noise`` or the varied noise)
     sensor: SensorConfig = field(default_factory=SensorConfig)
+    render: str | None = None
+    """``worst``, ``all`` or N: episode videos of those episodes (episodes/*.mp4)."""
 
 
 @dataclass
@@ -171,6 +174,7 @@ def run_campaign(opts: CampaignOptions, *, progress: bool = False) -> str:
     if opts.samples is not None and opts.samples < 1:
         raise InputError(None, f"--samples must be >= 1, got {opts.samples}")
     axes = parse_vary(opts.vary, random=opts.samples is not None) if opts.vary else ()
+    choice = parse_render(opts.render) if opts.render else None
     out_dir = Path(opts.out_dir)
     entries = [ScenarioEntry(name, path, scenario_io.load(path))
                for name, path in find_scenarios(opts.inputs, out_dir)]
@@ -189,8 +193,11 @@ def run_campaign(opts: CampaignOptions, *, progress: bool = False) -> str:
     staging = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", dir=out_dir.parent))
     try:
         write_text_atomic(staging / "results.csv", results_csv(entries, spec, episodes))
+        videos = (render_episodes(staging, entries, spec, opts, episodes, choice,
+                                  lambda entry: _ego_path(entry, {}))
+                  if choice is not None else {})
         write_summary(staging / "summary.html", entries=entries, spec=spec, episodes=episodes,
-                      axes=axes, options=opts)
+                      axes=axes, options=opts, videos=videos)
         if opts.write_scenarios:
             _write_variants(staging / "scenarios", entries, episodes, varied)
         out_dir.mkdir(parents=True, exist_ok=True)
@@ -201,7 +208,8 @@ def run_campaign(opts: CampaignOptions, *, progress: bool = False) -> str:
             child.replace(target)
     finally:
         shutil.rmtree(staging, ignore_errors=True)
-    return _summary(entries, spec, episodes, out_dir)
+    return _summary(entries, spec, episodes, out_dir) + (
+        f"\nwrote {len(videos)} episode video(s) into {out_dir / 'episodes'}" if videos else "")
 
 
 def _run_all(entries, spec, opts, episodes, progress) -> dict[int, Scenario]:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -31,6 +32,8 @@ class EpisodeResult:
     skip_reason: str = ""
     terminated_by: str = ""
     """``collision with <id>``, ``offroad`` or "" (no collision, ran to the scenario's end)."""
+    collision_t_s: float | None = None
+    """Scenario time of the first step with the ego crashed [s] (None: no collision)."""
 
 
 def make_env(scenario: Scenario, spec: PolicySpec, *, reactive: bool = False,
@@ -45,8 +48,10 @@ def make_env(scenario: Scenario, spec: PolicySpec, *, reactive: bool = False,
 
 
 def run_episode(scenario: Scenario, spec: PolicySpec, *, reactive: bool = False,
-                sensor: SensorConfig | None = None, seed: int | None = 0) -> EpisodeResult:
-    """Run ``spec`` on ``scenario`` once and score it.
+                sensor: SensorConfig | None = None, seed: int | None = 0,
+                observer: Callable[[ReplayEnv, StepInfo], None] | None = None) -> EpisodeResult:
+    """Run ``spec`` on ``scenario`` once and score it. ``observer(env, info)`` is called after
+    the reset and after every step (the episode videos draw each step with it).
 
     Raises :class:`InputError` when a user policy fails (raises, or returns an action of the
     wrong shape or a non-finite one): it would fail the same way on every episode.
@@ -57,6 +62,8 @@ def run_episode(scenario: Scenario, spec: PolicySpec, *, reactive: bool = False,
     shape = env.action_space.shape
     obs, info = env.reset(seed=seed)
     infos = [StepInfo.of(info)]
+    if observer is not None:
+        observer(sim, infos[-1])
     terminated = truncated = False
     while not (terminated or truncated):
         try:
@@ -70,6 +77,8 @@ def run_episode(scenario: Scenario, spec: PolicySpec, *, reactive: bool = False,
                              "in [-1, 1]")
         obs, _, terminated, truncated, info = env.step(action)
         infos.append(StepInfo.of(info))
+        if observer is not None:
+            observer(sim, infos[-1])
     env.close()
     step_s = 1.0 / sim.config["policy_frequency"]
     metrics = episode_metrics(infos, step_s, scenario.ego.width_m)
@@ -78,8 +87,9 @@ def run_episode(scenario: Scenario, spec: PolicySpec, *, reactive: bool = False,
         ended = f"collision with {infos[-1].collision_with}"
     elif terminated:
         ended = "offroad"
+    crash = next((float(i.t_s) for i in infos if i.crashed), None)
     return EpisodeResult(metrics, list(sim.handovers), list(getattr(policy, "events", [])),
-                         series_of(infos), terminated_by=ended)
+                         series_of(infos), terminated_by=ended, collision_t_s=crash)
 
 
 def series_of(infos: list[StepInfo]) -> dict[str, np.ndarray]:

@@ -257,8 +257,27 @@ def _episode_rows(entries, spec, episodes) -> str:
     return f"<div class='scroll'><table>{head}{''.join(rows)}</table></div>{more}"
 
 
-def render_summary(*, entries, spec, episodes, axes, options) -> str:
-    """The page's HTML."""
+def _videos_html(entries, episodes, videos: dict[int, str]) -> str:
+    """The episode videos (``test-policy --render``), each with what happened in it."""
+    items = []
+    for k, href in sorted(videos.items()):
+        ep = episodes[k]
+        m = ep.result.metrics
+        what = (f"episode {k}: {entries[ep.scenario_index].name}, {label(ep.values)}; "
+                + (f"collision at {ep.result.collision_t_s:.1f} s"
+                   if ep.result.collision_t_s is not None else
+                   f"no collision, min TTC {_fmt(m.min_ttc_s)} s, min gap {_fmt(m.min_gap_m)} m"))
+        items.append(f"<figure><video controls preload='metadata' src='{html.escape(href)}' "
+                     f"style='width:100%;height:auto;background:#000'></video><figcaption>"
+                     f"{html.escape(what)} (<a href='{html.escape(href)}'>{html.escape(href)}"
+                     "</a>)</figcaption></figure>")
+    return ("<section><h2>Episode videos: the policy's drive from above, the recorded ego as "
+            "a white outline, gap, speeds and TTC below, AEB stages and the collision "
+            "marked</h2><div class='grid'>" + "".join(items) + "</div></section>")
+
+
+def render_summary(*, entries, spec, episodes, axes, options, videos=None) -> str:
+    """The page's HTML (``videos``: episode index -> episode video, relative to the page)."""
     run = [ep.result.metrics for ep in episodes if ep.result and ep.result.metrics]
     collisions = sum(m.collision for m in run)
     kpis = [("episodes", len(episodes)), ("run", len(run)), ("skipped", len(episodes) - len(run)),
@@ -298,6 +317,8 @@ def render_summary(*, entries, spec, episodes, axes, options) -> str:
                      "TTC (red), the recorded log (dashed)</figcaption></figure>")
     parts.append("<section><h2>Gap, TTC and speed over time</h2><div class='grid'>"
                  + "".join(plots) + "</div></section>")
+    if videos:
+        parts.append(_videos_html(entries, episodes, videos))
     parts.append("<section><h2>Episodes</h2>" + _episode_rows(entries, spec, episodes)
                  + "</section>")
     parts.append("<section><h2>What the figures mean</h2><dl>"

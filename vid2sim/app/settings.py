@@ -22,6 +22,7 @@ from vid2sim.detect.tracking.flow import FlowConfig
 from vid2sim.detect.tracking.tracker import TrackerConfig
 from vid2sim.detect.vehicles.models import DEFAULT_DETECTOR
 from vid2sim.evaluate.frames_config import FrameSampleConfig
+from vid2sim.evaluate.replayconfig import ReplayVideoConfig
 from vid2sim.export.assemble import AssembleConfig
 from vid2sim.export.events import EventConfig
 from vid2sim.export.layout_config import LayoutConfig
@@ -142,6 +143,8 @@ class Settings:
     :param allow_download: fetch OpenStreetMap data for a trace without a map file
     :param osm_cache_dir: where downloaded maps are cached (default the user cache)
     :param progress: progress bars on stderr
+    :param replay: how replay videos are drawn and encoded
+    :param render_replay: ``build --render``: also write the replay video (replay.mp4)
     """
 
     detector: DetectorSettings = field(default_factory=DetectorSettings)
@@ -165,6 +168,8 @@ class Settings:
     allow_download: bool = True
     osm_cache_dir: Path | None = None
     progress: bool = True
+    replay: ReplayVideoConfig = field(default_factory=ReplayVideoConfig)
+    render_replay: bool = False
 
     def tracker_config(self) -> TrackerConfig:
         """The tracker's thresholds with ``detector.score`` applied."""

@@ -103,10 +103,13 @@ BRAKING_LEAD = {"speed_mps": 14.0, "lead_ahead_m": 30.0, "lead_brake_s": 3.0,
 same 1 s later. Gap 25.55 m at first, 15.55 m at least (lost: 2 + 6 + 2 m)."""
 
 
-def braking_lead_scenario(duration_s: float = 12.0, dt_s: float = 0.1) -> Scenario:
+def braking_lead_scenario(duration_s: float = 12.0, dt_s: float = 0.1,
+                          reaction_s: float | None = None) -> Scenario:
     """A 2-lane LEFT curve (radius 60 m); ego in the right lane, a lead ahead in the same lane
-    that brakes (see :data:`BRAKING_LEAD`), a car in the left lane overtaking at 16 m/s."""
-    p = BRAKING_LEAD
+    that brakes (see :data:`BRAKING_LEAD`), a car in the left lane overtaking at 16 m/s.
+    ``reaction_s``: the recorded driver's delay instead of :data:`BRAKING_LEAD`'s 1 s (from
+    about 3.4 s on, the recorded ego drives into the lead)."""
+    p = {**BRAKING_LEAD, **({} if reaction_s is None else {"reaction_s": float(reaction_s)})}
     line = left_turn_centerline(radius_m=60.0)
     t = np.round(np.arange(0.0, duration_s + 1e-9, dt_s), 6)
     road = Road("r1", "Curve", "primary", "osm", [1], 2, 3.5, line)
