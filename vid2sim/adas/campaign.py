@@ -25,6 +25,7 @@ import numpy as np
 from vid2sim.adas.episode import EpisodeResult, run_episode
 from vid2sim.adas.episode_metrics import COLUMNS as METRIC_COLUMNS
 from vid2sim.adas.registry import PolicySpec, describe, parse_policy
+from vid2sim.adas.score import SCORE_COLUMNS
 from vid2sim.adas.sensor import SensorConfig
 from vid2sim.adas.summary import write_summary
 from vid2sim.adas.variations import (
@@ -44,7 +45,8 @@ from vid2sim.export.openscenario import write_openscenario
 
 RESULT_COLUMNS = ("scenario", "policy", "variation", *METRIC_COLUMNS)
 """The columns results.csv starts with (the contract); extra columns follow them."""
-EXTRA_COLUMNS = ("handovers", "handover_times_s", "aeb_events", "terminated_by", "skip_reason")
+EXTRA_COLUMNS = ("handovers", "handover_times_s", "aeb_events", "terminated_by", "skip_reason",
+                 *SCORE_COLUMNS)
 
 
 @dataclass(frozen=True)
@@ -252,7 +254,9 @@ def _number(value: float) -> str:
 
 
 def results_csv(entries: list[ScenarioEntry], spec: PolicySpec, episodes: list[Episode]) -> str:
-    """results.csv: one row per episode, :data:`RESULT_COLUMNS` then :data:`EXTRA_COLUMNS`.
+    """results.csv: one row per episode, :data:`RESULT_COLUMNS` then :data:`EXTRA_COLUMNS`
+    (the last of them the episode's score and its terms, :mod:`vid2sim.adas.score`; a term
+    that does not apply, such as the speed limit where the map has none, is empty).
 
     Skipped variants have empty metric cells and their ``skip_reason``.
     """
@@ -264,6 +268,7 @@ def results_csv(entries: list[ScenarioEntry], spec: PolicySpec, episodes: list[E
         row = [entries[ep.scenario_index].name, spec.name, label(ep.values)]
         if r is None or r.metrics is None:
             row += [""] * len(METRIC_COLUMNS) + ["", "", "", "", r.skip_reason if r else ""]
+            row += [""] * len(SCORE_COLUMNS)
         else:
             m = r.metrics.as_dict()
             row += [_number(m[c]) for c in METRIC_COLUMNS]
@@ -271,6 +276,9 @@ def results_csv(entries: list[ScenarioEntry], spec: PolicySpec, episodes: list[E
                     ";".join(f"{h.actor_id}@{h.t_s:.2f}" for h in r.handovers),
                     ";".join(f"{name}@{t:.1f}" for t, name in r.events),
                     r.terminated_by, ""]
+            score = r.score.as_row() if r.score is not None else {}
+            row += [_number(score[c]) if c in score and not math.isnan(score[c]) else ""
+                    for c in SCORE_COLUMNS]
         writer.writerow(row)
     return buf.getvalue()
 
@@ -300,5 +308,9 @@ def _summary(entries, spec, episodes, out_dir: Path) -> str:
         gap = min(r.metrics.min_gap_m for r in run)
         lines.append(f"smallest TTC {ttc:.2f} s, smallest gap {gap:.2f} m, largest deceleration "
                      f"{max(r.metrics.max_decel_mps2 for r in run):.1f} m/s^2")
+        scores = [r.score.score for r in run if r.score is not None]
+        if scores:
+            lines.append(f"score (nuPlan-shaped, 0-1): mean {np.mean(scores):.2f}, lowest "
+                         f"{min(scores):.2f}")
     lines.append(f"wrote {out_dir / 'results.csv'} and {out_dir / 'summary.html'}")
     return "\n".join(lines)
