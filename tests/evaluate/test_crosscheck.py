@@ -87,8 +87,8 @@ def test_where_the_definitions_differ(late_reaction):
     pairs, _ = late_reaction
     table = by_regime(pairs)
     for name in ("lead braking", "ego braking"):
-        assert table[name]["both_finite"] == 0
-        assert table[name]["crime_inf_ours_finite"] >= table[name]["steps"] - 1
+        assert table[name]["both_finite"] == 0  # within 10 s, crime's TTC is never finite
+        assert table[name]["crime_inf_ours_finite"] >= 10
     at_2s = next(p for p in pairs if abs(p.t_s - 2.0) < 1e-6)
     assert at_2s.regime == "lead braking" and at_2s.crime_ttc_s == math.inf
     # the lead's constant-deceleration prediction: gap = dv t + a t^2 / 2

@@ -17,7 +17,7 @@ import os
 import shutil
 import tempfile
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -25,7 +25,7 @@ import numpy as np
 from vid2sim.adas.episode import EpisodeResult, run_episode
 from vid2sim.adas.episode_metrics import COLUMNS as METRIC_COLUMNS
 from vid2sim.adas.registry import PolicySpec, describe, parse_policy
-from vid2sim.adas.score import SCORE_COLUMNS
+from vid2sim.adas.score import SCORE_COLUMNS, ScoreConfig
 from vid2sim.adas.sensor import SensorConfig
 from vid2sim.adas.summary import write_summary
 from vid2sim.adas.variations import (
@@ -63,6 +63,7 @@ class CampaignOptions:
     seed: int = 0
     jobs: int = 1
     write_scenarios: bool = False
+    score: ScoreConfig = field(default_factory=ScoreConfig)
 
 
 @dataclass
@@ -155,7 +156,8 @@ def _episode(entry: ScenarioEntry, spec: PolicySpec, opts: CampaignOptions,
         return EpisodeResult(None, skip_reason=reason), None
     level = values.get("noise", opts.sensor_noise)
     result = run_episode(varied, spec, reactive=opts.reactive,
-                         sensor=SensorConfig(level=float(level)), seed=seed)
+                         sensor=SensorConfig(level=float(level)), seed=seed,
+                         score_config=opts.score)
     return result, varied
 
 
@@ -179,7 +181,8 @@ def run_campaign(opts: CampaignOptions, *, progress: bool = False) -> str:
     for entry in entries:
         entry.roles = find_roles(entry.scenario) if axes else LogRoles(None, None, None, None,
                                                                        None)
-        entry.recorded = run_episode(entry.scenario, PolicySpec("log", ego_mode="log"))
+        entry.recorded = run_episode(entry.scenario, PolicySpec("log", ego_mode="log"),
+                                     score_config=opts.score)
     episodes = [Episode(si, dict(values), _episode_seed(opts.seed, k))
                 for k, (si, values) in enumerate((si, v) for si in range(len(entries))
                                                   for v in draws)]

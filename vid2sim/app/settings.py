@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+from vid2sim.adas.score import ScoreConfig
 from vid2sim.base.defaults import EGO_RATE_HZ
 from vid2sim.base.errors import InputError
 from vid2sim.detect.lanes.track import LaneTrackConfig
@@ -18,6 +19,7 @@ from vid2sim.detect.schedule import ScheduleConfig
 from vid2sim.detect.tracking.tracker import TrackerConfig
 from vid2sim.detect.vehicles.models import DEFAULT_DETECTOR
 from vid2sim.export.assemble import AssembleConfig
+from vid2sim.export.commonroad import CommonRoadConfig
 from vid2sim.geo.trace import TraceParams
 
 
@@ -97,6 +99,8 @@ class Settings:
         placed across the road)
     :param trace: GPS smoothing
     :param assemble: scenario assembly
+    :param commonroad: the CommonRoad export's goal region and header
+    :param score: thresholds and weights of test-policy's episode score
     :param rate_hz: ego trajectory sample rate [Hz]
     :param allow_download: fetch OpenStreetMap data for a trace without a map file
     :param osm_cache_dir: where downloaded maps are cached (default the user cache)
@@ -109,6 +113,8 @@ class Settings:
     lanes: LaneTrackConfig = field(default_factory=LaneTrackConfig)
     trace: TraceParams = field(default_factory=TraceParams)
     assemble: AssembleConfig = field(default_factory=AssembleConfig)
+    commonroad: CommonRoadConfig = field(default_factory=CommonRoadConfig)
+    score: ScoreConfig = field(default_factory=ScoreConfig)
     rate_hz: float = EGO_RATE_HZ
     allow_download: bool = True
     osm_cache_dir: Path | None = None

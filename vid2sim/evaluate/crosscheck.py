@@ -32,6 +32,10 @@ from vid2sim.core.scenario import Scenario
 #: Relative acceleration below which crime's TTC is gap / closing speed [m/s^2] (the
 #: ``abs(delta_a) <= 0.1`` branch of commonroad-crime 0.4.5's TTC).
 CONSTANT_CLOSING_MPS2 = 0.1
+#: TTCs are compared up to this [s]: beyond it nothing is urgent, and at the near-zero closing
+#: speeds that give such values both tools divide by noise (summary.html cuts its plots at the
+#: same 10 s)
+COMPARE_TTC_MAX_S = 10.0
 
 
 @dataclass(frozen=True)
@@ -102,24 +106,25 @@ def pair_steps(crime: dict, series: dict[str, np.ndarray], scenario: Scenario,
     return out
 
 
-def by_regime(pairs: list[StepPair]) -> dict[str, dict[str, float]]:
-    """Per regime: steps, steps where both TTCs are finite, and the signed relative difference
-    of crime's TTC from vid2sim's there (median and largest magnitude), and the largest
-    |HW - gap| [m] where both are finite."""
+def by_regime(pairs: list[StepPair], horizon_s: float = COMPARE_TTC_MAX_S
+              ) -> dict[str, dict[str, float]]:
+    """Per regime: steps, steps where both TTCs are finite (and vid2sim's at most
+    ``horizon_s``), and the signed relative difference of crime's TTC from vid2sim's there
+    (median and largest magnitude), the steps where crime's is inf and vid2sim's within the
+    horizon, and the largest |HW - gap| [m] where both are finite."""
     groups: dict[str, list[StepPair]] = defaultdict(list)
     for p in pairs:
         groups[p.regime].append(p)
     out = {}
     for name, ps in sorted(groups.items()):
-        both = [p for p in ps if math.isfinite(p.ttc_s) and math.isfinite(p.crime_ttc_s)
-                and p.ttc_s > 0]
+        near = [p for p in ps if 0 < p.ttc_s <= horizon_s]
+        both = [p for p in near if math.isfinite(p.crime_ttc_s)]
         rel = np.array([(p.crime_ttc_s - p.ttc_s) / p.ttc_s for p in both])
         hw = [abs(p.crime_hw_m - p.gap_m) for p in ps
               if math.isfinite(p.crime_hw_m) and math.isfinite(p.gap_m)]
         out[name] = {
             "steps": len(ps), "both_finite": len(both),
-            "crime_inf_ours_finite": sum(math.isfinite(p.ttc_s) and p.crime_ttc_s == math.inf
-                                         for p in ps),
+            "crime_inf_ours_finite": sum(p.crime_ttc_s == math.inf for p in near),
             "median_rel_diff": float(np.median(rel)) if rel.size else math.nan,
             "max_abs_rel_diff": float(np.max(np.abs(rel))) if rel.size else math.nan,
             "max_hw_diff_m": float(max(hw)) if hw else math.nan,
@@ -128,7 +133,8 @@ def by_regime(pairs: list[StepPair]) -> dict[str, dict[str, float]]:
 
 
 def minima(pairs: list[StepPair]) -> tuple[float, float]:
-    """The smallest finite TTC of vid2sim and of crime over the paired steps [s]."""
+    """The smallest finite TTC of vid2sim and of crime over the paired steps [s] (inf for
+    none)."""
     ours = [p.ttc_s for p in pairs if math.isfinite(p.ttc_s)]
     theirs = [p.crime_ttc_s for p in pairs if math.isfinite(p.crime_ttc_s)]
     return min(ours, default=math.inf), min(theirs, default=math.inf)

@@ -46,7 +46,6 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
-from shapely.geometry import Polygon
 
 from vid2sim import __version__
 from vid2sim.base.errors import ImpossibleValueError, InconsistentInputError, InputError
@@ -179,6 +178,8 @@ def lane_bounds(road: Road, k: int, where: str, path=None
     """Left, centre and right vertices of lane ``k`` of the road in the lane's own direction;
     :class:`ImpossibleValueError` when the lane's outline is degenerate (folds over itself
     where a curve is tighter than the lane's offset from the centerline)."""
+    from shapely.geometry import Polygon  # the export's alone: the video commands skip it
+
     section = road.layout()
     e = section.edges_m
     right, left = offset_polyline(road.centerline, e[k]), offset_polyline(road.centerline,
