@@ -259,3 +259,14 @@ def test_a_scenario_commonroad_cannot_hold_is_one_error_line(make, error, tmp_pa
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("error: ")
     assert not out.exists() or not any(out.iterdir())
+
+
+def test_without_commonroad_io_the_format_is_one_error_line(tmp_path, monkeypatch, capsys):
+    path = tmp_path / "scenario.json"
+    save(braking_lead_scenario(), path)
+    monkeypatch.setitem(sys.modules, "commonroad.common.writer.file_writer_xml", None)
+    assert main(["export", str(path), "--format", "commonroad", "--out",
+                 str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "commonroad-io" in err[0]
+    assert not (tmp_path / "out").exists()
