@@ -17,6 +17,12 @@ from typing import Any, Self
 
 import numpy as np
 
+from vid2sim.core.vocabulary import (  # noqa: F401  part of the records' vocabulary
+    RAIL_CATEGORIES,
+    VEHICLE_CATEGORIES,
+    VehicleCategory,
+)
+
 # --------------------------------------------------------------------------- notes
 
 
@@ -177,11 +183,6 @@ class TraceStats:
 # --------------------------------------------------------------------------- detection
 
 
-VEHICLE_CATEGORIES = ("car", "truck", "bus", "motorcycle", "tram")
-#: Vehicles that run on rails: a tram on its own track bed is never the ego's lead.
-RAIL_CATEGORIES = ("tram",)
-
-
 @dataclass(frozen=True, slots=True)
 class VideoInfo:
     """What a video (or an image folder) is: frame size [px], rate [frames/s], frame count."""
@@ -213,7 +214,7 @@ class Detection:
 
     box_px: tuple[float, float, float, float]
     score: float
-    category: str
+    category: VehicleCategory
 
 
 @dataclass(frozen=True, slots=True)
@@ -223,7 +224,7 @@ class TrackedBox:
     frame: int
     t_s: float
     track_id: int
-    category: str
+    category: VehicleCategory
     score: float
     x1: float
     y1: float
@@ -516,8 +517,8 @@ class AnnotatedBox:
     """A human-drawn box on a keyframe.
 
     :param box_px: (x1, y1, x2, y2) in pixels
-    :param category: normalised vehicle category ("car", "truck", "bus", "motorcycle") or the
-        source's own name for an ignore region
+    :param category: the :class:`VehicleCategory` of a vehicle, or the source's own class
+        name for an ignore region (KITTI "dontcare", "misc")
     :param id: the annotation's track/label id, None where the format has none
     :param range_m: longitudinal distance from the camera to the vehicle's near face [m]
         where the annotation carries 3D (KITTI), else None
@@ -526,7 +527,7 @@ class AnnotatedBox:
     """
 
     box_px: tuple[float, float, float, float]
-    category: str
+    category: VehicleCategory | str
     id: str | None = None
     range_m: float | None = None
     ignore: bool = False
@@ -559,7 +560,7 @@ class ProjectedBox:
 
     actor_id: str
     box_px: tuple[float, float, float, float]
-    category: str
+    category: VehicleCategory
     range_m: float
     hard: bool = False
 

@@ -14,7 +14,7 @@ import numpy as np
 from vid2sim.base.errors import InputError
 from vid2sim.base.fileio import atomic_open
 from vid2sim.core.lead import MAX_RELATIVE_LANE
-from vid2sim.core.records import EgoTrack, RangedBox, TrackedBox
+from vid2sim.core.records import EgoTrack, RangedBox, TrackedBox, VehicleCategory
 
 EGO_CSV_COLUMNS = ("t_s", "lat", "lon", "x_m", "y_m", "heading_rad", "speed_mps")
 DETECTIONS_CSV_COLUMNS = ("frame", "t_s", "track_id", "category", "score", "x1", "y1", "x2",
@@ -124,7 +124,7 @@ def read_tracks_csv(path: str | Path) -> list[RangedBox]:
 def _row_to_box(row: dict[str, str]) -> RangedBox:
     return RangedBox(
         frame=int(row["frame"]), t_s=float(row["t_s"]), track_id=int(row["track_id"]),
-        category=row["category"], score=float(row["score"]), x1=float(row["x1"]),
+        category=VehicleCategory(row["category"]), score=float(row["score"]), x1=float(row["x1"]),
         y1=float(row["y1"]), x2=float(row["x2"]), y2=float(row["y2"]),
         range_m=float(row["range_m"]), lateral_m=float(row["lateral_m"]),
         range_rate_mps=float(row["range_rate_mps"]), range_std_m=float(row["range_std_m"]),

@@ -14,7 +14,8 @@ from highway_env.road.road import Road as HwRoad
 
 from vid2sim.base.errors import InputError
 from vid2sim.core import scenario as scenario_io
-from vid2sim.core.scenario import EGO_ID, Scenario
+from vid2sim.core.records import EGO_ID
+from vid2sim.core.scenario import Scenario
 from vid2sim.export.assemble import straight_road_for
 from vid2sim.export.highway.network import hw_to_enu, network_for, path_lane
 from vid2sim.export.highway.observation import FastKinematics
