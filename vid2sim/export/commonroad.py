@@ -63,13 +63,16 @@ from vid2sim.core.lanelayout import (
 from vid2sim.core.polyline import signed_offsets
 from vid2sim.core.records import EGO_ID
 from vid2sim.core.scenario import Road, Scenario, Trajectory
+from vid2sim.core.vocabulary import VehicleCategory
 
 XML_NAME = "scenario.xml"
 IDS_NAME = "ids.json"
 
-#: vid2sim category -> CommonRoad ObstacleType value (unknown categories: ``car``).
-OBSTACLE_TYPES = {"car": "car", "truck": "truck", "bus": "bus", "motorcycle": "motorcycle",
-                  "bicycle": "bicycle", "tram": "train"}
+#: vid2sim category -> CommonRoad ObstacleType value (a tram runs on rails: CommonRoad's
+#: ``train``; vid2sim has no bicycle category, so CommonRoad's ``bicycle`` never occurs).
+OBSTACLE_TYPES = {VehicleCategory.CAR: "car", VehicleCategory.TRUCK: "truck",
+                  VehicleCategory.BUS: "bus", VehicleCategory.MOTORCYCLE: "motorcycle",
+                  VehicleCategory.TRAM: "train"}
 #: OSM highway class -> CommonRoad lanelet types of its driving lanes; other classes (primary,
 #: secondary, ...: urban or rural, the map does not say) get ``unknown``.
 HIGHWAY_TYPES = {"motorway": ("highway", "mainCarriageWay"), "motorway_link": ("highway",),
@@ -264,7 +267,7 @@ def _state(cls, k: int, st: dict[str, np.ndarray], i: int, **extra):
                acceleration=float(st["accel"][i]), **extra)
 
 
-def dynamic_obstacle(obstacle_id: int, category: str, length_m: float, width_m: float,
+def dynamic_obstacle(obstacle_id: int, category: VehicleCategory, length_m: float, width_m: float,
                      traj: Trajectory, grid: TimeGrid):
     """A CommonRoad DynamicObstacle replaying ``traj`` on ``grid``."""
     from commonroad.geometry.obstacle_shapes.rect_obstacle_shape import RectObstacleShape
@@ -282,7 +285,7 @@ def dynamic_obstacle(obstacle_id: int, category: str, length_m: float, width_m: 
     if len(steps) > 1:
         states = [_state(CustomState, k, st, i) for i, k in enumerate(steps) if i > 0]
         prediction = TrajectoryPrediction(CrTrajectory(int(steps[1]), states), shape)
-    kind = ObstacleType(OBSTACLE_TYPES.get(category, "car"))
+    kind = ObstacleType(OBSTACLE_TYPES[VehicleCategory(category)])
     return DynamicObstacle(obstacle_id, kind, shape, initial, prediction)
 
 
@@ -413,7 +416,7 @@ def build_commonroad(scenario: Scenario, config: CommonRoadConfig | None = None,
             cr.lanelet_network.add_lanelet(ln)
     if ego_as_obstacle:
         ego = scenario.ego
-        cr.add_objects(dynamic_obstacle(next_id, "car", ego.length_m, ego.width_m,
+        cr.add_objects(dynamic_obstacle(next_id, VehicleCategory.CAR, ego.length_m, ego.width_m,
                                         ego.trajectory, grid))
         ids["ego"], next_id = next_id, next_id + 1
     for actor in scenario.actors:
