@@ -20,6 +20,7 @@ from vid2sim.adas.sensor import CameraSensor, SensorConfig
 from vid2sim.base.errors import InputError
 from vid2sim.core.scenario import Scenario
 from vid2sim.export.highway import Handover, ReplayEnv
+from vid2sim.export.highway.info import StepInfo
 
 SERIES = ("t_s", "gap_m", "ttc_s", "ego_speed_mps", "lead_speed_mps")
 """The per-step values kept for the report's plots (gap, TTC and lead speed NaN without a
@@ -50,23 +51,21 @@ class TraceRecorder:
         self.rows: list[tuple[float, ...]] = []
         self.at_fault: bool | None = None
 
-    def add(self, info: dict) -> None:
+    def add(self, info: StepInfo) -> None:
         ego = self.sim.vehicle_states()[0]
-        self.rows.append((float(info["t_s"]), ego.x_m, ego.y_m, ego.heading_rad,
-                          float(info["ego_speed_mps"]), float(info["ttc_s"]),
-                          float(bool(info["offroad"]))))
-        if self.at_fault is None and info["crashed"]:
+        self.rows.append((info.t_s, ego.x_m, ego.y_m, ego.heading_rad, info.ego_speed_mps,
+                          info.ttc_s, float(info.offroad)))
+        if self.at_fault is None and info.crashed:
             self.at_fault = self._fault(info, ego)
 
-    def _fault(self, info: dict, ego) -> bool:
-        other = next((o for o in self.sim.traffic().objects
-                      if o.id == info["collision_with"]), None)
+    def _fault(self, info: StepInfo, ego) -> bool:
+        other = next((o for o in self.sim.traffic().objects if o.id == info.collision_with),
+                     None)
         if other is None:
             return True  # hit something the ego's path does not see: assume the worst
-        in_lane = abs(float(info["lane_offset_m"])) <= (float(info["lane_width_m"])
-                                                        - ego.width_m) / 2.0
-        return collision_at_fault(other.along_m, float(info["ego_speed_mps"]), in_lane,
-                                  ego.length_m, other.length_m, self.config)
+        in_lane = abs(info.lane_offset_m) <= (info.lane_width_m - ego.width_m) / 2.0
+        return collision_at_fault(other.along_m, info.ego_speed_mps, in_lane, ego.length_m,
+                                  other.length_m, self.config)
 
     def trace(self) -> EpisodeTrace:
         t, x, y, h, v, ttc, off = (np.array(c, float) for c in zip(*self.rows, strict=True))
@@ -98,29 +97,29 @@ def run_episode(scenario: Scenario, spec: PolicySpec, *, reactive: bool = False,
     policy = spec.make(scenario, sim.config)
     shape = env.action_space.shape
     obs, info = env.reset(seed=seed)
-    infos = [info]
+    infos = [StepInfo.of(info)]
     recorder = TraceRecorder(sim, score_config or ScoreConfig())
-    recorder.add(info)
+    recorder.add(infos[-1])
     terminated = truncated = False
     while not (terminated or truncated):
         try:
             action = np.asarray(policy(obs, info), dtype=np.float32).reshape(-1)
         except Exception as exc:
             raise InputError(None, f"policy {spec.name!r} raised {type(exc).__name__}: {exc} "
-                             f"at t={info['t_s']:.1f} s") from exc
+                             f"at t={infos[-1].t_s:.1f} s") from exc
         if action.shape != shape or not np.all(np.isfinite(action)):
             raise InputError(None, f"policy {spec.name!r} returned {action.tolist()} at "
-                             f"t={info['t_s']:.1f} s", f"expected {shape[0]} finite value(s) "
+                             f"t={infos[-1].t_s:.1f} s", f"expected {shape[0]} finite value(s) "
                              "in [-1, 1]")
         obs, _, terminated, truncated, info = env.step(action)
-        infos.append(info)
-        recorder.add(info)
+        infos.append(StepInfo.of(info))
+        recorder.add(infos[-1])
     env.close()
     step_s = 1.0 / sim.config["policy_frequency"]
     metrics = episode_metrics(infos, step_s, scenario.ego.width_m)
     ended = ""
     if metrics.collision:
-        ended = f"collision with {infos[-1]['collision_with']}"
+        ended = f"collision with {infos[-1].collision_with}"
     elif terminated:
         ended = "offroad"
     score = episode_score(recorder.trace(), scenario.ego.trajectory, scenario.roads,
@@ -129,10 +128,10 @@ def run_episode(scenario: Scenario, spec: PolicySpec, *, reactive: bool = False,
                          series_of(infos), terminated_by=ended, score=score)
 
 
-def series_of(infos: list[dict]) -> dict[str, np.ndarray]:
+def series_of(infos: list[StepInfo]) -> dict[str, np.ndarray]:
     """Per-step arrays for plotting (float32; NaN where there was no lead)."""
     def col(key, lead_only):
-        return np.array([float(i[key]) if (i["has_lead"] or not lead_only) else math.nan
+        return np.array([float(getattr(i, key)) if (i.has_lead or not lead_only) else math.nan
                          for i in infos], dtype=np.float32)
 
     return {"t_s": col("t_s", False), "gap_m": col("gap_m", True), "ttc_s": col("ttc_s", True),

@@ -14,7 +14,7 @@ with, as computed here from the episode's steps:
   inside its lane (a lane change: active-lateral). Not at fault: being hit from behind, or
   while standing (:func:`collision_at_fault`);
 - **DAC, drivable area** (multiplier, 0 or 1): 0 when the environment reports the ego off
-  the road at any step (``info["offroad"]``: beyond the road's ends, or outside the lanes
+  the road at any step (``StepInfo.offroad``: beyond the road's ends, or outside the lanes
   when the ego steers itself);
 - **DDC, driving direction** (multiplier, 1, 0.5 or 0): the ego's progress against the
   direction of the driving lane it is in, over any ``direction_horizon_s`` window: at most
