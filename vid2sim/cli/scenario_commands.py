@@ -51,16 +51,22 @@ def eval_(scenario_file: Path, keyframes_path: Path, video: Path | None, fps: fl
 
 @cli.command()
 @click.argument("scenario_file", type=EXISTING_PATH)
-@click.option("--format", "fmt", type=click.Choice(["highway-env", "openscenario"]),
+@click.option("--format", "fmt",
+              type=click.Choice(["highway-env", "openscenario", "commonroad"]),
               required=True, help="openscenario: scenario.xosc + road.xodr; highway-env: "
-              "scenario.json + replay.py + preview.png.")
+              "scenario.json + replay.py + preview.png; commonroad: scenario.xml (CommonRoad "
+              "2020a) + ids.json.")
+@click.option("--ego-as-obstacle", is_flag=True,
+              help="commonroad: the ego is also a dynamic obstacle with its log (besides its "
+                   "planning problem), as criticality tools need.")
 @click.option("--out", "out_dir", type=EXISTING_PATH, required=True, help="Output folder.")
-def export(scenario_file: Path, fmt: str, out_dir: Path) -> None:
-    """Export SCENARIO_FILE for a simulator (OpenSCENARIO 1.2 / OpenDRIVE 1.8, highway-env)."""
+def export(scenario_file: Path, fmt: str, ego_as_obstacle: bool, out_dir: Path) -> None:
+    """Export SCENARIO_FILE for a simulator (OpenSCENARIO 1.2 / OpenDRIVE 1.8, highway-env,
+    CommonRoad)."""
     from vid2sim.app.commands import run_export
 
     check_out_dir(out_dir)
-    echo(run_export(scenario_file, fmt, out_dir))
+    echo(run_export(scenario_file, fmt, out_dir, ego_as_obstacle=ego_as_obstacle))
 
 
 # --------------------------------------------------------------------------- test-policy
