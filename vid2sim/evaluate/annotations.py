@@ -32,7 +32,12 @@ from collections import defaultdict
 from pathlib import Path
 from typing import Any
 
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import (
+    FormatError,
+    ImpossibleValueError,
+    InconsistentInputError,
+    MissingInputError,
+)
 from vid2sim.base.fileio import check_input_size, parse_json
 from vid2sim.core.records import AnnotatedBox, Keyframe, VehicleCategory
 
@@ -103,17 +108,19 @@ def read_keyframes(path: str | Path, *, fps: float | None = None,
     """
     path = Path(path)
     if fps is not None and not (math.isfinite(fps) and fps > 0):
-        raise InputError(path, f"fps {fps} must be a positive number")
+        raise ImpossibleValueError(path, f"fps {fps} must be a positive number")
     try:
         check_input_size(path, what="annotation")
         text = path.read_text(encoding="utf-8-sig")
     except FileNotFoundError:
-        raise InputError(path, "no such annotation file") from None
+        raise MissingInputError(path, "no such annotation file") from None
     except IsADirectoryError:
-        raise InputError(path, "is a folder, expected an annotation file",
+        raise MissingInputError(path, "is a folder, expected an annotation file",
                          "give the JSON, XML or label_02 .txt file itself") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(path, f"cannot read: {exc}") from None
+    except OSError as exc:
+        raise MissingInputError(path, f"cannot read: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise FormatError(path, f"cannot read: {exc}") from None
     head = text.lstrip()[:1]
     if head in ("[", "{"):
         frames = _read_scalabel(text, path, fps, frame_names)
@@ -122,7 +129,7 @@ def read_keyframes(path: str | Path, *, fps: float | None = None,
     elif head and head[0].isdigit():
         frames = _read_kitti(text, path, fps, frame_names)
     else:
-        raise InputError(path, "unknown annotation format",
+        raise FormatError(path, "unknown annotation format",
                          "expected Scalabel/BDD100K JSON, KITTI label_02 text or CVAT XML")
     if labelled_only:
         frames = [k for k in frames if any(not b.ignore for b in k.boxes)]
@@ -166,17 +173,17 @@ class _FrameIndex:
 
 def _need_fps(path: Path, fps: float | None, what: str) -> float:
     if fps is None:
-        raise InputError(path, f"{what} are frame numbers but no frame rate is known",
+        raise MissingInputError(path, f"{what} are frame numbers but no frame rate is known",
                          "pass --fps (video frames per second)")
     return fps
 
 
 def _finite_box(vals: list[float], path: Path, where: str) -> tuple[float, float, float, float]:
     if len(vals) != 4 or not all(math.isfinite(v) for v in vals):
-        raise InputError(path, f"{where}: box coordinates must be four finite numbers")
+        raise ImpossibleValueError(path, f"{where}: box coordinates must be four finite numbers")
     x1, y1, x2, y2 = vals
     if x2 < x1 or y2 < y1:
-        raise InputError(path, f"{where}: box has x2 < x1 or y2 < y1 ({x1}, {y1}, {x2}, {y2})")
+        raise ImpossibleValueError(path, f"{where}: box has x2 < x1 or y2 < y1 ({x1}, {y1}, {x2}, {y2})")
     return (float(x1), float(y1), float(x2), float(y2))
 
 
@@ -196,17 +203,17 @@ def _read_kitti(text: str, path: Path, fps: float | None,
         if not fields:
             continue
         if len(fields) not in (17, 18):
-            raise InputError(path, f"line {lineno}: expected 17 fields of KITTI label_02, "
+            raise FormatError(path, f"line {lineno}: expected 17 fields of KITTI label_02, "
                              f"got {len(fields)}")
         try:
             frame = int(fields[0])
             track_id = int(fields[1])
             nums = [float(v) for v in fields[3:17]]
         except ValueError:
-            raise InputError(path, f"line {lineno}: frame, track id or a value is not a number"
+            raise FormatError(path, f"line {lineno}: frame, track id or a value is not a number"
                              ) from None
         if frame < 0:
-            raise InputError(path, f"line {lineno}: negative frame number {frame}")
+            raise ImpossibleValueError(path, f"line {lineno}: negative frame number {frame}")
         mapped = normalise_category(fields[2])
         if mapped is None:
             if fields[2].lower() not in _NOT_VEHICLES:
@@ -230,7 +237,7 @@ def _read_kitti(text: str, path: Path, fps: float | None,
         log.warning("%s: classes %s are not vehicles the scenario models; dropped",
                     path, ", ".join(sorted(unknown)))
     if not boxes_by_frame:
-        raise InputError(path, "no labelled objects found in this KITTI label file")
+        raise FormatError(path, "no labelled objects found in this KITTI label file")
     out = []
     for frame, boxes in boxes_by_frame.items():
         name = f"{frame:06d}"
@@ -242,7 +249,7 @@ def _read_kitti(text: str, path: Path, fps: float | None,
         else:
             out.append(Keyframe(frame=frame, t_s=frame / rate, name=name, boxes=boxes))
     if not out:
-        raise InputError(path, "none of the labelled frames has an image among the video's "
+        raise InconsistentInputError(path, "none of the labelled frames has an image among the video's "
                          "frames", "name images by KITTI frame number, e.g. 000010.png")
     return out
 
@@ -258,11 +265,11 @@ def _read_scalabel(text: str, path: Path, fps: float | None,
     data = parse_json(text, path)  # bad JSON, or nesting too deep, as an input error
     if isinstance(data, dict):
         if "frames" not in data:
-            raise InputError(path, "JSON object without 'frames'",
+            raise FormatError(path, "JSON object without 'frames'",
                              "expected Scalabel: a list of frames or {\"frames\": [...]}")
         data = data["frames"]
     if not isinstance(data, list):
-        raise InputError(path, "'frames' must be a list of frame objects")
+        raise FormatError(path, "'frames' must be a list of frame objects")
     index = _FrameIndex(frame_names) if frame_names is not None else None
     timestamps = [f.get("timestamp") for f in data if isinstance(f, dict)
                   and isinstance(f.get("timestamp"), (int, float))
@@ -273,7 +280,7 @@ def _read_scalabel(text: str, path: Path, fps: float | None,
     for i, fr in enumerate(data):
         where = f"frames[{i}]"
         if not isinstance(fr, dict):
-            raise InputError(path, f"{where}: expected an object")
+            raise FormatError(path, f"{where}: expected an object")
         name = fr.get("name")
         name = str(name) if name is not None else None
         frame_no = fr.get("index", fr.get("frameIndex"))
@@ -281,12 +288,12 @@ def _read_scalabel(text: str, path: Path, fps: float | None,
         video_frame: int | None
         if frame_no is not None:
             if isinstance(frame_no, bool) or not isinstance(frame_no, int) or frame_no < 0:
-                raise InputError(path, f"{where}.index: expected a non-negative integer")
+                raise FormatError(path, f"{where}.index: expected a non-negative integer")
             video_frame = frame_no
             t_s = frame_no / _need_fps(path, fps, "frame indices")
         elif ts is not None:
             if isinstance(ts, bool) or not isinstance(ts, (int, float)) or not math.isfinite(ts):
-                raise InputError(path, f"{where}.timestamp: expected a number of milliseconds")
+                raise FormatError(path, f"{where}.timestamp: expected a number of milliseconds")
             t_s = (ts - t0_ms) / 1000.0
             video_frame = round(t_s * fps) if fps is not None else None
         elif name is not None:
@@ -297,30 +304,30 @@ def _read_scalabel(text: str, path: Path, fps: float | None,
                 # A name like "frame_000012.jpg" carries the frame number.
                 pos = _trailing_number(name)
                 if pos is None:
-                    raise InputError(path, f"{where}: frame '{name}' has no index, timestamp "
+                    raise FormatError(path, f"{where}: frame '{name}' has no index, timestamp "
                                      "or frame number in its name",
                                      "add 'index' to each frame or pass the frame names")
             video_frame = pos
             t_s = pos / _need_fps(path, fps, "frame names")
         else:
-            raise InputError(path, f"{where}: frame has no name, index or timestamp")
+            raise FormatError(path, f"{where}: frame has no name, index or timestamp")
         labels = fr.get("labels") or []
         if not isinstance(labels, list):
-            raise InputError(path, f"{where}.labels: expected a list")
+            raise FormatError(path, f"{where}.labels: expected a list")
         boxes = []
         for j, lab in enumerate(labels):
             lw = f"{where}.labels[{j}]"
             if not isinstance(lab, dict):
-                raise InputError(path, f"{lw}: expected an object")
+                raise FormatError(path, f"{lw}: expected an object")
             box2d = lab.get("box2d")
             if box2d is None:
                 continue  # polygons, lanes, drivable area: not boxes
             if not isinstance(box2d, dict) or not all(k in box2d for k in ("x1", "y1", "x2", "y2")):
-                raise InputError(path, f"{lw}.box2d: expected {{x1, y1, x2, y2}}")
+                raise FormatError(path, f"{lw}.box2d: expected {{x1, y1, x2, y2}}")
             try:
                 vals = [float(box2d[k]) for k in ("x1", "y1", "x2", "y2")]
             except (TypeError, ValueError):
-                raise InputError(path, f"{lw}.box2d: coordinates must be numbers") from None
+                raise FormatError(path, f"{lw}.box2d: coordinates must be numbers") from None
             box = _finite_box(vals, path, lw)
             cat_name = str(lab.get("category", ""))
             mapped = normalise_category(cat_name)
@@ -342,7 +349,7 @@ def _read_scalabel(text: str, path: Path, fps: float | None,
         log.warning("%s: categories %s are not vehicles the scenario models; dropped",
                     path, ", ".join(sorted(unknown)))
     if not out:
-        raise InputError(path, "no frames found in this annotation file")
+        raise FormatError(path, "no frames found in this annotation file")
     return out
 
 
@@ -359,9 +366,9 @@ def _read_cvat(text: str, path: Path, fps: float | None,
     try:
         root = ET.fromstring(text)
     except ET.ParseError as exc:
-        raise InputError(path, f"not well-formed XML: {exc}") from None
+        raise FormatError(path, f"not well-formed XML: {exc}") from None
     if root.tag != "annotations":
-        raise InputError(path, f"XML root is <{root.tag}>, expected CVAT's <annotations>")
+        raise FormatError(path, f"XML root is <{root.tag}>, expected CVAT's <annotations>")
     index = _FrameIndex(frame_names) if frame_names is not None else None
     boxes_by_frame: dict[int, list[AnnotatedBox]] = defaultdict(list)
     key_frames: set[int] = set()
@@ -373,9 +380,9 @@ def _read_cvat(text: str, path: Path, fps: float | None,
         try:
             vals = [float(el.attrib[k]) for k in ("xtl", "ytl", "xbr", "ybr")]
         except KeyError as exc:
-            raise InputError(path, f"{where}: <box> lacks {exc.args[0]}") from None
+            raise FormatError(path, f"{where}: <box> lacks {exc.args[0]}") from None
         except ValueError:
-            raise InputError(path, f"{where}: box coordinates must be numbers") from None
+            raise FormatError(path, f"{where}: box coordinates must be numbers") from None
         box = _finite_box(vals, path, where)
         mapped = normalise_category(label)
         if mapped is None:
@@ -388,11 +395,11 @@ def _read_cvat(text: str, path: Path, fps: float | None,
         try:
             frame = int(el.attrib["frame"])
         except KeyError:
-            raise InputError(path, f"{where}: <box> lacks its frame") from None
+            raise FormatError(path, f"{where}: <box> lacks its frame") from None
         except ValueError:
-            raise InputError(path, f"{where}: frame is not an integer") from None
+            raise FormatError(path, f"{where}: frame is not an integer") from None
         if frame < 0:
-            raise InputError(path, f"{where}: negative frame {frame}")
+            raise ImpossibleValueError(path, f"{where}: negative frame {frame}")
         return frame
 
     for t_i, track in enumerate(root.iter("track")):
@@ -412,7 +419,7 @@ def _read_cvat(text: str, path: Path, fps: float | None,
         try:
             frame = int(img.attrib["id"])
         except (KeyError, ValueError):
-            raise InputError(path, "<image> without an integer id") from None
+            raise FormatError(path, "<image> without an integer id") from None
         key_frames.add(frame)
         names[frame] = img.attrib.get("name", str(frame))
         for b_i, el in enumerate(img.iter("box")):
@@ -423,7 +430,7 @@ def _read_cvat(text: str, path: Path, fps: float | None,
         log.warning("%s: labels %s are not vehicles the scenario models; dropped",
                     path, ", ".join(sorted(unknown)))
     if not key_frames:
-        raise InputError(path, "no <track> boxes or <image> elements found",
+        raise FormatError(path, "no <track> boxes or <image> elements found",
                          "export the task as 'CVAT for video 1.1'")
     out = []
     for frame in sorted(key_frames):
@@ -439,7 +446,7 @@ def _read_cvat(text: str, path: Path, fps: float | None,
         out.append(Keyframe(frame=pos, t_s=pos / rate, name=name,
                             boxes=list(boxes_by_frame.get(frame, []))))
     if not out:
-        raise InputError(path, "none of the annotated frames is among the video's frames")
+        raise InconsistentInputError(path, "none of the annotated frames is among the video's frames")
     return out
 
 

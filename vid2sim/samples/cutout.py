@@ -43,7 +43,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import FormatError, InconsistentInputError, MissingInputError
 from vid2sim.base.fileio import read_input_text
 from vid2sim.core.camera import Camera, load_camera, parse_kitti_calib
 from vid2sim.detect.vehicles.external import KittiLabel, read_kitti_tracking_labels
@@ -129,7 +129,7 @@ def read_kitti_projection(calib_path: Path, cam: int = 2) -> np.ndarray:
     """
     values = parse_kitti_calib(read_input_text(Path(calib_path))).get(f"P{cam}")
     if values is None or values.size != 12:
-        raise InputError(calib_path, f"no 3x4 projection P{cam}")
+        raise FormatError(calib_path, f"no 3x4 projection P{cam}")
     return values.reshape(3, 4)
 
 
@@ -264,7 +264,7 @@ def cut_out_car(image_bgr: np.ndarray, label: KittiLabel, yaw_rad: float, proj: 
         y_ground = float(label.location_m[1])
         z_contact = (proj[1, 1] * y_ground + proj[1, 3]) / (contact_row_px - proj[1, 2])
         if not z_contact > depth:
-            raise InputError(None, f"contact row {contact_row_px} px lies nearer than the "
+            raise InconsistentInputError(None, f"contact row {contact_row_px} px lies nearer than the "
                              "rear face")
         contact_m = float(z_contact - depth)
         fy2 = float(contact_row_px)
@@ -348,19 +348,19 @@ def load_cutout(tracking_dir: Path, car: str = "polo", require_rear_view: bool =
     img_path = tracking_dir / "image_02" / seq / f"{frame:06d}.png"
     image = cv2.imread(str(img_path), cv2.IMREAD_COLOR)
     if image is None:
-        raise InputError(img_path, "cannot read this KITTI frame")
+        raise MissingInputError(img_path, "cannot read this KITTI frame")
     label_path = tracking_dir / "label_02" / f"{seq}.txt"
     found = [(lb, yaw) for lb, yaw in read_labels_with_yaw(label_path).get(frame, [])
              if lb.track_id == track]
     if not found:
-        raise InputError(label_path, f"no object {track} in frame {frame}")
+        raise MissingInputError(label_path, f"no object {track} in frame {frame}")
     label, yaw = found[0]
     if require_rear_view and not is_rear_view(label, yaw):
-        raise InputError(img_path, f"object {track} is not a whole car seen from behind")
+        raise InconsistentInputError(img_path, f"object {track} is not a whole car seen from behind")
     calib = tracking_dir / "calib" / f"{seq}.txt"
     proj = read_kitti_projection(calib)
     if abs(load_camera(calib).fx - proj[0, 0]) > 1e-6:  # the same calibration, read twice
-        raise InputError(calib, "P2 and the camera disagree on the focal length")
+        raise InconsistentInputError(calib, "P2 and the camera disagree on the focal length")
     return cut_out_car(image, label, yaw, proj, columns_px=columns, contact_row_px=contact_row,
                        source=f"kitti_tracking {seq}/{frame:06d} object {track} ({car})")
 

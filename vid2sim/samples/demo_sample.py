@@ -39,7 +39,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import ImpossibleValueError, InputError
 from vid2sim.base.fileio import write_text_atomic
 from vid2sim.core.camera import Camera
 from vid2sim.core.enu import EnuFrame
@@ -291,7 +291,7 @@ def generate_demo_sample(out_dir: Path, *, seed: int = 7, duration_s: float = 24
     DemoSample
     """
     if not 0.0 < duration_s <= 24.0:
-        raise InputError(None, f"duration {duration_s} s outside (0, 24] s",
+        raise ImpossibleValueError(None, f"duration {duration_s} s outside (0, 24] s",
                          "the scripted drive lasts 24 s")
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)

@@ -53,7 +53,7 @@ from vid2sim.app.batch.worker import (
     staging_owner,
 )
 from vid2sim.app.settings import Settings
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import FormatError, ImpossibleValueError, OutputError
 
 log = logging.getLogger(__name__)
 
@@ -137,18 +137,18 @@ def run_batch(manifest: str | os.PathLike, out_dir: str | os.PathLike, settings:
         Receives one line per finished (built or failed) row.
     """
     if engine not in ENGINES:
-        raise InputError(None, f"unknown engine '{engine}'", f"one of {', '.join(ENGINES)}")
+        raise FormatError(None, f"unknown engine '{engine}'", f"one of {', '.join(ENGINES)}")
     if engine == "ray":
         check_ray()  # before any work: one clear line when Ray is not installed
     for option, value, least in (("--jobs", jobs, 1), ("--cpus-per-job", cpus_per_job, 1),
                                  ("--max-retries", max_retries, 0)):
         if value is not None and value < least:
-            raise InputError(None, f"{option} must be >= {least}, got {value}")
+            raise ImpossibleValueError(None, f"{option} must be >= {least}, got {value}")
     rows = read_manifest(manifest)
     t0 = time.perf_counter()
     out = storage.location(out_dir)
     if storage.exists(out) and not storage.is_dir(out):
-        raise InputError(out, "is a file, not a folder", "give an output folder")
+        raise OutputError(out, "is a file, not a folder", "give an output folder")
     say = report or (lambda _msg: None)
     cache_path = storage.join(out, *HASH_CACHE)
     _clean_leftovers(out, rows)

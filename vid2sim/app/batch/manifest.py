@@ -17,7 +17,7 @@ from pathlib import Path
 from vid2sim.app.batch import storage
 from vid2sim.app.batch.storage import Where
 from vid2sim.app.inputs import INPUT_NUMBERS, INPUT_ROLES, Inputs
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import FormatError, InputError, MissingInputError
 
 # Manifest column -> label used in messages (the input roles of a build).
 PATH_COLUMNS = dict(INPUT_ROLES)
@@ -77,7 +77,7 @@ class BatchRow:
             elif isinstance(where, Path):
                 paths[role] = where
             else:
-                raise InputError(where, "a URL input needs a local copy to be built from")
+                raise MissingInputError(where, "a URL input needs a local copy to be built from")
         return Inputs(video=paths["video"], gps=paths.get("gps"), map=paths.get("map"),
                       camera=paths.get("camera"), detections=paths.get("detections"),
                       keyframes=paths.get("keyframes"), fps=self.fps,
@@ -106,11 +106,11 @@ def read_manifest(path: str | Path) -> list[BatchRow]:
     reader = csv.DictReader(io.StringIO(text))
     header = [h.strip() for h in (reader.fieldnames or [])]
     if "video" not in header:
-        raise InputError(where, f"no 'video' column in the header ({','.join(header) or 'empty'})",
+        raise FormatError(where, f"no 'video' column in the header ({','.join(header) or 'empty'})",
                          "the first line must name the columns, e.g. video,name,gps")
     unknown = [h for h in header if h not in MANIFEST_COLUMNS]
     if unknown:
-        raise InputError(where, f"unknown column(s) {', '.join(unknown)}",
+        raise FormatError(where, f"unknown column(s) {', '.join(unknown)}",
                          f"known: {', '.join(MANIFEST_COLUMNS)}")
     reader.fieldnames = header
     base = storage.parent(where)
@@ -180,7 +180,7 @@ def read_manifest(path: str | Path) -> list[BatchRow]:
         raise InputError(where, f"{len(problems)} bad row(s): {shown}{more}",
                          "paths are relative to the manifest's folder; nothing was built")
     if not rows:
-        raise InputError(where, "no rows", "one line per video under the header")
+        raise FormatError(where, "no rows", "one line per video under the header")
     _name_unnamed(rows, set(seen_names))
     return rows
 
