@@ -20,7 +20,7 @@ SCHEMA = "vid2sim.scenario"
 #: newer, still loads, and a reader that does not know them still reads the rest.
 VERSION = 1
 
-# Limits of a scenario (README "Limits"). A scenario past them is refused on load and on save,
+# Limits of a scenario (docs/limits.md). A scenario past them is refused on load and on save,
 # before any exporter loops over it: `lanes: 1e9` made the highway-env export hang, and a
 # 140 MB file of 2 million points took 3.4 GB to export.
 
