@@ -83,10 +83,6 @@ class BatchRow:
                       keyframes=paths.get("keyframes"), fps=self.fps,
                       gps_offset_s=self.gps_offset_s, ego_speed_mps=self.ego_speed_mps)
 
-    def input_paths(self) -> dict[str, Where]:
-        """Role -> location of the inputs ``build`` records (and hashes) in ``source.inputs``."""
-        return self.sources()
-
     def numbers(self) -> dict[str, float | None]:
         """The row's numbers by manifest column."""
         return {"fps": self.fps, "gps_offset_s": self.gps_offset_s,

@@ -87,22 +87,6 @@ def read_detections(path: Path) -> dict[int, list[Detection]]:
         raise FormatError(path, f"not a readable CSV: {exc}") from None
 
 
-def read_vid2sim_csv(path: Path) -> dict[int, list[Detection]]:
-    """Read this project's own ``detections.csv`` (``vid2sim detect`` output; 0-based frames,
-    corner boxes [px]) back as per-frame detections, e.g. to re-track or re-range them."""
-    return _read_vid2sim_text(read_input_text(path), Path(path))
-
-
-def read_mot(path: Path) -> dict[int, list[Detection]]:
-    """Read a MOT-challenge file (see :func:`_read_mot_text` for the columns)."""
-    return _read_mot_text(read_input_text(path), Path(path))
-
-
-def read_scalabel(path: Path) -> dict[int, list[Detection]]:
-    """Read a Scalabel / BDD100K JSON (see :func:`_read_scalabel_text`)."""
-    return _read_scalabel_text(read_input_text(path), Path(path))
-
-
 def _checked(path: Path, where: str, frame: int, box: tuple[float, float, float, float],
              score: float) -> None:
     """Raise :class:`InputError` for an imported box or score no detector could give."""
