@@ -107,7 +107,7 @@ def find_scenarios(inputs: tuple[Path, ...], out_dir: Path | None = None) -> lis
                           if out_dir is None or out_dir not in p.resolve().parents)
             if not hits:
                 raise MissingInputError(path, "holds no scenario.json", "give scenario files or "
-                                 "folders with build outputs")
+                                        "folders with build outputs")
             for p in hits:
                 rel = p.parent.relative_to(path)
                 found.append((str(path / rel) if str(rel) != "." else str(path), p))
@@ -174,7 +174,7 @@ def run_campaign(opts: CampaignOptions, *, progress: bool = False) -> str:
     spec = parse_policy(opts.policy)
     if opts.sensor_noise < 0 or not math.isfinite(opts.sensor_noise):
         raise ImpossibleValueError(None, f"--sensor-noise must be a finite level >= 0, got "
-                         f"{opts.sensor_noise}")
+                                   f"{opts.sensor_noise}")
     if opts.samples is not None and opts.samples < 1:
         raise ImpossibleValueError(None, f"--samples must be >= 1, got {opts.samples}")
     axes = parse_vary(opts.vary, random=opts.samples is not None) if opts.vary else ()

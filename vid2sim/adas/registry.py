@@ -110,8 +110,9 @@ def parse_policy(text: str) -> PolicySpec:
         raise FormatError(None, f"unknown policy {text!r}", _HINT)
     if "log" in parts:
         if len(parts) > 1:
-            raise InconsistentInputError(None, f"policy {text!r}: log replays the recording and combines "
-                             "with nothing", _HINT)
+            raise InconsistentInputError(
+                None, f"policy {text!r}: log replays the recording and combines "
+                "with nothing", _HINT)
         return PolicySpec("log", ego_mode="log")
     if len(set(parts)) != len(parts):
         raise FormatError(None, f"policy {text!r} names a function twice", _HINT)
@@ -126,7 +127,7 @@ def _parse_user(text: str) -> PolicySpec:
     target = getattr(_import(module_name, text), attr, None) if attr.isidentifier() else None
     if target is None:
         raise MissingInputError(None, f"policy {text!r}: {module_name} has no {attr!r}",
-                         "check the name after the colon")
+                                "check the name after the colon")
     if inspect.isclass(target):  # instantiated per episode: can its instances act?
         acts = (any(callable(getattr(target, m, None)) for m in ("predict", "act"))
                 or any("__call__" in vars(k) for k in target.__mro__ if k is not object))
@@ -135,12 +136,12 @@ def _parse_user(text: str) -> PolicySpec:
                                        for m in ("predict", "act"))
     if not acts:
         raise FormatError(None, f"policy {text!r} is not callable",
-                         "give a function (observation, info) -> action or an agent with "
-                         "predict(observation) or act(observation)")
+                          "give a function (observation, info) -> action or an agent with "
+                          "predict(observation) or act(observation)")
     observation = getattr(target, "observation", "camera")
     if observation not in ("camera", "kinematics"):
         raise FormatError(None, f"policy {text!r}: observation must be 'camera' or "
-                         f"'kinematics', not {observation!r}")
+                          f"'kinematics', not {observation!r}")
     return PolicySpec(text, lateral=bool(getattr(target, "lateral", False)),
                       observation=observation, target=target)
 
@@ -151,7 +152,7 @@ def _import(module_name: str, text: str):
             path = Path(module_name)
             if not path.is_file():
                 raise MissingInputError(path, "no such policy file", "give module:callable or "
-                                 "path/to/file.py:callable")
+                                        "path/to/file.py:callable")
             spec = importlib.util.spec_from_file_location(f"vid2sim_user_{path.stem}", path)
             module = importlib.util.module_from_spec(spec)
             spec.loader.exec_module(module)

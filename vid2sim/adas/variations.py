@@ -107,8 +107,9 @@ def parse_vary(text: str, random: bool = False) -> tuple[Axis, ...]:
         axes.append(_parse_axis(name, values.strip(), random))
     size = math.prod(len(a.values) for a in axes if a.values is not None)
     if not random and size > MAX_GRID:
-        raise ImpossibleValueError(None, f"--vary: the grid has {size} variations (at most {MAX_GRID})",
-                         "use fewer points or --samples N")
+        raise ImpossibleValueError(
+            None, f"--vary: the grid has {size} variations (at most {MAX_GRID})",
+            "use fewer points or --samples N")
     return tuple(axes)
 
 
@@ -120,29 +121,32 @@ def _parse_axis(name: str, text: str, random: bool) -> Axis:
             raise FormatError(None, f"--vary {name}: {text!r} is not LO:HI:N", _HINT)
         lo, hi = _number(parts[0], name), _number(parts[1], name)
         if hi < lo:
-            raise ImpossibleValueError(None, f"--vary {name}: {text!r} runs backwards (LO > HI)", _HINT)
+            raise ImpossibleValueError(
+                None, f"--vary {name}: {text!r} runs backwards (LO > HI)", _HINT)
         if len(parts) == 3:
             try:
                 n = int(parts[2])
             except ValueError:
                 raise FormatError(None, f"--vary {name}: the count {parts[2]!r} is not a whole "
-                                 "number", _HINT) from None
+                                  "number", _HINT) from None
             if n < 1 or (n == 1 and hi != lo):
-                raise ImpossibleValueError(None, f"--vary {name}: {text!r} needs a count of at least 2 "
-                                 "(or LO = HI with 1)", _HINT)
+                raise ImpossibleValueError(
+                    None, f"--vary {name}: {text!r} needs a count of at least 2 "
+                    "(or LO = HI with 1)", _HINT)
             # 10 significant digits: 0.6 + 2 * 0.15 is 0.9, not 0.8999999999999999
             values = tuple(float(f"{v:.10g}") for v in np.linspace(lo, hi, n))
         elif random:
             values = None
         else:
             raise FormatError(None, f"--vary {name}: {text!r} has no number of grid points",
-                             "write LO:HI:N, or give --samples N to draw at random")
+                              "write LO:HI:N, or give --samples N to draw at random")
     else:
         values = tuple(_number(v, name) for v in text.split("/"))
         lo, hi = min(values), max(values)
     if minimum is not None and lo < minimum:
-        raise ImpossibleValueError(None, f"--vary {name}: values must be at least {minimum:g}, got {lo:g}",
-                         _HINT)
+        raise ImpossibleValueError(
+            None, f"--vary {name}: values must be at least {minimum:g}, got {lo:g}",
+            _HINT)
     return Axis(name, values, lo, hi)
 
 

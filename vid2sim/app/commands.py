@@ -113,7 +113,8 @@ def run_export(scenario_path: Path, fmt: str, out_dir: Path, *, ego_as_obstacle:
     was.
     """
     if fmt not in EXPORT_OUTPUTS:
-        raise FormatError(None, f"unknown export format {fmt!r}", f"use one of {', '.join(FORMATS)}")
+        raise FormatError(
+            None, f"unknown export format {fmt!r}", f"use one of {', '.join(FORMATS)}")
     scenario_path = Path(scenario_path)
     if fmt == "commonroad":
         require_commonroad()

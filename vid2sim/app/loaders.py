@@ -114,14 +114,16 @@ def load_keyframes_for(keyframes: Path, video: Path, info: VideoInfo,
     names = [p.name for p in image_files(video)] if Path(video).is_dir() else None
     frames = read_keyframes(keyframes, fps=rate, frame_names=names)
     if not frames:
-        raise InconsistentInputError(keyframes, "no annotated keyframe matches a frame of the video "
-                         f"({info.n_frames} frames)", "are the annotations for this video?")
+        raise InconsistentInputError(
+            keyframes, "no annotated keyframe matches a frame of the video "
+            f"({info.n_frames} frames)", "are the annotations for this video?")
     index = [k.frame if k.frame is not None else round(k.t_s * rate) for k in frames]
     outside = [(k, f) for k, f in zip(frames, index, strict=True)
                if not 0 <= f < info.n_frames]
     if outside:
         k, f = outside[0]
-        raise InconsistentInputError(keyframes, f"{len(outside)} of {len(frames)} keyframes lie outside the "
-                         f"video's {info.n_frames} frames (first: {k.name!r}, frame {f})",
-                         "are the annotations for this video, at this frame rate?")
+        raise InconsistentInputError(
+            keyframes, f"{len(outside)} of {len(frames)} keyframes lie outside the "
+            f"video's {info.n_frames} frames (first: {k.name!r}, frame {f})",
+            "are the annotations for this video, at this frame rate?")
     return frames

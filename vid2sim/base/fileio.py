@@ -196,13 +196,13 @@ def read_input_text(path: str | Path, max_bytes: int = MAX_INPUT_BYTES) -> str:
         raise MissingInputError(path, "is a folder, not a file") from None
     except UnicodeDecodeError as exc:
         raise FormatError(path, f"not UTF-8 text (byte {exc.start})",
-                         "is this a binary file?") from None
+                          "is this a binary file?") from None
     except OSError as exc:
         raise MissingInputError(path, f"cannot read: {exc.strerror or exc}") from None
     nul = text.find("\x00")
     if nul >= 0:
         raise FormatError(path, f"binary content (a NUL byte at character {nul})",
-                         "expected a text file")
+                          "expected a text file")
     return text
 
 
@@ -215,7 +215,7 @@ def parse_json(text: str, path: str | Path | None) -> Any:
         raise FormatError(path, f"not valid JSON: {exc.msg} at line {exc.lineno}") from None
     except RecursionError:
         raise FormatError(path, "JSON nested too deeply to read",
-                         "no vid2sim input nests more than a few levels") from None
+                          "no vid2sim input nests more than a few levels") from None
 
 
 # --------------------------------------------------------------------------- output folders

@@ -64,7 +64,7 @@ def _check_parents(path: Path) -> None:
         if parent.exists():
             if not parent.is_dir():
                 raise OutputError(path, f"{parent} is a file, not a folder",
-                                 "give a path inside a folder")
+                                  "give a path inside a folder")
             return
 
 def detector_options(fn):

@@ -117,7 +117,7 @@ def iter_tracks_csv(path: str | Path) -> Iterator[RangedBox]:
             missing = [c for c in TRACKS_CSV_REQUIRED if c not in (reader.fieldnames or [])]
             if missing:
                 raise FormatError(path, f"not a tracks.csv: lacks column(s) {', '.join(missing)}",
-                                 "write it with `vid2sim track`")
+                                  "write it with `vid2sim track`")
             for line, row in enumerate(reader, start=2):
                 try:
                     box = _row_to_box(row)

@@ -45,7 +45,7 @@ def image_files(folder: Path) -> list[Path]:
                    if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
     if not files:
         raise MissingInputError(folder, "folder holds no .png/.jpg images",
-                         "give a video file or a folder of frames named in time order")
+                                "give a video file or a folder of frames named in time order")
     return files
 
 
@@ -103,12 +103,13 @@ def video_info(path: Path, fps: float | None = None) -> VideoInfo:
         rate = cap.get(cv2.CAP_PROP_FPS)
         rate = float(fps) if fps else (rate if rate and np.isfinite(rate) and rate > 0 else 0.0)
         if rate <= 0:
-            raise FormatError(path, "video declares no frame rate", "pass the frame rate explicitly")
+            raise FormatError(
+                path, "video declares no frame rate", "pass the frame rate explicitly")
         count = cap.get(cv2.CAP_PROP_FRAME_COUNT)
         width, height = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
         if not (0 < width <= MAX_FRAME_SIDE_PX and 0 < height <= MAX_FRAME_SIDE_PX):
             raise ImpossibleValueError(path, f"frames of {width}x{height} px are not a video's "
-                             f"(at most {MAX_FRAME_SIDE_PX} px a side)")
+                                       f"(at most {MAX_FRAME_SIDE_PX} px a side)")
         return VideoInfo(width=width, height=height, fps=rate,
                          n_frames=int(count) if math.isfinite(count) and count > 0 else 0)
     finally:
@@ -150,18 +151,20 @@ def _folder_frame_size(folder: str, _mtime_ns: int) -> tuple[int, int]:
             continue
     if not sizes:
         raise FormatError(folder, "none of the folder's images can be read",
-                         "are the files complete images?")
+                          "are the files complete images?")
     common, _ = Counter(sizes.values()).most_common(1)[0]
     odd = [(f, wh) for f, wh in sizes.items() if wh != common]
     if odd:
         f, (w, h) = odd[0]
-        raise InconsistentInputError(f, f"frame is {w}x{h} px but {len(sizes) - len(odd)} of the folder's "
-                         f"{len(sizes)} frames are {common[0]}x{common[1]} "
-                         f"({len(odd)} frame(s) of another size)",
-                         "the frames of one video share one size; resize or remove the others")
+        raise InconsistentInputError(
+            f, f"frame is {w}x{h} px but {len(sizes) - len(odd)} of the folder's "
+            f"{len(sizes)} frames are {common[0]}x{common[1]} "
+            f"({len(odd)} frame(s) of another size)",
+            "the frames of one video share one size; resize or remove the others")
     if not (0 < common[0] <= MAX_FRAME_SIDE_PX and 0 < common[1] <= MAX_FRAME_SIDE_PX):
-        raise ImpossibleValueError(folder, f"frames of {common[0]}x{common[1]} px are not a video's "
-                         f"(at most {MAX_FRAME_SIDE_PX} px a side)")
+        raise ImpossibleValueError(
+            folder, f"frames of {common[0]}x{common[1]} px are not a video's "
+            f"(at most {MAX_FRAME_SIDE_PX} px a side)")
     return common
 
 
@@ -268,7 +271,8 @@ def video_size_and_fps(video: Path) -> tuple[int, int, float | None]:
     cap = cv2.VideoCapture(str(video))
     try:
         if not cap.isOpened():
-            raise FormatError(video, "OpenCV cannot open this video", "convert it to mp4 with ffmpeg")
+            raise FormatError(
+                video, "OpenCV cannot open this video", "convert it to mp4 with ffmpeg")
         w, h = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
         fps = float(cap.get(cv2.CAP_PROP_FPS))
     finally:

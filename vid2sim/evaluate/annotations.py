@@ -116,7 +116,7 @@ def read_keyframes(path: str | Path, *, fps: float | None = None,
         raise MissingInputError(path, "no such annotation file") from None
     except IsADirectoryError:
         raise MissingInputError(path, "is a folder, expected an annotation file",
-                         "give the JSON, XML or label_02 .txt file itself") from None
+                                "give the JSON, XML or label_02 .txt file itself") from None
     except OSError as exc:
         raise MissingInputError(path, f"cannot read: {exc}") from None
     except UnicodeDecodeError as exc:
@@ -130,7 +130,7 @@ def read_keyframes(path: str | Path, *, fps: float | None = None,
         frames = _read_kitti(text, path, fps, frame_names)
     else:
         raise FormatError(path, "unknown annotation format",
-                         "expected Scalabel/BDD100K JSON, KITTI label_02 text or CVAT XML")
+                          "expected Scalabel/BDD100K JSON, KITTI label_02 text or CVAT XML")
     if labelled_only:
         frames = [k for k in frames if any(not b.ignore for b in k.boxes)]
     frames.sort(key=lambda k: (k.t_s, k.name))
@@ -174,7 +174,7 @@ class _FrameIndex:
 def _need_fps(path: Path, fps: float | None, what: str) -> float:
     if fps is None:
         raise MissingInputError(path, f"{what} are frame numbers but no frame rate is known",
-                         "pass --fps (video frames per second)")
+                                "pass --fps (video frames per second)")
     return fps
 
 
@@ -183,7 +183,8 @@ def _finite_box(vals: list[float], path: Path, where: str) -> tuple[float, float
         raise ImpossibleValueError(path, f"{where}: box coordinates must be four finite numbers")
     x1, y1, x2, y2 = vals
     if x2 < x1 or y2 < y1:
-        raise ImpossibleValueError(path, f"{where}: box has x2 < x1 or y2 < y1 ({x1}, {y1}, {x2}, {y2})")
+        raise ImpossibleValueError(
+            path, f"{where}: box has x2 < x1 or y2 < y1 ({x1}, {y1}, {x2}, {y2})")
     return (float(x1), float(y1), float(x2), float(y2))
 
 
@@ -204,14 +205,14 @@ def _read_kitti(text: str, path: Path, fps: float | None,
             continue
         if len(fields) not in (17, 18):
             raise FormatError(path, f"line {lineno}: expected 17 fields of KITTI label_02, "
-                             f"got {len(fields)}")
+                              f"got {len(fields)}")
         try:
             frame = int(fields[0])
             track_id = int(fields[1])
             nums = [float(v) for v in fields[3:17]]
         except ValueError:
             raise FormatError(path, f"line {lineno}: frame, track id or a value is not a number"
-                             ) from None
+                              ) from None
         if frame < 0:
             raise ImpossibleValueError(path, f"line {lineno}: negative frame number {frame}")
         mapped = normalise_category(fields[2])
@@ -249,8 +250,9 @@ def _read_kitti(text: str, path: Path, fps: float | None,
         else:
             out.append(Keyframe(frame=frame, t_s=frame / rate, name=name, boxes=boxes))
     if not out:
-        raise InconsistentInputError(path, "none of the labelled frames has an image among the video's "
-                         "frames", "name images by KITTI frame number, e.g. 000010.png")
+        raise InconsistentInputError(
+            path, "none of the labelled frames has an image among the video's "
+            "frames", "name images by KITTI frame number, e.g. 000010.png")
     return out
 
 
@@ -266,7 +268,7 @@ def _read_scalabel(text: str, path: Path, fps: float | None,
     if isinstance(data, dict):
         if "frames" not in data:
             raise FormatError(path, "JSON object without 'frames'",
-                             "expected Scalabel: a list of frames or {\"frames\": [...]}")
+                              "expected Scalabel: a list of frames or {\"frames\": [...]}")
         data = data["frames"]
     if not isinstance(data, list):
         raise FormatError(path, "'frames' must be a list of frame objects")
@@ -305,8 +307,8 @@ def _read_scalabel(text: str, path: Path, fps: float | None,
                 pos = _trailing_number(name)
                 if pos is None:
                     raise FormatError(path, f"{where}: frame '{name}' has no index, timestamp "
-                                     "or frame number in its name",
-                                     "add 'index' to each frame or pass the frame names")
+                                      "or frame number in its name",
+                                      "add 'index' to each frame or pass the frame names")
             video_frame = pos
             t_s = pos / _need_fps(path, fps, "frame names")
         else:
@@ -431,7 +433,7 @@ def _read_cvat(text: str, path: Path, fps: float | None,
                     path, ", ".join(sorted(unknown)))
     if not key_frames:
         raise FormatError(path, "no <track> boxes or <image> elements found",
-                         "export the task as 'CVAT for video 1.1'")
+                          "export the task as 'CVAT for video 1.1'")
     out = []
     for frame in sorted(key_frames):
         name = names.get(frame, f"{frame:06d}")
@@ -446,7 +448,8 @@ def _read_cvat(text: str, path: Path, fps: float | None,
         out.append(Keyframe(frame=pos, t_s=pos / rate, name=name,
                             boxes=list(boxes_by_frame.get(frame, []))))
     if not out:
-        raise InconsistentInputError(path, "none of the annotated frames is among the video's frames")
+        raise InconsistentInputError(
+            path, "none of the annotated frames is among the video's frames")
     return out
 
 

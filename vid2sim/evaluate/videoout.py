@@ -80,7 +80,7 @@ class VideoOut:
                                        self.fps, self.size)
             if not self._cv.isOpened():
                 raise OutputError(self.path, "OpenCV cannot write an MP4 video here",
-                                 "choose a writable .mp4 path")
+                                  "choose a writable .mp4 path")
         else:
             raise ValueError(f"codec must be one of {CODECS}, got {codec!r}")
 

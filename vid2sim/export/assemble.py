@@ -443,7 +443,7 @@ def assemble_scenario(ego: EgoTrack, roads: list[Road], tracks: list[RangedBox] 
     if len(ego.t_s) < 2:
 
         raise InconsistentInputError(None, "the ego trajectory has fewer than two samples",
-                         "check the GPS input and --gps-offset")
+                                     "check the GPS input and --gps-offset")
     warnings: list[str] = []
     assumptions = list(source.assumptions)
     assumptions.extend(a for a in camera.assumptions if a not in assumptions)

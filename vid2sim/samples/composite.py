@@ -241,7 +241,8 @@ def write_composite_clip(raw_dir: Path, cutout: CarCutout, truth: LeadTruth, out
         for i in range(n_frames):
             ok, frame = cap.read()
             if not ok:
-                raise InconsistentInputError(video, f"video ends at frame {i}, truth has {n_frames}")
+                raise InconsistentInputError(
+                    video, f"video ends at frame {i}, truth has {n_frames}")
             r, y = float(truth.range_m[i]), float(truth.lateral_m[i])
             writer.write(paste_car(frame, cutout, cams[i], r, y))
             boxes.append(truth_box(cutout, cams[i], r, y))

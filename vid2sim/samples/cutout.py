@@ -264,8 +264,9 @@ def cut_out_car(image_bgr: np.ndarray, label: KittiLabel, yaw_rad: float, proj: 
         y_ground = float(label.location_m[1])
         z_contact = (proj[1, 1] * y_ground + proj[1, 3]) / (contact_row_px - proj[1, 2])
         if not z_contact > depth:
-            raise InconsistentInputError(None, f"contact row {contact_row_px} px lies nearer than the "
-                             "rear face")
+            raise InconsistentInputError(
+                None, f"contact row {contact_row_px} px lies nearer than the "
+                "rear face")
         contact_m = float(z_contact - depth)
         fy2 = float(contact_row_px)
     bottom = max(fy2, by2) if contact_row_px is None else fy2
@@ -356,7 +357,8 @@ def load_cutout(tracking_dir: Path, car: str = "polo", require_rear_view: bool =
         raise MissingInputError(label_path, f"no object {track} in frame {frame}")
     label, yaw = found[0]
     if require_rear_view and not is_rear_view(label, yaw):
-        raise InconsistentInputError(img_path, f"object {track} is not a whole car seen from behind")
+        raise InconsistentInputError(
+            img_path, f"object {track} is not a whole car seen from behind")
     calib = tracking_dir / "calib" / f"{seq}.txt"
     proj = read_kitti_projection(calib)
     if abs(load_camera(calib).fx - proj[0, 0]) > 1e-6:  # the same calibration, read twice

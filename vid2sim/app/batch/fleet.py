@@ -204,7 +204,7 @@ def write_fleet_report(out_dir: str | Where, path: str | Where | None = None) ->
     records = read_index_records(out)
     if not records:
         raise MissingInputError(out, "no batch index here (index.parquet or index.csv)",
-                         "give the --out folder of a `vid2sim batch` run")
+                                "give the --out folder of a `vid2sim batch` run")
     target = storage.location(path) if path is not None else storage.join(out, FLEET_HTML)
     storage.write_bytes(target, render_fleet(records, str(out)).encode("utf-8"))
     return target

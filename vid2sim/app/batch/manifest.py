@@ -103,11 +103,11 @@ def read_manifest(path: str | Path) -> list[BatchRow]:
     header = [h.strip() for h in (reader.fieldnames or [])]
     if "video" not in header:
         raise FormatError(where, f"no 'video' column in the header ({','.join(header) or 'empty'})",
-                         "the first line must name the columns, e.g. video,name,gps")
+                          "the first line must name the columns, e.g. video,name,gps")
     unknown = [h for h in header if h not in MANIFEST_COLUMNS]
     if unknown:
         raise FormatError(where, f"unknown column(s) {', '.join(unknown)}",
-                         f"known: {', '.join(MANIFEST_COLUMNS)}")
+                          f"known: {', '.join(MANIFEST_COLUMNS)}")
     reader.fieldnames = header
     base = storage.parent(where)
     rows: list[BatchRow] = []

@@ -148,8 +148,9 @@ def _check_fits(ray, cpus_per_job: int) -> None:
     largest = max((float(n.get("Resources", {}).get("CPU", 0.0)) for n in ray.nodes()
                    if n.get("Alive")), default=0.0)
     if cpus_per_job > largest:
-        raise InconsistentInputError(None, f"--cpus-per-job {cpus_per_job} but the largest Ray node has "
-                         f"{largest:g} CPUs", "give at most that many CPUs per job")
+        raise InconsistentInputError(
+            None, f"--cpus-per-job {cpus_per_job} but the largest Ray node has "
+            f"{largest:g} CPUs", "give at most that many CPUs per job")
 
 
 def _window(ray, jobs: int | None, cpus_per_job: int) -> int:

@@ -303,7 +303,7 @@ class OnnxDetector:
                                                 providers=["CPUExecutionProvider"])
         except Exception as exc:  # onnxruntime raises its own Fail/InvalidGraph types
             raise FormatError(self.model_path, f"onnxruntime cannot load the model: {exc}",
-                             "is this an ONNX file of the chosen detector?") from exc
+                              "is this an ONNX file of the chosen detector?") from exc
         self.input_name = self.session.get_inputs()[0].name
         shape = self.session.get_inputs()[0].shape
         if isinstance(shape[2], int) and isinstance(shape[3], int):
@@ -576,7 +576,7 @@ def load_detector(name_or_path: str | Path = DEFAULT_DETECTOR, model_dir: Path |
                                              providers=["CPUExecutionProvider"]).get_outputs())
         except Exception as exc:  # onnxruntime raises its own Fail/InvalidGraph types
             raise FormatError(path, f"onnxruntime cannot load the model: {exc}",
-                             "is this an ONNX file of a YOLOX or PicoDet export?") from exc
+                              "is this an ONNX file of a YOLOX or PicoDet export?") from exc
         # YOLOX exports one decoded-head tensor; PicoDet 4 score + 4 distance tensors
         kind = "yolox" if n_out == 1 else "picodet"
     if kind not in DETECTOR_CLASSES:

@@ -93,12 +93,14 @@ def _checked(path: Path, where: str, frame: int, box: tuple[float, float, float,
     if not 0 <= frame <= MAX_FRAME_INDEX:
         raise ImpossibleValueError(path, f"{where}: frame {frame} is not a video frame number")
     if not all(math.isfinite(v) for v in (*box, score)):
-        raise ImpossibleValueError(path, f"{where}: box {box} or score {score} is not a finite number",
-                         "every box needs finite pixel coordinates")
+        raise ImpossibleValueError(
+            path, f"{where}: box {box} or score {score} is not a finite number",
+            "every box needs finite pixel coordinates")
     x1, y1, x2, y2 = box
     if x2 <= x1 or y2 <= y1:
-        raise ImpossibleValueError(path, f"{where}: box {box} has no area (width {x2 - x1:g}, height "
-                         f"{y2 - y1:g} px)", "remove the row, or fix its size")
+        raise ImpossibleValueError(
+            path, f"{where}: box {box} has no area (width {x2 - x1:g}, height "
+            f"{y2 - y1:g} px)", "remove the row, or fix its size")
     if max(abs(v) for v in box) > MAX_BOX_COORD_PX:
         raise ImpossibleValueError(path, f"{where}: box {box} lies beyond any frame")
     if not 0.0 <= score <= 1.0:
@@ -114,7 +116,7 @@ def _read_vid2sim_text(text: str, path: Path) -> dict[int, list[Detection]]:
             score = float(row["score"])
         except (KeyError, TypeError, ValueError, OverflowError) as exc:
             raise FormatError(path, f"line {n}: {exc}", "columns: frame,t_s,track_id,"
-                             "category,score,x1,y1,x2,y2") from None
+                              "category,score,x1,y1,x2,y2") from None
         category = _category(row.get("category") or "")
         if category is None:
             continue
@@ -148,8 +150,8 @@ def _read_mot_text(text: str, path: Path) -> dict[int, list[Detection]]:
             continue  # a header line
         if len(row) < 6:
             raise FormatError(path, f"line {n}: expected at least 6 columns "
-                             f"(frame,id,x,y,w,h[,score,...]), got {len(row)}",
-                             "is this a MOT-challenge file?")
+                              f"(frame,id,x,y,w,h[,score,...]), got {len(row)}",
+                              "is this a MOT-challenge file?")
         klass = row[7] if len(row) > 7 else ""
         try:
             frame = int(float(row[0]))
@@ -161,7 +163,7 @@ def _read_mot_text(text: str, path: Path) -> dict[int, list[Detection]]:
             raise FormatError(path, f"line {n}: {exc}", "MOT columns must be numbers") from None
         if frame < 1:
             raise ImpossibleValueError(path, f"line {n}: frame {frame} < 1",
-                             "MOT-challenge frames count from 1")
+                                       "MOT-challenge frames count from 1")
         category: VehicleCategory | None = _C.CAR
         if klass and not _is_number(klass):
             category = _category(klass)
@@ -194,7 +196,7 @@ def _read_scalabel_text(text: str, path: Path) -> dict[int, list[Detection]]:
     frames = data.get("frames") if isinstance(data, dict) else data
     if not isinstance(frames, list):
         raise FormatError(path, "expected a list of frames or an object with 'frames'",
-                         "is this a Scalabel/BDD100K label file?")
+                          "is this a Scalabel/BDD100K label file?")
     has_index = all(isinstance(f, dict) and ("frameIndex" in f or "index" in f) for f in frames)
     if not has_index:
         frames = sorted(frames, key=lambda f: str(f.get("name", "")) if isinstance(f, dict)
@@ -208,7 +210,7 @@ def _read_scalabel_text(text: str, path: Path) -> dict[int, list[Detection]]:
                      else order)
         except (TypeError, ValueError, OverflowError):
             raise FormatError(path, f"frame {order}: frameIndex/index is not a whole number"
-                             ) from None
+                              ) from None
         labels = item.get("labels") or []
         if not isinstance(labels, list):
             raise FormatError(path, f"frame {index}: labels must be a list")
@@ -223,7 +225,7 @@ def _read_scalabel_text(text: str, path: Path) -> dict[int, list[Detection]]:
                 score = _real(label.get("score", 1.0))
             except (KeyError, TypeError, ValueError, OverflowError):
                 raise FormatError(path, f"frame {index}: box2d needs numbers x1, y1, x2, y2 "
-                                 "(and a numeric score)") from None
+                                  "(and a numeric score)") from None
             _checked(path, f"frame {index}", index, (x1, y1, x2, y2), score)
             dets.append(Detection(box_px=(x1, y1, x2, y2), score=score, category=category))
     return out

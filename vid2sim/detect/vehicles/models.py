@@ -89,7 +89,7 @@ def get_spec(name: str) -> ModelSpec:
         return MODELS[name]
     except KeyError:
         raise FormatError(None, f"unknown detector '{name}'",
-                         f"known: {', '.join(MODELS)}; or give a path to an .onnx file") from None
+                          f"known: {', '.join(MODELS)}; or give a path to an .onnx file") from None
 
 
 def search_dirs(model_dir: Path | None = None) -> list[Path]:

@@ -135,8 +135,9 @@ def _num(value: object, path: Path, what: str, positive: bool = False) -> float:
     except (TypeError, ValueError):
         raise FormatError(path, f"{what} is not a number: {value!r}") from None
     if not math.isfinite(v) or (positive and v <= 0):
-        raise ImpossibleValueError(path, f"{what} must be {'positive and ' if positive else ''}finite, "
-                         f"got {v}")
+        raise ImpossibleValueError(
+            path, f"{what} must be {'positive and ' if positive else ''}finite, "
+            f"got {v}")
     return v
 
 
@@ -173,7 +174,7 @@ def read_cuboids(path: Path, names: dict[int, str]) -> tuple[DgpCuboid, ...]:
                 truncation=_num(box.get("truncation", 0.0), path, "truncation")))
     except (KeyError, TypeError) as exc:
         raise FormatError(path, f"a 3D box lacks {exc}", "is this a DGP bounding_box_3d file?"
-                         ) from None
+                          ) from None
     except ValueError as exc:
         raise ImpossibleValueError(path, str(exc)) from None
     return tuple(out)
@@ -193,7 +194,7 @@ def read_boxes_2d(path: Path, names: dict[int, str]) -> tuple[DgpBox2d, ...]:
                                 (x, y, x + w, y + h)))
     except (KeyError, TypeError) as exc:
         raise FormatError(path, f"a 2D box lacks {exc}", "is this a DGP bounding_box_2d file?"
-                         ) from None
+                          ) from None
     return tuple(out)
 
 
@@ -217,7 +218,7 @@ def read_dgp_scene(scene_dir: Path, camera: str = "CAMERA_01") -> list[DgpFrame]
     scenes = sorted(scene_dir.glob("scene_*.json"))
     if len(scenes) != 1:
         raise MissingInputError(scene_dir, f"{len(scenes)} scene_*.json files (one expected)",
-                         "point at one DGP scene folder")
+                                "point at one DGP scene folder")
     doc = _load_json(scenes[0])
     try:
         ontologies = doc["ontologies"]  # type: ignore[index]
@@ -240,7 +241,7 @@ def read_dgp_scene(scene_dir: Path, camera: str = "CAMERA_01") -> list[DgpFrame]
                                            for k in ("qw", "qx", "qy", "qz")))
         except (KeyError, ValueError, TypeError, IndexError):
             raise FormatError(calib_path, f"no calibration of {camera}",
-                             "needs names, intrinsics and extrinsics per sensor") from None
+                              "needs names, intrinsics and extrinsics per sensor") from None
         for key in sample["datum_keys"]:
             datum = datums.get(key)
             if datum is None or datum["id"]["name"] != camera or "image" not in datum["datum"]:
@@ -330,11 +331,13 @@ def ground_camera(frame: DgpFrame, max_range_m: float = GROUND_MAX_RANGE_M,
     bottoms = np.array([c.bottom_center_m() for c in frame.cuboids
                         if c.class_name in classes and 0 < c.center_m[2] < max_range_m])
     if len(bottoms) < 3:
-        raise InconsistentInputError(frame.image, f"{len(bottoms)} cars within {max_range_m:g} m: too few "
-                         "to know the ground")
+        raise InconsistentInputError(
+            frame.image, f"{len(bottoms)} cars within {max_range_m:g} m: too few "
+            "to know the ground")
     normal, height, rms = fit_ground_plane(bottoms)
     if rms > GROUND_MAX_RMS_M:
-        raise InconsistentInputError(frame.image, f"the cars' bottoms scatter {rms:.2f} m about a plane")
+        raise InconsistentInputError(
+            frame.image, f"the cars' bottoms scatter {rms:.2f} m about a plane")
     return camera_on_plane(frame, normal, height), rms, len(bottoms)
 
 

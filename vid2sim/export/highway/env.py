@@ -71,7 +71,7 @@ def _as_scenario(scenario: Scenario | str | Path | None) -> Scenario:
         return scenario
     if scenario is None:
         raise MissingInputError(None, f"{ENV_ID} needs a scenario",
-                         f'gymnasium.make("{ENV_ID}", scenario="scenario.json")')
+                                f'gymnasium.make("{ENV_ID}", scenario="scenario.json")')
     return scenario_io.load(scenario)
 
 
