@@ -39,7 +39,8 @@ class InputError(Exception):
 
 class MissingInputError(InputError):
     """A file or folder that is not there, not readable, or of the wrong kind (a folder where a
-    file was expected): the user names another path."""
+    file was expected), or an input the run needs that was not given (no video, no ``--fps``
+    for frame numbers): the user names another path or adds the input."""
 
 
 class FormatError(InputError):
