@@ -59,6 +59,27 @@ def _private_cache_dir(tmp_path_factory):
         os.environ["VID2SIM_CACHE_DIR"] = saved
 
 
+@pytest.fixture
+def raised(monkeypatch) -> list[type]:
+    """The classes of the input errors the CLI turned into its one ``error:`` line, in order:
+    CLI tests check the class of the mistake, the line's format and the exit code."""
+    from vid2sim.base.errors import InputError
+    from vid2sim.cli.group import cli
+
+    seen: list[type] = []
+    run = cli.main
+
+    def spy(*args, **kwargs):
+        try:
+            return run(*args, **kwargs)
+        except InputError as exc:
+            seen.append(type(exc))
+            raise
+
+    monkeypatch.setattr(cli, "main", spy)
+    return seen
+
+
 @pytest.fixture(scope="session")
 def demo_scenario_path(tmp_path_factory):
     """``vid2sim demo --use-detections``: the build's scenario.json (about 10 s to make)."""

@@ -9,6 +9,7 @@ import sys
 import pytest
 
 from vid2sim import __version__
+from vid2sim.base.errors import FormatError, OutputError
 from vid2sim.cli import main
 from vid2sim.samples.sample_gps import write_sample_gpx
 
@@ -88,17 +89,19 @@ def test_failed_run_keeps_previous_output(tmp_path, capsys):
     assert out.read_text() == "previous\n"
 
 
-def test_output_folder_is_an_input_error(sample_gpx, tmp_path, capsys):
+def test_output_folder_is_an_input_error(sample_gpx, tmp_path, capsys, raised):
     assert main(["trace", str(sample_gpx), "--out", str(tmp_path)]) == 2
-    assert "is a folder" in capsys.readouterr().err
+    assert capsys.readouterr().err.startswith(f"error: {tmp_path}: ")
+    assert raised == [OutputError]  # a folder where the output file goes
 
 
-def test_verbose_error_shows_traceback(tmp_path, capsys):
+def test_verbose_error_shows_traceback(tmp_path, capsys, raised):
     empty = tmp_path / "empty.nmea"
     empty.write_text("")
     assert main(["-v", "trace", str(empty), "--out", str(tmp_path / "e.csv")]) == 2
     err = capsys.readouterr().err
-    assert err.startswith("error: ") and "empty file" in err and "Traceback" in err
+    assert err.startswith(f"error: {empty}: ") and "Traceback" in err
+    assert raised == [FormatError]  # an empty file
 
 
 @pytest.mark.parametrize("args", [

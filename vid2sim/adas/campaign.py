@@ -37,7 +37,7 @@ from vid2sim.adas.variations import (
     parse_vary,
     variations,
 )
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import ImpossibleValueError, MissingInputError
 from vid2sim.base.fileio import write_text_atomic
 from vid2sim.core import scenario as scenario_io
 from vid2sim.core.scenario import Scenario
@@ -106,13 +106,13 @@ def find_scenarios(inputs: tuple[Path, ...], out_dir: Path | None = None) -> lis
             hits = sorted(p for p in path.rglob("scenario.json")
                           if out_dir is None or out_dir not in p.resolve().parents)
             if not hits:
-                raise InputError(path, "holds no scenario.json", "give scenario files or "
-                                 "folders with build outputs")
+                raise MissingInputError(path, "holds no scenario.json", "give scenario files or "
+                                        "folders with build outputs")
             for p in hits:
                 rel = p.parent.relative_to(path)
                 found.append((str(path / rel) if str(rel) != "." else str(path), p))
         else:
-            raise InputError(path, "no such file or folder")
+            raise MissingInputError(path, "no such file or folder")
     names = [n for n, _ in found]
     if len(set(names)) != len(names):
         seen: dict[str, int] = {}
@@ -173,10 +173,10 @@ def run_campaign(opts: CampaignOptions, *, progress: bool = False) -> str:
     """Run the campaign of ``opts`` and write its outputs; returns a summary for the CLI."""
     spec = parse_policy(opts.policy)
     if opts.sensor_noise < 0 or not math.isfinite(opts.sensor_noise):
-        raise InputError(None, f"--sensor-noise must be a finite level >= 0, got "
-                         f"{opts.sensor_noise}")
+        raise ImpossibleValueError(None, f"--sensor-noise must be a finite level >= 0, got "
+                                   f"{opts.sensor_noise}")
     if opts.samples is not None and opts.samples < 1:
-        raise InputError(None, f"--samples must be >= 1, got {opts.samples}")
+        raise ImpossibleValueError(None, f"--samples must be >= 1, got {opts.samples}")
     axes = parse_vary(opts.vary, random=opts.samples is not None) if opts.vary else ()
     choice = parse_render(opts.render) if opts.render else None
     out_dir = Path(opts.out_dir)

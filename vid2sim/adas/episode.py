@@ -18,7 +18,7 @@ from vid2sim.adas.score import (
     episode_score,
 )
 from vid2sim.adas.sensor import CameraSensor, SensorConfig
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import ImpossibleValueError, InputError
 from vid2sim.core.scenario import Scenario
 from vid2sim.export.highway import Handover, ReplayEnv
 from vid2sim.export.highway.info import StepInfo
@@ -115,9 +115,10 @@ def run_episode(scenario: Scenario, spec: PolicySpec, *, reactive: bool = False,
             raise InputError(None, f"policy {spec.name!r} raised {type(exc).__name__}: {exc} "
                              f"at t={infos[-1].t_s:.1f} s") from exc
         if action.shape != shape or not np.all(np.isfinite(action)):
-            raise InputError(None, f"policy {spec.name!r} returned {action.tolist()} at "
-                             f"t={infos[-1].t_s:.1f} s", f"expected {shape[0]} finite value(s) "
-                             "in [-1, 1]")
+            raise ImpossibleValueError(
+                None, f"policy {spec.name!r} returned {action.tolist()} at "
+                f"t={infos[-1].t_s:.1f} s", f"expected {shape[0]} finite value(s) "
+                "in [-1, 1]")
         obs, _, terminated, truncated, info = env.step(action)
         infos.append(StepInfo.of(info))
         if observer is not None:

@@ -42,7 +42,7 @@ from vid2sim.app.rendering import REPLAY_NAME, render_into_build
 from vid2sim.app.settings import Settings
 from vid2sim.app.settings_file import changed_settings, settings_tree
 from vid2sim.app.tracking import detect_and_range_with, lead_summary
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import InconsistentInputError
 from vid2sim.base.fileio import staged_folder, write_text_atomic
 from vid2sim.core import scenario as scenario_io
 from vid2sim.core.camera import Camera
@@ -137,9 +137,10 @@ def clip_ego_to_video(ego: EgoTrack, duration_s: float) -> tuple[EgoTrack, list[
     warnings: list[str] = []
     keep = (ego.t_s >= -1e-9) & (ego.t_s <= duration_s + 1e-9)
     if keep.sum() < 2:
-        raise InputError(None, f"the GPS trace does not overlap the video (GPS covers "
-                         f"{ego.t_s[0]:.1f}..{ego.t_s[-1]:.1f} s of video time, the video "
-                         f"0..{duration_s:.1f} s)", "check the clocks or pass --gps-offset")
+        raise InconsistentInputError(
+            None, f"the GPS trace does not overlap the video (GPS covers "
+            f"{ego.t_s[0]:.1f}..{ego.t_s[-1]:.1f} s of video time, the video "
+            f"0..{duration_s:.1f} s)", "check the clocks or pass --gps-offset")
     if ego.t_s[0] > 0.5:
         warnings.append(f"GPS starts {ego.t_s[0]:.1f} s after the first video frame")
     if ego.t_s[-1] < duration_s - 0.5:

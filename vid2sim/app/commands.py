@@ -19,7 +19,7 @@ import numpy as np
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.loaders import load_keyframes_for, load_trace, smooth_trace
 from vid2sim.app.settings import Settings
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import FormatError
 from vid2sim.base.fileio import (
     check_output_file,
     check_output_folder,
@@ -113,7 +113,8 @@ def run_export(scenario_path: Path, fmt: str, out_dir: Path, *, ego_as_obstacle:
     was.
     """
     if fmt not in EXPORT_OUTPUTS:
-        raise InputError(None, f"unknown export format {fmt!r}", f"use one of {', '.join(FORMATS)}")
+        raise FormatError(
+            None, f"unknown export format {fmt!r}", f"use one of {', '.join(FORMATS)}")
     scenario_path = Path(scenario_path)
     if fmt == "commonroad":
         require_commonroad()

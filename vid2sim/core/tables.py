@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import FormatError, MissingInputError
 from vid2sim.base.fileio import atomic_open
 from vid2sim.core.lead import MAX_RELATIVE_LANE
 from vid2sim.core.records import EgoTrack, RangedBox, TrackedBox, VehicleCategory
@@ -110,22 +110,24 @@ def iter_tracks_csv(path: str | Path) -> Iterator[RangedBox]:
     :func:`read_tracks_csv`'s, raised at the row where they occur."""
     path = Path(path)
     if not path.is_file():
-        raise InputError(path, "no such file")
+        raise MissingInputError(path, "no such file")
     try:
         with open(path, encoding="utf-8", newline="") as fh:
             reader = csv.DictReader(fh)
             missing = [c for c in TRACKS_CSV_REQUIRED if c not in (reader.fieldnames or [])]
             if missing:
-                raise InputError(path, f"not a tracks.csv: lacks column(s) {', '.join(missing)}",
-                                 "write it with `vid2sim track`")
+                raise FormatError(path, f"not a tracks.csv: lacks column(s) {', '.join(missing)}",
+                                  "write it with `vid2sim track`")
             for line, row in enumerate(reader, start=2):
                 try:
                     box = _row_to_box(row)
                 except (TypeError, ValueError, KeyError) as exc:
-                    raise InputError(path, f"line {line}: {exc}") from None
+                    raise FormatError(path, f"line {line}: {exc}") from None
                 yield box
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(path, f"cannot read: {exc}") from None
+    except OSError as exc:
+        raise MissingInputError(path, f"cannot read: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise FormatError(path, f"cannot read: {exc}") from None
 
 
 def _row_to_box(row: dict[str, str]) -> RangedBox:

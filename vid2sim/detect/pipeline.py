@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import ImpossibleValueError, InconsistentInputError
 from vid2sim.core.camera import Camera
 from vid2sim.core.records import Detection, Frame, LaneTrack, Note, RangingResult, TrackedBox
 from vid2sim.core.videofile import skipped_frames_note
@@ -101,7 +101,7 @@ def run_detect(source: Path, *, detector: Detector | None,
     if detector is None and detections is None:
         raise ValueError("run_detect needs a detector or imported detections")
     if detect_every < 1:
-        raise InputError(None, f"--detect-every must be >= 1, got {detect_every}")
+        raise ImpossibleValueError(None, f"--detect-every must be >= 1, got {detect_every}")
     info = video_info(source, fps=fps)
     tracker = Tracker(tracker_config, image_size_px=(info.width, info.height))
     # An image folder of every N-th frame (names 000010, 000015, ...) is timed one frame per
@@ -160,7 +160,7 @@ def run_detect(source: Path, *, detector: Detector | None,
     box_frames = [f for f, dets in (detections or {}).items() if dets]
     if box_frames and min(box_frames) >= n_seen:
         # Boxes made for another (longer) video: an empty result would look like an empty road.
-        raise InputError(source, f"none of the imported boxes falls on the video's {n_seen} "
+        raise InconsistentInputError(source, f"none of the imported boxes falls on the video's {n_seen} "
                          f"frames (boxes on 0-based frames {min(box_frames)}.."
                          f"{max(box_frames)})", "is the detections file for this video?")
     return tracker.finalize(rows)

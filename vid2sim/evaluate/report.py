@@ -22,7 +22,7 @@ from matplotlib.figure import Figure
 
 from vid2sim import __version__
 from vid2sim.base.defaults import LANE_WIDTH_M
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import FormatError, MissingInputError
 from vid2sim.base.fileio import write_text_atomic
 from vid2sim.base.htmlpage import BASE_CSS, figure_png
 from vid2sim.core.scenario import Scenario
@@ -156,14 +156,14 @@ def _image_bytes(img: ImageLike) -> tuple[bytes, str]:
         try:
             data = p.read_bytes()
         except OSError as exc:
-            raise InputError(p, f"cannot read figure: {exc}") from None
+            raise MissingInputError(p, f"cannot read figure: {exc}") from None
     if data[:8] == b"\x89PNG\r\n\x1a\n":
         return data, "image/png"
     if data[:3] == b"\xff\xd8\xff":
         return data, "image/jpeg"
     if data.lstrip()[:5] in (b"<?xml", b"<svg ") or b"<svg" in data[:200]:
         return data, "image/svg+xml"
-    raise InputError(None, "figure is not a PNG, JPEG or SVG image")
+    raise FormatError(None, "figure is not a PNG, JPEG or SVG image")
 
 
 KEYFRAME_MAX_WIDTH_PX = 960
@@ -384,7 +384,7 @@ def with_replay(report_html: str, section: str) -> str:
         return report_html[:start] + section + report_html[end + len(REPLAY_END):]
     at = report_html.find("<main>")
     if at < 0:
-        raise InputError(None, "not a vid2sim report (no <main> element)")
+        raise FormatError(None, "not a vid2sim report (no <main> element)")
     at += len("<main>")
     return report_html[:at] + section + report_html[at:]
 

@@ -17,7 +17,7 @@ from typing import Self
 import cv2
 import numpy as np
 
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import OutputError
 from vid2sim.evaluate.replayconfig import EncoderConfig
 
 log = logging.getLogger(__name__)
@@ -79,8 +79,8 @@ class VideoOut:
             self._cv = cv2.VideoWriter(str(self.path), cv2.VideoWriter_fourcc(*"mp4v"),
                                        self.fps, self.size)
             if not self._cv.isOpened():
-                raise InputError(self.path, "OpenCV cannot write an MP4 video here",
-                                 "choose a writable .mp4 path")
+                raise OutputError(self.path, "OpenCV cannot write an MP4 video here",
+                                  "choose a writable .mp4 path")
         else:
             raise ValueError(f"codec must be one of {CODECS}, got {codec!r}")
 
