@@ -58,13 +58,16 @@ def simulate_drive(net: RoadNetwork, rng: np.random.Generator, *, min_length_m: 
                    rate_hz: float = 1.0, random_phase: bool = True,
                    ends_at_junctions: bool = True, bias_m: float = 0.0,
                    bias_tau_s: float = 60.0,
-                   route_nodes: tuple[int, int] | None = None) -> SimulatedDrive:
+                   route_nodes: tuple[int, int] | None = None,
+                   end_span_m: float | None = None) -> SimulatedDrive:
     """Drive a shortest path of ``net`` and record noisy fixes.
 
     Route: the shortest path between two random junctions (or the OSM nodes
     ``route_nodes``); with ``ends_at_junctions=False``
     the car starts at a uniformly random point of the path's first way piece and stops at one
-    of its last (as real drives do: nobody starts the recorder on a junction).
+    of its last (as real drives do: nobody starts the recorder on a junction); with
+    ``end_span_m`` it starts anywhere in the path's first ``end_span_m`` metres and stops
+    anywhere in its last (across pieces: a drive that begins 80 m along a long street).
     Speed: a cruise speed drawn from 7-13 m/s (25-47 km/h, urban), 4 m/s through turns
     sharper than 45 degrees, accelerating and braking at most 1.5 m/s^2; with ``stop_s`` > 0
     the car stops halfway and stands still that long. The first fix falls at a random point
@@ -91,8 +94,11 @@ def simulate_drive(net: RoadNetwork, rng: np.random.Generator, *, min_length_m: 
         total = float(net.edge_length_m[edges].sum())
         s_start, s_end = 0.0, total
         if not ends_at_junctions:
-            s_start = float(rng.uniform(0.0, net.edge_length_m[edges[0]]))
-            s_end = total - float(rng.uniform(0.0, net.edge_length_m[edges[-1]]))
+            first, last = net.edge_length_m[edges[0]], net.edge_length_m[edges[-1]]
+            if end_span_m is not None:
+                first = last = min(end_span_m, total / 3.0)
+            s_start = float(rng.uniform(0.0, first))
+            s_end = total - float(rng.uniform(0.0, last))
         if min_length_m <= s_end - s_start <= max_length_m:
             break
         if route_nodes is not None:
