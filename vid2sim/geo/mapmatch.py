@@ -40,6 +40,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import shapely
 
+from vid2sim.base.defaults import EGO_LENGTH_M
 from vid2sim.geo.alongroute import join_xy, rts_along, signed_offsets, trim_route
 from vid2sim.geo.candidates import EdgeIndex, lines_array, wrap_angle
 from vid2sim.geo.hmm import ChainParams, Lattice, viterbi
@@ -83,6 +84,11 @@ class MatchConfig:
         per radian (prefers the straighter of two nearly equal routes) [m/rad]
     :param min_cover_m: a first/last edge the fixes cover less than this is dropped from the
         route (GPS noise at the start would otherwise add the way behind the start) [m]
+    :param route_margin_m: the road built on the route (road.json, the scenario's road,
+        OpenDRIVE) runs from this far before the projection of the first matched fix to this
+        far beyond that of the last: one car length (``EGO_LENGTH_M``), so the ego's rear at
+        its first fix and its front at its last lie on the road, and nothing of the way
+        before the start or after the end, which the car was never seen on [m]
     """
 
     sigma_m: float | None = None
@@ -106,6 +112,7 @@ class MatchConfig:
     stationary_mps: float = 1.5
     min_cover_m: float = 3.5
     turn_m_per_rad: float = 10.0
+    route_margin_m: float = EGO_LENGTH_M
 
 
 @dataclass(slots=True)
