@@ -25,8 +25,8 @@ from pathlib import Path
 import numpy as np
 
 from vid2sim import __version__
-from vid2sim.app.commands import match_road
 from vid2sim.app.figures import stage_figures
+from vid2sim.app.gpsroad import match_road
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.loaders import (
     load_boxes,

@@ -27,8 +27,9 @@ ACM SIGSPATIAL 2009), with additions for dash-cam traces:
   junction does not flip a fix onto the neighbouring way and stationary periods never run
   backwards.
 
-Route lengths between candidate edges come from scipy's Dijkstra on the line graph with a
-cutoff (:mod:`vid2sim.geo.routing`), computed once per trace.
+Route lengths between candidate edges come from one Dijkstra search per candidate edge on the
+line graph, grown only as far as the car can drive in the time between the fixes and reused
+by every later transition from that edge (:mod:`vid2sim.geo.routing`).
 """
 
 from __future__ import annotations
@@ -340,11 +341,7 @@ def _match_once(net: RoadNetwork, index: EdgeIndex, xy: np.ndarray, t_s: np.ndar
                                cfg.heading_cap_logp)
         emis.append(e)
 
-    hop = np.hypot(*np.diff(sxy, axis=0).T) if len(sxy) > 1 else np.zeros(0)
-    window_gc = max(float(hop.max()) if hop.size else 0.0, 1.0) * (cfg.max_skip + 1)
-    dist = EdgeDistances(net, cutoff_m=min(2 * window_gc + 2 * radius + 50.0, 5000.0),
-                         uturn_m=-cfg.uturn_logp * beta, turn_m_per_rad=cfg.turn_m_per_rad)
-    dist.prefetch(np.concatenate([c.edges for c in cands]) if n else np.zeros(0, np.int64))
+    dist = EdgeDistances(net, uturn_m=-cfg.uturn_logp * beta, turn_m_per_rad=cfg.turn_m_per_rad)
     prm = ChainParams(beta_m=beta, uturn_cost=-cfg.uturn_logp, max_skip=cfg.max_skip,
                       skip_logp=cfg.skip_logp, break_logp=cfg.break_logp,
                       max_speed_mps=cfg.max_speed_mps, slack_m=2 * radius)
@@ -469,7 +466,9 @@ def _assign_edges(net: RoadNetwork, xy: np.ndarray, res: MatchResult) -> None:
         edges = np.asarray(piece)[pos]
         res.fix_edge[sel] = edges
         res.fix_way_id[sel] = net.edge_way_id[edges]
-        lines = lines_array([net.edge_xy[e] for e in edges])
+        # one geometry per edge of the piece, shared by its fixes
+        uniq, inv = np.unique(edges, return_inverse=True)
+        lines = lines_array([net.edge_xy[e] for e in uniq.tolist()])[inv]
         pts = shapely.points(xy[sel, 0], xy[sel, 1])
         s = shapely.line_locate_point(lines, pts)
         foot = shapely.get_coordinates(shapely.line_interpolate_point(lines, s))

@@ -30,15 +30,17 @@ from collections import defaultdict
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import networkx as nx
 import numpy as np
 
 from vid2sim.base.errors import InputError
 from vid2sim.core.enu import EnuFrame
 from vid2sim.core.records import Origin
 from vid2sim.geo.mapcache import DrivableMap, cached_map, default_cache_dir
+
+if TYPE_CHECKING:  # networkx is imported where a node graph is wanted (tests, samples)
+    import networkx as nx
 
 log = logging.getLogger(__name__)
 
@@ -102,6 +104,8 @@ class RoadNetwork:
         """Node graph for shortest paths, weight ``length`` [m]; of parallel edges between two
         nodes the shortest is kept (its index in attribute ``edge``)."""
         if self._graph is None:
+            import networkx as nx  # 0.1 s to import: the matcher does not need it
+
             g = nx.DiGraph()
             for i in np.argsort(-self.edge_length_m, kind="stable"):
                 # longest first, so the shortest of parallel edges overwrites the others
@@ -360,8 +364,9 @@ def project_network(dmap: DrivableMap, origin: Origin, *, source: str = "",
     if not keep.size:
         raise InputError(source or None, "no drivable roads near the trace",
                          "highway=* ways open to cars are needed")
-    used = np.unique(np.concatenate([dmap.piece_node[dmap.piece_ptr[k]:dmap.piece_ptr[k + 1]]
-                                     for k in keep]))
+    kept = np.zeros(dmap.n_pieces, bool)
+    kept[keep] = True
+    used = np.unique(dmap.piece_node[np.repeat(kept, np.diff(dmap.piece_ptr))])
     lonlat = dmap.node_lonlat[used]
     enu = EnuFrame(origin).to_enu(lonlat[:, 1], lonlat[:, 0])[:, :2]
     xy_of = np.zeros((dmap.node_id.size, 2))

@@ -193,6 +193,10 @@ def trajectory_road(ego: EgoTrack) -> Road:
 
 #: length of the straight extensions of a road's ends that ego offsets are measured on [m]
 _END_TANGENT_M = 50.0
+#: an ego sample is projected onto the road within this of where its fixes put it [m] (the
+#: smoothed ego and the matched positions agree within a few metres; the window only keeps a
+#: road that passes a place twice from taking the other pass)
+_EGO_WINDOW_M = 20.0
 
 
 def _with_end_tangents(line: np.ndarray) -> np.ndarray:
@@ -314,7 +318,8 @@ def _osm_result(net: RoadNetwork, res: MatchResult, ego: EgoTrack, fixes: _Fixes
                 + _END_TANGENT_M if on_main.sum() >= 2 else None)
     # the road ends a car length beyond the first and last fix: ego samples past an end
     # (GPS noise) take their offset from the end's tangent, not from the end point
-    _, ego_off = signed_offsets(_with_end_tangents(roads[main].centerline), ego_xy, expected)
+    _, ego_off = signed_offsets(_with_end_tangents(roads[main].centerline), ego_xy, expected,
+                                _EGO_WINDOW_M)
     ego_lane = lane_index(ego_off, roads[main].lanes, forwards[main], roads[main].lane_width_m)
     matches = [
         {"t": float(t), "osm_way_id": int(w) if w >= 0 else None,
