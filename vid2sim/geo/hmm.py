@@ -43,6 +43,8 @@ class ChainParams:
     :param max_speed_mps: fastest plausible driving [m/s]
     :param slack_m: route length allowed on top of ``max_speed_mps * dt`` (two search radii:
         both ends of a transition may lie that far from their fixes) [m]
+    :param prune_m: where the distance driven is known (from the speed), a route longer than
+        it by more than this is impossible [m] (inf: only ``max_speed_mps`` bounds routes)
     """
 
     beta_m: float
@@ -52,6 +54,7 @@ class ChainParams:
     break_logp: float
     max_speed_mps: float
     slack_m: float
+    prune_m: float = float("inf")
 
 
 @dataclass(slots=True)
@@ -72,6 +75,7 @@ class Sources:
     :param score: its Viterbi score with the cost of the steps skipped to get here
     :param step, index: the step and the state's index in it (back pointers)
     :param d_gc_m: distance driven from the state's step to this one [m]
+    :param max_route_m: longest route the transition allows [m]
     :param dt_s: time from the state's step to this one [s]
     :param still: the car stands still at both steps
     """
@@ -82,6 +86,7 @@ class Sources:
     step: np.ndarray
     index: np.ndarray
     d_gc_m: np.ndarray
+    max_route_m: np.ndarray
     dt_s: np.ndarray
     still: np.ndarray
 
@@ -110,7 +115,7 @@ def transition_logp(dist: EdgeDistances, length_m: np.ndarray, twin: np.ndarray,
     (len(src.edges), len(edges_t)); -inf where impossible. All rows at once: the sources
     of several earlier steps, each with its own distance driven and time."""
     edges_p, s_p = src.edges, src.s_m
-    max_route = (prm.max_speed_mps * np.maximum(src.dt_s, 1e-3) + prm.slack_m)[:, None]
+    max_route = src.max_route_m[:, None]
     remaining = length_m[edges_p] - s_p
     gaps = route_gaps(dist, edges_p, remaining, edges_t, max_route[:, 0])
     is_twin = twin[edges_p][:, None] == edges_t[None, :]
@@ -141,11 +146,14 @@ def _sources(lat: Lattice, score: list[np.ndarray], t: int, xy_m: np.ndarray, t_
         valid = np.flatnonzero(np.isfinite(score[tp]))
         if not valid.size:
             continue
+        dt = float(t_s[t] - t_s[tp])
+        max_route = prm.max_speed_mps * max(dt, 1e-3) + prm.slack_m
         d_gc = float(np.hypot(*(xy_m[t] - xy_m[tp])))
         if travel_m is not None and np.isfinite(travel_m[t]):  # cumulative: so is tp's
             d_gc = float(travel_m[t] - travel_m[tp])
-        parts.append((tp, valid, score[tp][valid] + prm.skip_logp * (k - 1), d_gc,
-                      float(t_s[t] - t_s[tp]), bool(still[t] and still[tp])))
+            max_route = min(max_route, d_gc + prm.prune_m)
+        parts.append((tp, valid, score[tp][valid] + prm.skip_logp * (k - 1), d_gc, dt,
+                      bool(still[t] and still[tp]), max_route))
     if not parts:
         return None
     sizes = [p[1].size for p in parts]
@@ -158,7 +166,8 @@ def _sources(lat: Lattice, score: list[np.ndarray], t: int, xy_m: np.ndarray, t_
         s_m=np.concatenate([lat.s_m[p[0]][p[1]] for p in parts]),
         score=np.concatenate([p[2] for p in parts]), step=each(lambda p: p[0]),
         index=np.concatenate([p[1] for p in parts]), d_gc_m=each(lambda p: p[3]),
-        dt_s=each(lambda p: p[4]), still=each(lambda p: p[5]).astype(bool))
+        max_route_m=each(lambda p: p[6]), dt_s=each(lambda p: p[4]),
+        still=each(lambda p: p[5]).astype(bool))
 
 
 def viterbi(lat: Lattice, xy_m: np.ndarray, t_s: np.ndarray, still: np.ndarray,

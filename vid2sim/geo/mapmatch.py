@@ -78,6 +78,11 @@ class MatchConfig:
     :param break_logp: cost of restarting the chain (no connection found)
     :param uturn_logp: cost of turning onto the twin edge
     :param max_speed_mps: transitions faster than this are impossible [m/s]
+    :param prune_beta: where the trace tells the distance driven between two fixes, a route
+        longer than it by more than this many ``beta_m`` is impossible: its transition
+        probability, e^-30 = 1e-13, is below that of breaking the chain (``break_logp``
+        plus the emission), and the route searches stop there instead of at
+        ``max_speed_mps`` times the time (1.3 km after a 20 s stop)
     :param accel_sigma_mps2: process noise of the along-route smoother [m/s^2]
     :param stationary_mps: below this speed the car is taken as standing still, and a
         projection that moves backwards on the same edge costs no more than one forwards
@@ -109,6 +114,7 @@ class MatchConfig:
     break_logp: float = -60.0
     uturn_logp: float = -20.0
     max_speed_mps: float = 60.0
+    prune_beta: float = 30.0
     accel_sigma_mps2: float = 1.5
     stationary_mps: float = 1.5
     min_cover_m: float = 3.5
@@ -344,7 +350,8 @@ def _match_once(net: RoadNetwork, index: EdgeIndex, xy: np.ndarray, t_s: np.ndar
     dist = EdgeDistances(net, uturn_m=-cfg.uturn_logp * beta, turn_m_per_rad=cfg.turn_m_per_rad)
     prm = ChainParams(beta_m=beta, uturn_cost=-cfg.uturn_logp, max_skip=cfg.max_skip,
                       skip_logp=cfg.skip_logp, break_logp=cfg.break_logp,
-                      max_speed_mps=cfg.max_speed_mps, slack_m=2 * radius)
+                      max_speed_mps=cfg.max_speed_mps, slack_m=2 * radius,
+                      prune_m=cfg.prune_beta * beta)
     lattice = Lattice([c.edges for c in cands], [c.s_m for c in cands], emis)
     chains = viterbi(lattice, sxy, obs.t_s[k_steps], obs_still[k_steps], dist,
                      net.edge_length_m, net.edge_twin, prm, np.cumsum(obs_travel)[k_steps])

@@ -393,7 +393,7 @@ def project_network(dmap: DrivableMap, origin: Origin, *, source: str = "",
                 along.append(is_along)
                 xy.append(np.ascontiguousarray(geometry))
                 tags.append(way_tags)
-    length = np.array([float(np.hypot(*np.diff(g, axis=0).T).sum()) for g in xy])
+    length = _polyline_lengths(xy)
     twin = np.full(len(u), -1, dtype=np.int64)
     for k in range(1, len(u)):
         # twins are appended consecutively by the loop above
@@ -408,6 +408,17 @@ def project_network(dmap: DrivableMap, origin: Origin, *, source: str = "",
         edge_along_way=np.array(along, dtype=bool), edge_xy=xy, edge_tags=tags,
         node_xy=node_xy, bbox_lonlat=bbox, source=source,
     )
+
+
+def _polyline_lengths(lines: list[np.ndarray]) -> np.ndarray:
+    """Length of each polyline [m], in one pass over their points laid end to end."""
+    if not lines:
+        return np.zeros(0)
+    flat = np.concatenate(lines)
+    step = np.concatenate([[0.0], np.hypot(*np.diff(flat, axis=0).T)])
+    start = np.cumsum([0] + [len(g) for g in lines[:-1]])
+    step[start] = 0.0  # no step from the end of one polyline to the start of the next
+    return np.add.reduceat(step, start)
 
 
 def build_network(ways: _WaySegments, origin: Origin, *, source: str = "",

@@ -38,7 +38,7 @@ class LineGraph:
     straight way is as close). A route's cost is the length of the edges it drives through
     plus the costs of its junctions.
 
-    :param succ: per edge, its arcs as ``(next edge, cost of the junction [m])``
+    :param succ: per edge, its arcs as ``(next edge, cost of the junction [m])`` pairs
     :param length: edge lengths [m] (at least a millimetre each)
     """
 
@@ -57,15 +57,20 @@ class LineGraph:
         onward = np.bincount(rows[~is_twin], minlength=n)
         keep = ~is_twin | (onward[rows] == 0)
         rows, cols, is_twin = rows[keep], cols[keep], is_twin[keep]
-        first = np.array([xy[1] - xy[0] for xy in net.edge_xy]).reshape(-1, 2)
-        last = np.array([xy[-1] - xy[-2] for xy in net.edge_xy]).reshape(-1, 2)
+        # first and last segment of every edge, from its points laid end to end
+        flat = np.concatenate(net.edge_xy) if n else np.zeros((0, 2))
+        end = np.cumsum([len(xy) for xy in net.edge_xy]).astype(np.int64)
+        start = end - np.diff(np.concatenate([[0], end]))
+        first, last = flat[start + 1] - flat[start], flat[end - 1] - flat[end - 2]
         turn = np.abs(wrap_angle(np.arctan2(first[cols, 1], first[cols, 0])
                                  - np.arctan2(last[rows, 1], last[rows, 0])))
         cost = turn_m_per_rad * turn + np.where(is_twin, uturn_m, 0.0)
         self.length = np.maximum(net.edge_length_m, 1e-3).tolist()
-        self.succ: list[list[tuple[int, float]]] = [[] for _ in range(n)]
-        for r, c, w in zip(rows.tolist(), cols.tolist(), cost.tolist(), strict=True):
-            self.succ[r].append((c, w))
+        bounds = np.searchsorted(rows, np.arange(1, n))  # rows are sorted
+        pairs = list(zip(cols.tolist(), cost.tolist(), strict=True))
+        self.succ: list[list[tuple[int, float]]] = [
+            pairs[a:b] for a, b in zip([0, *bounds.tolist()], [*bounds.tolist(), len(pairs)],
+                                       strict=True)] if n else []
 
 
 class _Search:
