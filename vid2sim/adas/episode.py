@@ -13,6 +13,7 @@ from vid2sim.adas.sensor import CameraSensor, SensorConfig
 from vid2sim.base.errors import InputError
 from vid2sim.core.scenario import Scenario
 from vid2sim.export.highway import Handover, ReplayEnv
+from vid2sim.export.highway.info import StepInfo
 
 SERIES = ("t_s", "gap_m", "ttc_s", "ego_speed_mps", "lead_speed_mps")
 """The per-step values kept for the report's plots (gap, TTC and lead speed NaN without a
@@ -55,36 +56,36 @@ def run_episode(scenario: Scenario, spec: PolicySpec, *, reactive: bool = False,
     policy = spec.make(scenario, sim.config)
     shape = env.action_space.shape
     obs, info = env.reset(seed=seed)
-    infos = [info]
+    infos = [StepInfo.of(info)]
     terminated = truncated = False
     while not (terminated or truncated):
         try:
             action = np.asarray(policy(obs, info), dtype=np.float32).reshape(-1)
         except Exception as exc:
             raise InputError(None, f"policy {spec.name!r} raised {type(exc).__name__}: {exc} "
-                             f"at t={info['t_s']:.1f} s") from exc
+                             f"at t={infos[-1].t_s:.1f} s") from exc
         if action.shape != shape or not np.all(np.isfinite(action)):
             raise InputError(None, f"policy {spec.name!r} returned {action.tolist()} at "
-                             f"t={info['t_s']:.1f} s", f"expected {shape[0]} finite value(s) "
+                             f"t={infos[-1].t_s:.1f} s", f"expected {shape[0]} finite value(s) "
                              "in [-1, 1]")
         obs, _, terminated, truncated, info = env.step(action)
-        infos.append(info)
+        infos.append(StepInfo.of(info))
     env.close()
     step_s = 1.0 / sim.config["policy_frequency"]
     metrics = episode_metrics(infos, step_s, scenario.ego.width_m)
     ended = ""
     if metrics.collision:
-        ended = f"collision with {infos[-1]['collision_with']}"
+        ended = f"collision with {infos[-1].collision_with}"
     elif terminated:
         ended = "offroad"
     return EpisodeResult(metrics, list(sim.handovers), list(getattr(policy, "events", [])),
                          series_of(infos), terminated_by=ended)
 
 
-def series_of(infos: list[dict]) -> dict[str, np.ndarray]:
+def series_of(infos: list[StepInfo]) -> dict[str, np.ndarray]:
     """Per-step arrays for plotting (float32; NaN where there was no lead)."""
     def col(key, lead_only):
-        return np.array([float(i[key]) if (i["has_lead"] or not lead_only) else math.nan
+        return np.array([float(getattr(i, key)) if (i.has_lead or not lead_only) else math.nan
                          for i in infos], dtype=np.float32)
 
     return {"t_s": col("t_s", False), "gap_m": col("gap_m", True), "ttc_s": col("ttc_s", True),

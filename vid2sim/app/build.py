@@ -37,6 +37,7 @@ from vid2sim.app.loaders import (
     need_video,
     smooth_trace,
 )
+from vid2sim.app.recording import video_clock, video_span_s, with_embedded_gps
 from vid2sim.app.settings import Settings
 from vid2sim.app.tracking import lead_summary
 from vid2sim.base.errors import InputError
@@ -196,7 +197,8 @@ BUILD_OUTPUTS: tuple[str, ...] = (
 
 
 def build(inputs: Inputs, out_dir: Path, settings: Settings | None = None,
-          report: Callable[[str], None] | None = None) -> BuildResult:
+          report: Callable[[str], None] | None = None,
+          extra_notes: list[Note] | None = None) -> BuildResult:
     """Run the whole pipeline for one video and write its outputs into ``out_dir``.
 
     Parameters
@@ -210,6 +212,8 @@ def build(inputs: Inputs, out_dir: Path, settings: Settings | None = None,
         Detector, tracker, ranging, smoothing and assembly settings (defaults otherwise).
     report : callable, optional
         Receives one line per stage as it starts (progress).
+    extra_notes : list of Note, optional
+        What the caller learnt about the inputs (segments joined), kept with the build's.
     """
     settings = settings or Settings()
     out_dir = Path(out_dir)
@@ -219,6 +223,9 @@ def build(inputs: Inputs, out_dir: Path, settings: Settings | None = None,
     video = need_video(inputs)
     info = load_video_info(inputs)
     camera, notes = load_camera_for(inputs, info)
+    # A recording that carries its GPS (GoPro, dash-cams) is its own GPS input.
+    inputs, gps_notes = with_embedded_gps(inputs)
+    notes.extend([*(extra_notes or []), *gps_notes])
     if inputs.keyframes is not None:
         load_keyframes_for(inputs.keyframes, video, info, inputs.fps)
     # The detector (or imported boxes) before any long work: missing weights fail fast.
@@ -236,7 +243,9 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
                 boxes_label: str, stages: _Stages) -> BuildResult:
     """The stages of :func:`build`, writing into ``staging`` (``out_dir`` once moved)."""
     video = need_video(inputs)
-    video_duration_s = (info.n_frames - 1) / info.fps if info.n_frames > 1 else 0.0
+    # The frames' clock is the container's (variable frame rates keep their times).
+    clock, container = video_clock(video, info)
+    video_duration_s = video_span_s(info, container)
 
     # ---- geo: ego trajectory and road
     roads, road_result, trace = [], None, None
@@ -266,7 +275,8 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
         "detect, track and range", detect_and_range, video, camera, detector=detector,
         detections=imported, detect_every=settings.detector.detect_every, fps=inputs.fps,
         progress=settings.progress, config=settings.ranging,
-        tracker_config=settings.tracker_config(), schedule=settings.detector.schedule())
+        tracker_config=settings.tracker_config(), schedule=settings.detector.schedule(),
+        assign_lanes=inputs.gps is None)
     notes.extend(ranging_notes)
     notes.extend(ranging.warnings)
     notes.append(Note.estimate(
@@ -293,7 +303,7 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
     # ---- assemble
     options = {**inputs.recorded(), **settings.recorded(detector_used=detector is not None),
                "detector_used": boxes_label,
-               "fps": info.fps}
+               "fps": info.fps, "video_clock": clock}
     source = Source(inputs=inputs.fingerprints(), tool_version=__version__, options=options,
                     assumptions=[str(a) for a in assumptions])
     scenario, assemble_warnings = stages.run("assemble scenario", assemble_scenario, ego, roads,

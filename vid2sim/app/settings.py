@@ -73,6 +73,22 @@ class DetectorSettings:
         return f"{self.name}{' + tiles' if self.tiles else ''}"
 
 
+@dataclass(frozen=True, slots=True)
+class SegmentConfig:
+    """How segments are joined into one drive.
+
+    :param max_gap_s: largest gap [s] between one segment's end and the next one's start for
+        them to be one drive: dash-cams restart recording within a second; 2 s more covers
+        the 1 s resolution of ``creation_time`` (a measurement of no camera: a bound)
+    :param max_overlap_s: largest overlap [s] tolerated (clock resolution) before the order
+        is refused
+    """
+
+    max_gap_s: float = 3.0
+    max_overlap_s: float = 1.5
+
+
+
 def tracker_for_score(base: TrackerConfig, score: float | None) -> TrackerConfig:
     """The tracker thresholds for a user's minimum start score (``--score``).
 
@@ -101,6 +117,7 @@ class Settings:
     :param allow_download: fetch OpenStreetMap data for a trace without a map file
     :param osm_cache_dir: where downloaded maps are cached (default the user cache)
     :param progress: progress bars on stderr
+    :param segments: how the segments of a split recording are joined into one drive
     """
 
     detector: DetectorSettings = field(default_factory=DetectorSettings)
@@ -113,6 +130,7 @@ class Settings:
     allow_download: bool = True
     osm_cache_dir: Path | None = None
     progress: bool = True
+    segments: SegmentConfig = field(default_factory=SegmentConfig)
 
     def tracker_config(self) -> TrackerConfig:
         """The tracker's thresholds with ``detector.score`` applied."""

@@ -63,6 +63,11 @@ def main(argv: list[str] | None = None) -> int:
         # FFmpeg inside OpenCV prints its own lines for a broken video ("moov atom not
         # found"); our one-line error says the same with the file name. -v shows them.
         os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
+        # and OpenCV's own log ("Could not find decoder for codec_id=0") likewise; it read
+        # its environment when imported, so it is told directly.
+        import cv2
+
+        cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
     previous = {}
     try:
         for s in _termination_signals():

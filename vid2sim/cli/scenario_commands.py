@@ -111,10 +111,12 @@ def test_policy_cmd(scenarios: tuple[Path, ...], policy: str, reactive: bool,
 
 
 @cli.command()
-@click.argument("video", type=EXISTING_PATH)
+@click.argument("videos", nargs=-1, required=True, type=EXISTING_PATH, metavar="VIDEO...")
 @click.option("--gps", type=EXISTING_PATH, default=None,
-              help="GPS trace (GPX, NMEA, BDD100K JSON, KITTI OXTS folder, CSV). Without it the "
-                   "ego drives a straight road at --ego-speed.")
+              help="GPS trace (GPX, NMEA, BDD100K JSON, KITTI OXTS folder, CSV, a DJI .SRT, or "
+                   "the video itself). Default: the GPS inside the video (GoPro GPMF, NMEA, "
+                   "subtitle telemetry) where it has one; else the ego drives a straight road "
+                   "at --ego-speed.")
 @click.option("--map", "map_path", type=EXISTING_PATH, default=None,
               help="OpenStreetMap extract (.osm or .osm.pbf). Default: download the trace's "
                    "area where online, else a road derived from the trajectory.")
@@ -132,20 +134,21 @@ def test_policy_cmd(scenarios: tuple[Path, ...], policy: str, reactive: bool,
                    "(for the trajectory and map matching alike).")
 @click.option("--offline", is_flag=True, help="Never download a map.")
 @click.option("--out", "out_dir", type=EXISTING_PATH, required=True, help="Output folder.")
-def build(video: Path, gps: Path | None, map_path: Path | None, camera_path: Path | None,
+def build(videos: tuple[Path, ...], gps: Path | None, map_path: Path | None, camera_path: Path | None,
           detections_path: Path | None, fps: float | None, keyframes: Path | None,
           ego_speed_mps: float, gps_offset_s: float | None, offline: bool, out_dir: Path,
           **detector) -> None:
-    """Build a scenario from one video: scenario.json, scenario.xosc + road.xodr, tracks.csv,
-    report.html (and metrics.json with --keyframes)."""
-    from vid2sim.app.build import build as run_build
+    """Build a scenario from one video (or the consecutive segments of one drive, given as
+    files or one folder, joined in the order of their embedded start times): scenario.json,
+    scenario.xosc + road.xodr, tracks.csv, report.html (and metrics.json with --keyframes)."""
+    from vid2sim.app.segments import build_drive
 
     check_out_dir(out_dir)
-    inputs = Inputs(video=video, gps=gps, map=map_path, camera=camera_path,
+    inputs = Inputs(video=videos[0], gps=gps, map=map_path, camera=camera_path,
                     detections=detections_path, keyframes=keyframes, fps=fps,
                     gps_offset_s=gps_offset_s, ego_speed_mps=ego_speed_mps)
-    result = run_build(inputs, out_dir, settings_from(**detector, allow_download=not offline),
-                       report=echo)
+    result = build_drive(list(videos), inputs, out_dir,
+                         settings_from(**detector, allow_download=not offline), report=echo)
     echo(result.summary())
 
 

@@ -9,6 +9,7 @@ import click
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.settings import Settings
 from vid2sim.base.defaults import EGO_RATE_HZ
+from vid2sim.base.errors import InputError
 from vid2sim.cli.group import cli
 from vid2sim.cli.options import (
     EXISTING_PATH,
@@ -143,3 +144,24 @@ def models_pull(name: str, dest_dir: Path | None) -> None:
 
     path = pull(name, dest_dir, progress=show_progress())
     echo(f"{name}: verified -> {path}")
+
+
+# --------------------------------------------------------------------------- probe
+
+
+@cli.command()
+@click.argument("videos", nargs=-1, required=True, type=EXISTING_PATH, metavar="VIDEO...")
+@click.pass_context
+def probe(ctx: click.Context, videos: tuple[Path, ...]) -> None:
+    """What recordings hold: codec, size, frame rate and its variability, rotation, duration,
+    start time and the telemetry tracks (GPS inside the video) with their fix rates. Exit 2
+    if a file cannot be read as a video."""
+    from vid2sim.app.probe import probe_table
+
+    for v in videos:
+        if not v.is_file():
+            raise InputError(v, "no such video file", "give video files")
+    table, n_bad = probe_table(list(videos))
+    echo(table)
+    if n_bad:
+        ctx.exit(2)

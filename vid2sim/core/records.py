@@ -17,6 +17,12 @@ from typing import Any, Self
 
 import numpy as np
 
+from vid2sim.core.vocabulary import (  # noqa: F401  part of the records' vocabulary
+    RAIL_CATEGORIES,
+    VEHICLE_CATEGORIES,
+    VehicleCategory,
+)
+
 # --------------------------------------------------------------------------- notes
 
 
@@ -177,11 +183,6 @@ class TraceStats:
 # --------------------------------------------------------------------------- detection
 
 
-VEHICLE_CATEGORIES = ("car", "truck", "bus", "motorcycle", "tram")
-#: Vehicles that run on rails: a tram on its own track bed is never the ego's lead.
-RAIL_CATEGORIES = ("tram",)
-
-
 @dataclass(frozen=True, slots=True)
 class VideoInfo:
     """What a video (or an image folder) is: frame size [px], rate [frames/s], frame count."""
@@ -213,7 +214,7 @@ class Detection:
 
     box_px: tuple[float, float, float, float]
     score: float
-    category: str
+    category: VehicleCategory
 
 
 @dataclass(frozen=True, slots=True)
@@ -223,7 +224,7 @@ class TrackedBox:
     frame: int
     t_s: float
     track_id: int
-    category: str
+    category: VehicleCategory
     score: float
     x1: float
     y1: float
@@ -240,8 +241,9 @@ class RangedBox(TrackedBox):
     :param range_rate_mps: d(range)/dt, negative when closing [m/s]
     :param range_std_m: one-sigma uncertainty of ``range_m`` [m]
     :param width_m: estimated vehicle width [m]
-    :param lane: "ego", "left", "right" (or "left2"/"right2"...) lane relative to the ego lane
-        of the frame ("" where unknown)
+    :param lane: the lane relative to the ego lane of the frame: 0 the ego lane, +1 the next
+        to the left, -1 the next to the right, ... (:func:`vid2sim.core.lead.lane_name` names
+        them); None where unknown or not yet assigned (:mod:`vid2sim.detect.assign`)
     :param lane_offset_m: the centre's offset from the ego lane's centre line at its range,
         positive left [m] (NaN where unknown)
     """
@@ -253,7 +255,7 @@ class RangedBox(TrackedBox):
     is_lead: bool
     width_m: float = float("nan")
     lateral_rate_mps: float = float("nan")
-    lane: str = ""
+    lane: int | None = None
     lane_offset_m: float = float("nan")
 
 
@@ -515,8 +517,8 @@ class AnnotatedBox:
     """A human-drawn box on a keyframe.
 
     :param box_px: (x1, y1, x2, y2) in pixels
-    :param category: normalised vehicle category ("car", "truck", "bus", "motorcycle") or the
-        source's own name for an ignore region
+    :param category: the :class:`VehicleCategory` of a vehicle, or the source's own class
+        name for an ignore region (KITTI "dontcare", "misc")
     :param id: the annotation's track/label id, None where the format has none
     :param range_m: longitudinal distance from the camera to the vehicle's near face [m]
         where the annotation carries 3D (KITTI), else None
@@ -525,7 +527,7 @@ class AnnotatedBox:
     """
 
     box_px: tuple[float, float, float, float]
-    category: str
+    category: VehicleCategory | str
     id: str | None = None
     range_m: float | None = None
     ignore: bool = False
@@ -558,7 +560,7 @@ class ProjectedBox:
 
     actor_id: str
     box_px: tuple[float, float, float, float]
-    category: str
+    category: VehicleCategory
     range_m: float
     hard: bool = False
 

@@ -25,7 +25,7 @@ from vid2sim.base.defaults import LANE_WIDTH_M
 from vid2sim.base.errors import InputError
 from vid2sim.base.fileio import write_text_atomic
 from vid2sim.base.htmlpage import BASE_CSS, figure_png
-from vid2sim.core.lead import in_ego_corridor
+from vid2sim.core.lead import lead_of
 from vid2sim.core.scenario import Scenario
 
 LEAD_SAMPLE_HZ = 10.0
@@ -102,26 +102,29 @@ def lead_series(scenario: Scenario, rate_hz: float = LEAD_SAMPLE_HZ) -> dict[str
     t = np.linspace(ego.t[0], ego.t[-1], n)
     e = ego.state_at(t)
     lane_width_m = _lane_width_m(scenario)
-    rng = np.full(n, np.nan)
-    lead_v = np.full(n, np.nan)
-    lead_id = np.full(n, "", dtype=object)
     c, s = np.cos(e["heading"]), np.sin(e["heading"])
-    for a in scenario.actors:
+    rear = np.full((len(scenario.actors), n), np.nan)  # ego origin to each actor's rear [m]
+    lat = np.full((len(scenario.actors), n), np.nan)
+    speed = np.full((len(scenario.actors), n), np.nan)
+    for k, a in enumerate(scenario.actors):
         tr = a.trajectory
         active = (t >= tr.t[0] - 1e-6) & (t <= tr.t[-1] + 1e-6)
         if not active.any():
             continue
         st = tr.state_at(t)
         dx, dy = st["x"] - e["x"], st["y"] - e["y"]
-        fwd = c * dx + s * dy
-        lat = -s * dx + c * dy
-        rear = fwd - a.length_m / 2.0
-        # the lead's geometry (vid2sim.core.lead), vectorised over time: ahead, in the corridor,
-        # and nearer than the lead found among the actors so far
-        is_lead = active & (rear > 0) & in_ego_corridor(lat, lane_width_m) & ~(rng <= rear)
-        rng[is_lead] = rear[is_lead]
-        lead_v[is_lead] = st["speed"][is_lead]
-        lead_id[is_lead] = a.id
+        rear[k] = np.where(active, c * dx + s * dy - a.length_m / 2.0, np.nan)
+        lat[k] = -s * dx + c * dy
+        speed[k] = st["speed"]
+    lead = lead_of(rear, lat, lane_width_m) if len(scenario.actors) else np.full(n, -1)
+    has = lead >= 0
+    cols = np.flatnonzero(has)
+    rng = np.full(n, np.nan)
+    lead_v = np.full(n, np.nan)
+    lead_id = np.full(n, "", dtype=object)
+    rng[has] = rear[lead[has], cols]
+    lead_v[has] = speed[lead[has], cols]
+    lead_id[has] = [scenario.actors[k].id for k in lead[has]]
     return {"t_s": t, "range_m": rng, "lead_speed_mps": lead_v,
             "ego_speed_mps": np.asarray(e["speed"], dtype=float), "lead_id": lead_id}
 

@@ -158,7 +158,11 @@ def _build_row(inputs, out_dir: Where, name: str, settings: Settings, tmp: Path,
     """
     # The whole pipeline (onnxruntime, highway-env, matplotlib: 0.8 s of imports) is loaded
     # by the first row a process builds, not by a driver resuming a finished manifest.
-    from vid2sim.app.build import build
+    from vid2sim.app.segments import build_drive
+
+    def build(inputs, out, settings):
+        # a row's video may be a folder of one drive's segments: joined as `build DIR` does
+        return build_drive([inputs.video], inputs, out, settings)
 
     if not isinstance(out_dir, Path):
         result = build(inputs, tmp / "out" / name, settings)
