@@ -11,30 +11,15 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from vid2sim.app.gpsinputs import load_trace, smooth_trace
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.settings import Settings
-from vid2sim.base.errors import InputError
 from vid2sim.base.fileio import check_output_file, write_text_atomic
-from vid2sim.core.records import EgoTrack, GpsTrace, RoadResult, TraceStats
+from vid2sim.core.records import EgoTrack, GpsTrace, RoadResult
 from vid2sim.core.scenario import dumps_canonical
 from vid2sim.core.tables import write_ego_csv
 from vid2sim.geo import roads as geo_roads
 from vid2sim.geo import trace as geo_trace
-from vid2sim.geo.readers import read_gps
-
-
-def load_trace(inputs: Inputs) -> GpsTrace:
-    """The GPS trace of ``inputs.gps`` (format detected from the content)."""
-    if inputs.gps is None:
-        raise InputError(None, "no GPS trace given")
-    return read_gps(Path(inputs.gps))
-
-
-def smooth_trace(trace: GpsTrace, inputs: Inputs, settings: Settings
-                 ) -> tuple[EgoTrack, TraceStats]:
-    """The ego trajectory of a trace on the run's GPS time base (``inputs.gps_offset_s``)."""
-    return geo_trace.smooth_ego(trace, rate_hz=settings.rate_hz,
-                                gps_offset_s=inputs.gps_offset_s, params=settings.trace)
 
 
 def run_trace(inputs: Inputs, out_path: Path, settings: Settings | None = None) -> str:

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from vid2sim.app.gpsroad import load_trace, smooth_trace  # noqa: F401 - the GPS inputs
+from vid2sim.app.gpsinputs import load_trace, smooth_trace  # noqa: F401 - the GPS inputs
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.settings import Settings
 from vid2sim.base.errors import InputError

@@ -146,8 +146,8 @@ def repair_clock(t_s: np.ndarray, xy_m: np.ndarray, path: str | Path | None = No
         warnings.append(_jump_warning(order, t, shifted, k, "back"))
         t = shifted
     if late:
-        warnings.append(f"{len(late)} fix(es) arrived out of time order ({_names(late)}); "
-                        "sorted them by time (their positions fit there)")
+        warnings.append(f"{_names(late)} were not in time order (written late); sorted them "
+                        "by time (their positions fit there)")
     t, order, more = _forward_jumps(t, xy, order, p, jumps)
     warnings.extend(more)
     keep, dropped = _one_fix_per_time(t, xy[order], p)
