@@ -194,13 +194,15 @@ def viterbi(lat: Lattice, xy_m: np.ndarray, t_s: np.ndarray, still: np.ndarray,
     ptr_t: list[np.ndarray] = []
     ptr_i: list[np.ndarray] = []
     brk: list[bool] = []
+    started = False  # some earlier step has a state: before that, every step may start
     for t in range(n):
         m = len(lat.edges[t])
         best = np.full(m, -np.inf)
         from_t = np.full(m, -1)
         from_i = np.full(m, -1)
-        if t < prm.max_skip + 1:  # start of the chain, earlier steps skipped as outliers
-            best = lat.emission[t] + prm.skip_logp * t
+        if t < prm.max_skip + 1 or not started:
+            # start of the chain, earlier steps skipped as outliers (or without candidates)
+            best = lat.emission[t] + prm.skip_logp * min(t, prm.max_skip)
         src = _sources(lat, score, t, xy_m, t_s, still, travel_m, prm) if m else None
         if src is not None:
             total = src.score[:, None] + transition_logp(dist, length_m, twin, src,
@@ -218,6 +220,7 @@ def viterbi(lat: Lattice, xy_m: np.ndarray, t_s: np.ndarray, still: np.ndarray,
                 tp, i, base = restart
                 best = lat.emission[t] + base + prm.break_logp
                 from_t, from_i, is_break = np.full(m, tp), np.full(m, i), True
+        started = started or bool(np.isfinite(best).any())
         score.append(best)
         ptr_t.append(from_t)
         ptr_i.append(from_i)

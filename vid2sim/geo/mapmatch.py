@@ -83,6 +83,12 @@ class MatchConfig:
         probability, e^-30 = 1e-13, is below that of breaking the chain (``break_logp``
         plus the emission), and the route searches stop there instead of at
         ``max_speed_mps`` times the time (1.3 km after a 20 s stop)
+    :param off_map_sigmas: observations at the start or end of a trace farther than this
+        many sigma from every drivable road (4 sigma: 1 in 15,000 fixes of a car on the road
+        by noise alone) are off the map when at least ``off_map_fixes`` of them follow each
+        other (a car park, private ground): they are left out, not matched to the nearest
+        street (:func:`on_map`); single far fixes inside the trace stay the HMM's outliers
+    :param off_map_fixes: shortest such run at either end, in observations
     :param accel_sigma_mps2: process noise of the along-route smoother [m/s^2]
     :param stationary_mps: below this speed the car is taken as standing still, and a
         projection that moves backwards on the same edge costs no more than one forwards
@@ -115,6 +121,8 @@ class MatchConfig:
     uturn_logp: float = -20.0
     max_speed_mps: float = 60.0
     prune_beta: float = 30.0
+    off_map_sigmas: float = 4.0
+    off_map_fixes: int = 3
     accel_sigma_mps2: float = 1.5
     stationary_mps: float = 1.5
     min_cover_m: float = 3.5
@@ -202,11 +210,52 @@ def match(net: RoadNetwork, x_m: np.ndarray, y_m: np.ndarray, t_s: np.ndarray, *
     n = len(xy)
     heading = (np.full(n, np.nan) if heading_rad is None
                else np.asarray(heading_rad, float).reshape(n))
-    index = EdgeIndex(net)
     acc = (np.full(n, np.nan) if accuracy_m is None
            else np.asarray(accuracy_m, float).reshape(n))
-    known = np.isfinite(acc) & (acc > 0)
+    index = EdgeIndex(net)
     obs = observations(xy, t_s, cfg.obs_window_s)
+    noise = _noise(index, xy, acc, obs, cfg)
+    obs_still, obs_travel = _motion(obs, speed_mps, n, cfg)
+    use, off_map = on_map(index, obs, noise.obs_sigma, cfg)
+
+    def once(sigma: np.ndarray, obs_sigma: np.ndarray) -> MatchResult:
+        return _match_once(net, index, xy, t_s, sigma, obs, heading[obs.fix], obs_sigma,
+                           obs_still, obs_travel, use, cfg)
+
+    result = once(noise.sigma, noise.obs_sigma)
+    if noise.estimated and cfg.refine_sigma:
+        # the nearest-road estimate reads low where noise carries fixes towards other roads;
+        # the matched route's offsets are the noise across the road (Newson & Krumm's
+        # estimator on the route itself): match again if they say the noise is larger
+        used = ~result.fix_outlier & np.isfinite(result.fix_offset_m) & ~noise.known
+        if used.sum() >= MIN_FIXES_FOR_SIGMA:
+            again = float(np.clip(MAD_TO_SIGMA * np.median(np.abs(result.fix_offset_m[used])),
+                                  cfg.min_sigma_m, cfg.max_sigma_m))
+            if again > SIGMA_RETRY_RATIO * noise.sigma_fix:
+                # the offsets are those of single fixes: they say nothing about how steady
+                # the median of several fixes is, so a merged observation keeps its estimate
+                result = once(np.where(noise.known, noise.sigma, again),
+                              np.where(noise.known[obs.fix] | (obs.size > 1), noise.obs_sigma,
+                                       again))
+    result.warnings[:0] = off_map
+    return result
+
+
+@dataclass(slots=True)
+class _Noise:
+    """GPS noise per fix and per observation [m], the estimate for fixes without an
+    accuracy, whether it was estimated, and which fixes report their own accuracy."""
+
+    sigma: np.ndarray
+    obs_sigma: np.ndarray
+    sigma_fix: float
+    estimated: bool
+    known: np.ndarray
+
+
+def _noise(index: EdgeIndex, xy: np.ndarray, acc: np.ndarray, obs: Observations,
+           cfg: MatchConfig) -> _Noise:
+    known = np.isfinite(acc) & (acc > 0)
     estimate = cfg.sigma_m is None and not known.all()
     if cfg.sigma_m is not None:
         sigma_fix = sigma_obs = float(cfg.sigma_m)
@@ -219,36 +268,54 @@ def match(net: RoadNetwork, x_m: np.ndarray, y_m: np.ndarray, t_s: np.ndarray, *
         sigma_fix = sigma_obs = cfg.min_sigma_m  # every fix has its accuracy
     sigma = np.where(known, np.maximum(acc, 1.0), sigma_fix)
     obs_sigma = np.where(known[obs.fix], sigma[obs.fix], sigma_obs)
+    return _Noise(sigma, obs_sigma, sigma_fix, estimate, known)
+
+
+def _motion(obs: Observations, speed_mps: np.ndarray | None, n: int, cfg: MatchConfig
+            ) -> tuple[np.ndarray, np.ndarray]:
+    """Per observation: whether the car stands still, and the distance driven since the
+    previous observation [m] (inf where the speed is unknown)."""
     if speed_mps is None:
         obs_speed = _chord_speed(obs.xy, obs.t_s)
     else:
         obs_speed = np.asarray(speed_mps, float).reshape(n)[obs.fix]
-    obs_still = obs_speed < cfg.stationary_mps
-    # distance driven between consecutive observations [m] (inf where the speed is unknown)
     obs_travel = np.zeros(len(obs.t_s))
     if len(obs.t_s) > 1:
         v = np.where(np.isfinite(obs_speed[1:]), np.minimum(obs_speed[1:], cfg.max_speed_mps),
                      np.inf)
         obs_travel[1:] = np.diff(obs.t_s) * v
+    return obs_speed < cfg.stationary_mps, obs_travel
 
-    result = _match_once(net, index, xy, t_s, sigma, obs, heading[obs.fix], obs_sigma,
-                         obs_still, obs_travel, cfg)
-    if estimate and cfg.refine_sigma:
-        # the nearest-road estimate reads low where noise carries fixes towards other roads;
-        # the matched route's offsets are the noise across the road (Newson & Krumm's
-        # estimator on the route itself): match again if they say the noise is larger
-        used = ~result.fix_outlier & np.isfinite(result.fix_offset_m) & ~known
-        if used.sum() >= MIN_FIXES_FOR_SIGMA:
-            again = float(np.clip(MAD_TO_SIGMA * np.median(np.abs(result.fix_offset_m[used])),
-                                  cfg.min_sigma_m, cfg.max_sigma_m))
-            if again > SIGMA_RETRY_RATIO * sigma_fix:
-                # the offsets are those of single fixes: they say nothing about how steady
-                # the median of several fixes is, so a merged observation keeps its estimate
-                sigma = np.where(known, sigma, again)
-                obs_sigma = np.where(known[obs.fix] | (obs.size > 1), obs_sigma, again)
-                result = _match_once(net, index, xy, t_s, sigma, obs, heading[obs.fix],
-                                     obs_sigma, obs_still, obs_travel, cfg)
-    return result
+
+def on_map(index: EdgeIndex, obs: Observations, obs_sigma: np.ndarray, cfg: MatchConfig
+           ) -> tuple[np.ndarray, list[str]]:
+    """Which observations the HMM reasons about: all but a run at the start or the end of
+    the trace that lies off the map, farther than ``off_map_sigmas`` sigma from every
+    drivable road for at least ``off_map_fixes`` observations (a car park, private
+    ground, a ferry): the route begins where the car joins the road network. Returns the
+    mask and a warning per run left out."""
+    k = len(obs.t_s)
+    use = np.ones(k, bool)
+    if k == 0:
+        return use, []
+    near = index.nearest_distance(obs.xy, float(cfg.off_map_sigmas * obs_sigma.max() * 4.0))
+    off = ~(near <= cfg.off_map_sigmas * obs_sigma)  # NaN: nothing within reach
+    run = cfg.off_map_fixes
+    on_runs = np.flatnonzero(np.convolve(~off, np.ones(run), "valid") == run)
+    if not on_runs.size:
+        return use, []  # nothing stays on the map: that is the map's error, not a car park
+    first, last = int(on_runs[0]), int(on_runs[-1]) + run - 1
+    notes = []
+    for lo, hi, where in ((0, first, "starts"), (last + 1, k, "ends")):
+        if hi - lo >= run and off[lo:hi].sum() >= run:
+            use[lo:hi] = False
+            fixes = int(obs.size[lo:hi].sum())
+            notes.append(f"the drive {where} off the map: {fixes} fix(es) over "
+                         f"{obs.t_s[hi - 1] - obs.t_s[lo]:.0f} s lie more than "
+                         f"{cfg.off_map_sigmas:g} sigma from every drivable road (a car park?); "
+                         "they are not matched and the road " + ("begins where the car joins "
+                         "the streets" if where == "starts" else "ends where it leaves them"))
+    return use, notes
 
 
 @dataclass(slots=True)
@@ -324,11 +391,13 @@ def hmm_steps(xy: np.ndarray, sigma: np.ndarray, thin_sigmas: float,
 def _match_once(net: RoadNetwork, index: EdgeIndex, xy: np.ndarray, t_s: np.ndarray,
                 sigma: np.ndarray, obs: Observations, obs_heading: np.ndarray,
                 obs_sigma: np.ndarray, obs_still: np.ndarray, obs_travel: np.ndarray,
-                cfg: MatchConfig) -> MatchResult:
+                use: np.ndarray, cfg: MatchConfig) -> MatchResult:
     n = len(xy)
     radius = max(cfg.search_radius_m,
                  cfg.search_sigmas * float(np.median(obs_sigma)) if n else 0.0)
-    k_steps = hmm_steps(obs.xy, obs_sigma, cfg.thin_sigmas, obs_travel)
+    inside = np.flatnonzero(use)
+    k_steps = inside[hmm_steps(obs.xy[inside], obs_sigma[inside], cfg.thin_sigmas,
+                               obs_travel[inside])]
     sxy = obs.xy[k_steps]
     beta = cfg.beta_m
     cands = index.candidates(sxy, radius, cfg.max_geometries)

@@ -59,16 +59,20 @@ def simulate_drive(net: RoadNetwork, rng: np.random.Generator, *, min_length_m: 
                    ends_at_junctions: bool = True, bias_m: float = 0.0,
                    bias_tau_s: float = 60.0,
                    route_nodes: tuple[int, int] | None = None,
-                   end_span_m: float | None = None) -> SimulatedDrive:
+                   end_span_m: float | None = None,
+                   route_edges: list[int] | None = None,
+                   cruise_mps: tuple[float, float] = (7.0, 13.0)) -> SimulatedDrive:
     """Drive a shortest path of ``net`` and record noisy fixes.
 
     Route: the shortest path between two random junctions (or the OSM nodes
-    ``route_nodes``); with ``ends_at_junctions=False``
+    ``route_nodes``), or the directed edges ``route_edges`` as given (a U-turn: an edge and
+    its twin); with ``ends_at_junctions=False``
     the car starts at a uniformly random point of the path's first way piece and stops at one
     of its last (as real drives do: nobody starts the recorder on a junction); with
     ``end_span_m`` it starts anywhere in the path's first ``end_span_m`` metres and stops
     anywhere in its last (across pieces: a drive that begins 80 m along a long street).
-    Speed: a cruise speed drawn from 7-13 m/s (25-47 km/h, urban), 4 m/s through turns
+    Speed: a cruise speed drawn from ``cruise_mps`` (default 7-13 m/s, 25-47 km/h, urban;
+    a motorway 25-33 m/s), 4 m/s through turns
     sharper than 45 degrees, accelerating and braking at most 1.5 m/s^2; with ``stop_s`` > 0
     the car stops halfway and stands still that long. The first fix falls at a random point
     of the first sampling interval (``random_phase``), not exactly on the start.
@@ -80,6 +84,11 @@ def simulate_drive(net: RoadNetwork, rng: np.random.Generator, *, min_length_m: 
     graph = net.graph()
     nodes = np.unique(np.concatenate([net.edge_u, net.edge_v]))
     for _ in range(10000):
+        if route_edges is not None:
+            edges = [int(e) for e in route_edges]
+            total = float(net.edge_length_m[edges].sum())
+            s_start, s_end = _drive_ends(net, edges, rng, ends_at_junctions, end_span_m)
+            break
         if route_nodes is None:
             a, b = (int(v) for v in rng.choice(nodes, 2, replace=False))
         else:
@@ -92,13 +101,7 @@ def simulate_drive(net: RoadNetwork, rng: np.random.Generator, *, min_length_m: 
             continue
         edges = [int(graph[p][q]["edge"]) for p, q in itertools.pairwise(path)]
         total = float(net.edge_length_m[edges].sum())
-        s_start, s_end = 0.0, total
-        if not ends_at_junctions:
-            first, last = net.edge_length_m[edges[0]], net.edge_length_m[edges[-1]]
-            if end_span_m is not None:
-                first = last = min(end_span_m, total / 3.0)
-            s_start = float(rng.uniform(0.0, first))
-            s_end = total - float(rng.uniform(0.0, last))
+        s_start, s_end = _drive_ends(net, edges, rng, ends_at_junctions, end_span_m)
         if min_length_m <= s_end - s_start <= max_length_m:
             break
         if route_nodes is not None:
@@ -116,7 +119,7 @@ def simulate_drive(net: RoadNetwork, rng: np.random.Generator, *, min_length_m: 
     gx, gy = np.interp(grid, s_pts, pts[:, 0]), np.interp(grid, s_pts, pts[:, 1])
     head = np.unwrap(np.arctan2(np.gradient(gy), np.gradient(gx)))
     turn = np.abs(np.interp(grid + 10, grid, head) - np.interp(grid - 10, grid, head))
-    cruise = float(rng.uniform(7.0, 13.0))
+    cruise = float(rng.uniform(*cruise_mps))
     v_grid = np.where(turn > math.radians(45), 4.0, cruise)
     s_stop = (s_start + s_end) / 2
     if stop_s > 0:
@@ -167,6 +170,18 @@ def simulate_drive(net: RoadNetwork, rng: np.random.Generator, *, min_length_m: 
     driven_start = float(ends[int(pos[0])] - net.edge_length_m[edges[int(pos[0])]])
     return SimulatedDrive(driven, ways, np.array(t_list), x, y, true_way, out, s_end - s_start,
                           s_true - driven_start)
+
+
+def _drive_ends(net: RoadNetwork, edges: list[int], rng: np.random.Generator,
+                ends_at_junctions: bool, end_span_m: float | None) -> tuple[float, float]:
+    """Where along the path the drive starts and ends [m] (see :func:`simulate_drive`)."""
+    total = float(net.edge_length_m[edges].sum())
+    if ends_at_junctions:
+        return 0.0, total
+    first, last = net.edge_length_m[edges[0]], net.edge_length_m[edges[-1]]
+    if end_span_m is not None:
+        first = last = min(end_span_m, total / 3.0)
+    return float(rng.uniform(0.0, first)), total - float(rng.uniform(0.0, last))
 
 
 def gauss_markov(rng: np.random.Generator, t_s: np.ndarray, sigma_m: float, tau_s: float
