@@ -38,7 +38,8 @@ def match_road(trace: GpsTrace, ego: EgoTrack, inputs: Inputs, settings: Setting
     """The road stage on the run's GPS time base (shared by ``road`` and ``build``)."""
     return geo_roads.build_road(
         trace, ego, inputs.map, allow_download=settings.allow_download,
-        cache_dir=settings.osm_cache_dir, gps_offset_s=inputs.gps_offset_s)
+        cache_dir=settings.osm_cache_dir, gps_offset_s=inputs.gps_offset_s,
+        config=settings.matching)
 
 
 def run_road(inputs: Inputs, out_path: Path, settings: Settings | None = None,

@@ -18,6 +18,7 @@ from vid2sim.detect.schedule import ScheduleConfig
 from vid2sim.detect.tracking.tracker import TrackerConfig
 from vid2sim.detect.vehicles.models import DEFAULT_DETECTOR
 from vid2sim.export.assemble import AssembleConfig
+from vid2sim.geo.match_params import MatchConfig
 from vid2sim.geo.trace import TraceParams
 
 
@@ -112,6 +113,7 @@ class Settings:
     :param lanes: the lane-marking track (re-run with the ego's GPS speed before the ego is
         placed across the road)
     :param trace: GPS smoothing
+    :param matching: map matching and the road line's margin beyond the first and last fix
     :param assemble: scenario assembly
     :param rate_hz: ego trajectory sample rate [Hz]
     :param allow_download: fetch OpenStreetMap data for a trace without a map file
@@ -125,6 +127,7 @@ class Settings:
     ranging: RangingConfig = field(default_factory=RangingConfig)
     lanes: LaneTrackConfig = field(default_factory=LaneTrackConfig)
     trace: TraceParams = field(default_factory=TraceParams)
+    matching: MatchConfig = field(default_factory=MatchConfig)
     assemble: AssembleConfig = field(default_factory=AssembleConfig)
     rate_hz: float = EGO_RATE_HZ
     allow_download: bool = True
