@@ -320,6 +320,7 @@ def _match_once(net: RoadNetwork, index: EdgeIndex, xy: np.ndarray, t_s: np.ndar
     sxy = obs.xy[k_steps]
     beta = cfg.beta_m
     cands = index.candidates(sxy, radius, cfg.max_geometries)
+    service = np.array([t.get("highway") == "service" for t in net.edge_tags], bool)
     emis = []
     for k, c in enumerate(cands):
         edges_k, s_k, h = c.edges, c.s_m, c.heading_rad
@@ -328,7 +329,7 @@ def _match_once(net: RoadNetwork, index: EdgeIndex, xy: np.ndarray, t_s: np.ndar
         # previous edge holds the fix, and must win the tie at the shared node (this decides
         # the first and last way of the route)
         clamped = (s_k <= 1e-6) | (s_k >= net.edge_length_m[edges_k] - 1e-6)
-        e = e - CLAMP_LOGP * clamped
+        e = e - CLAMP_LOGP * clamped + cfg.service_logp * service[edges_k]
         hd = obs_heading[k_steps[k]]
         if np.isfinite(hd):
             e = e + np.maximum(-0.5 * (wrap_angle(h - hd) / cfg.heading_sigma_rad) ** 2,
