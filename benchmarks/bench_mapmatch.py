@@ -112,7 +112,8 @@ def fmt(a: np.ndarray) -> str:
 
 def pipeline(pbf: Path, full: RoadNetwork, drives: list[SimulatedDrive]) -> None:
     """The same drives through ``smooth_ego`` + ``build_road`` (as ``vid2sim road`` runs): the
-    road's centerlines (whole matched pieces) against the true pieces, 5 m corridor."""
+    road's centerlines against the true pieces (whole) and the true driven stretch, 5 m
+    corridor."""
     from vid2sim.core.records import GpsFix, GpsTrace
     from vid2sim.geo.alongroute import join_xy
     from vid2sim.geo.roads import build_road
@@ -135,7 +136,7 @@ def pipeline(pbf: Path, full: RoadNetwork, drives: list[SimulatedDrive]) -> None
     print(f"road stage (smooth_ego + build_road, ego heading and speed used), mean/median/max:"
           f"\n  road centerline vs true pieces, whole:      {fmt(np.array(whole))}"
           f"\n  road centerline vs the true driven stretch: {fmt(np.array(driven))} (the road "
-          f"runs on to the ends of its first and last piece)"
+          f"runs one car length beyond the first and last fix)"
           f"\n  {np.median(per_km):.2f} s/km (median) incl. GPS smoothing and map load")
 
 

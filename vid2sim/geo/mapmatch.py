@@ -136,9 +136,12 @@ def match(net: RoadNetwork, x_m: np.ndarray, y_m: np.ndarray, t_s: np.ndarray, *
     noise = _noise(index, xy, acc, obs, cfg)
     obs_still, obs_travel = _motion(obs, speed_mps, n, cfg)
     use, off_map = on_map(index, obs, noise.obs_sigma, cfg)
+    # one set of route searches for both passes: they depend on the map, not on the noise
+    dist = EdgeDistances(net, uturn_m=-cfg.uturn_logp * cfg.beta_m,
+                         turn_m_per_rad=cfg.turn_m_per_rad)
 
     def once(sigma: np.ndarray, obs_sigma: np.ndarray) -> MatchResult:
-        return _match_once(net, index, xy, t_s, sigma, obs, heading[obs.fix], obs_sigma,
+        return _match_once(net, index, dist, xy, t_s, sigma, obs, heading[obs.fix], obs_sigma,
                            obs_still, obs_travel, use, cfg)
 
     result = once(noise.sigma, noise.obs_sigma)
@@ -307,7 +310,8 @@ def hmm_steps(xy: np.ndarray, sigma: np.ndarray, thin_sigmas: float,
     return np.asarray(keep)
 
 
-def _match_once(net: RoadNetwork, index: EdgeIndex, xy: np.ndarray, t_s: np.ndarray,
+def _match_once(net: RoadNetwork, index: EdgeIndex, dist: EdgeDistances, xy: np.ndarray,
+                t_s: np.ndarray,
                 sigma: np.ndarray, obs: Observations, obs_heading: np.ndarray,
                 obs_sigma: np.ndarray, obs_still: np.ndarray, obs_travel: np.ndarray,
                 use: np.ndarray, cfg: MatchConfig) -> MatchResult:
@@ -336,7 +340,6 @@ def _match_once(net: RoadNetwork, index: EdgeIndex, xy: np.ndarray, t_s: np.ndar
                                cfg.heading_cap_logp)
         emis.append(e)
 
-    dist = EdgeDistances(net, uturn_m=-cfg.uturn_logp * beta, turn_m_per_rad=cfg.turn_m_per_rad)
     prm = ChainParams(beta_m=beta, uturn_cost=-cfg.uturn_logp, max_skip=cfg.max_skip,
                       skip_logp=cfg.skip_logp, break_logp=cfg.break_logp,
                       max_speed_mps=cfg.max_speed_mps, slack_m=2 * radius,
