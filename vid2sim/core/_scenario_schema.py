@@ -279,7 +279,7 @@ def validate(data: Any, path: str | Path | None = None) -> None:
         _validate_events(_require(data, "events", list, "", path), spans, path)
     src = _require(data, "source", dict, "", path)
     for key, kind in (("inputs", list), ("tool_version", str), ("options", dict),
-                      ("assumptions", list), ("warnings", list)):
+                      ("assumptions", list), ("warnings", list), ("settings", dict)):
         if key in src:
             _require(src, key, kind, "source.", path)
 

@@ -215,11 +215,17 @@ class Source:
     options: dict[str, Any] = field(default_factory=dict)
     assumptions: list[str] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
+    #: the whole settings tree the scenario was made with (``vid2sim settings`` prints the
+    #: format; numbers kept exact, not rounded like the trajectories)
+    settings: dict[str, Any] = field(default_factory=dict)
 
     def to_json(self) -> dict[str, Any]:
-        return {"inputs": self.inputs, "tool_version": self.tool_version,
-                "options": self.options, "assumptions": self.assumptions,
-                "warnings": self.warnings}
+        out = {"inputs": self.inputs, "tool_version": self.tool_version,
+               "options": self.options, "assumptions": self.assumptions,
+               "warnings": self.warnings}
+        if self.settings:
+            out["settings"] = self.settings
+        return out
 
 
 @dataclass(slots=True)
@@ -254,6 +260,8 @@ class Scenario:
 
 
 def _canonical(obj: Any, key: str | None = None) -> Any:
+    if key == "settings" and isinstance(obj, dict):
+        return _exact(obj)  # settings keep every digit: a rounded 1e-5 would read as 0
     if isinstance(obj, dict):
         return {str(k): _canonical(v, str(k)) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
@@ -273,6 +281,17 @@ def _canonical(obj: Any, key: str | None = None) -> Any:
             decimals = _HEADING_DECIMALS
         rounded = round(value, decimals)
         return 0.0 if rounded == 0 else rounded  # no "-0.0" noise
+    return obj
+
+
+def _exact(obj: Any) -> Any:
+    """JSON-ready data with string keys and numbers as they are (non-finite -> None)."""
+    if isinstance(obj, dict):
+        return {str(k): _exact(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_exact(v) for v in obj]
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
     return obj
 
 
@@ -304,7 +323,8 @@ def from_json(data: dict[str, Any], path: str | Path | None = None) -> Scenario:
         source=Source(inputs=list(src.get("inputs", [])), tool_version=str(src.get("tool_version", "")),
                       options=dict(src.get("options", {})),
                       assumptions=list(src.get("assumptions", [])),
-                      warnings=list(src.get("warnings", []))),
+                      warnings=list(src.get("warnings", [])),
+                      settings=dict(src.get("settings", {}))),
         events=[Event.from_json(e) for e in data.get("events", [])],
     )
 

@@ -44,7 +44,7 @@ import shapely
 from vid2sim.geo.alongroute import join_xy, rts_along, signed_offsets, trim_route
 from vid2sim.geo.candidates import EdgeIndex, lines_array, wrap_angle
 from vid2sim.geo.hmm import ChainParams, Lattice, viterbi
-from vid2sim.geo.match_params import MatchConfig
+from vid2sim.geo.match_config import MatchConfig
 from vid2sim.geo.osm import RoadNetwork
 from vid2sim.geo.routing import EdgeDistances
 

@@ -1,5 +1,4 @@
-"""Tuning of the map matcher (:func:`vid2sim.geo.mapmatch.match`): a module of its own, so
-the settings tree can hold it without loading the matcher (shapely)."""
+"""Tuning of the map matcher (:mod:`vid2sim.geo.mapmatch`), light to import: the settings tree holds it."""
 
 from __future__ import annotations
 
