@@ -329,3 +329,21 @@ def test_lane_numbering_is_stated_once_and_printed(town_map):
     trace, ego = _trace_and_ego([(-280, 0), (280, 0)], offset_m=-4.5)
     text = format_summary(build_road(trace, ego, town_map, allow_download=False))
     assert LANE_NUMBERING in text and "rightmost" in LANE_NUMBERING
+
+
+def test_cover_points_runs_the_road_on_along_its_route(town_map):
+    """The road stage cuts the road a car length beyond the fixes (x 270 on Main, 300 m
+    long); a vehicle seen 20 m further ahead makes the scenario's road run on along Main to
+    it, one beside another street does not."""
+    from vid2sim.geo.roads import cover_points
+
+    trace, ego = _trace_and_ego([(-280, 0), (280, 0)], offset_m=-4.5)
+    res = build_road(trace, ego, town_map, allow_download=False)
+    ahead = np.array([[290.0, -3.0]])
+    (road,) = cover_points(res, res.roads, ahead, reach_m=5.0)
+    assert road.centerline[-1, 0] == pytest.approx(295.0, abs=0.5)
+    assert road.centerline[0, 0] == pytest.approx(res.roads[0].centerline[0, 0])
+    (same,) = cover_points(res, res.roads, np.array([[0.0, 150.0]]), reach_m=5.0)
+    np.testing.assert_array_equal(same.centerline, res.roads[0].centerline)
+    (capped,) = cover_points(res, res.roads, np.array([[310.0, 0.0]]), reach_m=5.0)
+    assert capped.centerline[-1, 0] == pytest.approx(300.0, abs=0.5)  # the route ends there

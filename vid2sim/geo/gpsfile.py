@@ -11,7 +11,7 @@ import numpy as np
 from vid2sim.base.errors import InputError
 from vid2sim.base.fileio import check_input_size
 from vid2sim.core.records import GpsFix, GpsTrace
-from vid2sim.geo.timeline import local_xy, repair_clock
+from vid2sim.geo.clockcheck import local_xy, repair_clock
 
 KNOTS_TO_MPS = 1852.0 / 3600.0
 # A receiver's user-equivalent range error: horizontal one-sigma accuracy ~ HDOP x UERE.
@@ -40,7 +40,7 @@ def finish_trace(fixes: list[GpsFix], fmt: str, path: Path, n_skipped: int = 0,
             warnings: list[str] | None = None,
             video_start_utc_s: float | None = None) -> GpsTrace:
     """Validate ranges, put the fixes on one clock in time order (late records sorted in, a
-    jumping clock re-timed, one fix per time: :mod:`vid2sim.geo.timeline`), wrap into a
+    jumping clock re-timed, one fix per time: :mod:`vid2sim.geo.clockcheck`), wrap into a
     GpsTrace."""
     warnings = list(warnings or [])
     if not fixes:
@@ -76,7 +76,7 @@ def finish_trace(fixes: list[GpsFix], fmt: str, path: Path, n_skipped: int = 0,
 
 def _on_one_clock(fixes: list[GpsFix], path: Path, warnings: list[str]
                   ) -> tuple[list[GpsFix], int]:
-    """The fixes in time order on one consistent clock (:func:`vid2sim.geo.timeline.repair_clock`:
+    """The fixes in time order on one consistent clock (:func:`vid2sim.geo.clockcheck.repair_clock`:
     records written late are sorted in, a clock that jumped is re-timed, one fix per time
     stamp), with the repair's warnings appended; and how many fixes were dropped."""
     t = np.array([f.t_utc_s for f in fixes], float)

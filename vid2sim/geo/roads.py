@@ -16,6 +16,7 @@ from __future__ import annotations
 import logging
 import math
 from collections import Counter
+from dataclasses import replace
 from pathlib import Path
 from typing import NamedTuple
 
@@ -129,6 +130,34 @@ def driven_span(res: MatchResult, piece: int, length_m: float, margin_m: float
         mid = float(np.clip((start + end) / 2.0, margin_m, max(length_m - margin_m, margin_m)))
         start, end = max(mid - margin_m, 0.0), min(mid + margin_m, length_m)
     return start, end
+
+
+def cover_points(result: RoadResult, roads: list[Road], xy_m: np.ndarray, reach_m: float,
+                 near_m: float = 15.0) -> list[Road]:
+    """The roads of a map-matched ``result`` run on along their matched route
+    (``result.route_lines``: each road's whole route polyline [m] and the span of it the road
+    covers [m]) until every
+    point within ``near_m`` of it (vehicles the camera saw ahead of the first or beyond the
+    last fix) lies ``reach_m`` inside them; roads without a route, or already covering the
+    points, are returned as they are. Only the centerline changes."""
+    pts = np.asarray(xy_m, float).reshape(-1, 2)
+    out = list(roads)
+    if not pts.size or result.source != "osm":
+        return out
+    for k, (line, (start, end)) in enumerate(result.route_lines):
+        if k >= len(out):
+            break
+        s, off = signed_offsets(line, pts)
+        on = np.abs(off) <= near_m
+        if not on.any():
+            continue
+        length = float(np.hypot(*np.diff(line, axis=0).T).sum())
+        lo = max(min(start, float(s[on].min()) - reach_m), 0.0)
+        hi = min(max(end, float(s[on].max()) + reach_m), length)
+        if lo < start - 1e-6 or hi > end + 1e-6:
+            out[k] = replace(out[k], centerline=resample_polyline(sub_polyline(line, lo, hi),
+                                                                  CENTERLINE_STEP_M))
+    return out
 
 
 def _osm_road(net: RoadNetwork, res: MatchResult, piece: int, margin_m: float
@@ -303,12 +332,14 @@ def _match_fixes(net: RoadNetwork, trace: GpsTrace, ego: EgoTrack, fixes: _Fixes
 def _osm_result(net: RoadNetwork, res: MatchResult, ego: EgoTrack, fixes: _Fixes,
                 margin_m: float, warnings: list[str]) -> RoadResult:
     """Roads of the matched route pieces, the ego's lane on the main one, each fix's match."""
-    roads, forwards, starts = [], [], []
+    roads, forwards, starts, lines, spans = [], [], [], [], []
     for k in range(len(res.route_edges)):
         road, forward, start, w = _osm_road(net, res, k, margin_m)
         roads.append(road)
         forwards.append(forward)
         starts.append(start)
+        lines.append(join_route(net, res.route_edges[k]))
+        spans.append((start, start + float(np.hypot(*np.diff(road.centerline, axis=0).T).sum())))
         warnings.extend(w)
     # ego lane: offsets to the road of the matched piece, searched near the expected place
     main = int(np.argmax([r.centerline.shape[0] for r in roads]))
@@ -339,7 +370,8 @@ def _osm_result(net: RoadNetwork, res: MatchResult, ego: EgoTrack, fixes: _Fixes
                       ego_lane=ego_lane, ego_offset_m=ego_off, source="osm",
                       lanes_forward=forwards[main], stats=stats, warnings=warnings,
                       map_polylines=[net.edge_xy[i] for i in range(net.n_edges)
-                                     if net.edge_twin[i] < i])
+                                     if net.edge_twin[i] < i],
+                      route_lines=list(zip(lines, spans, strict=True)))
 
 
 def _trajectory_result(trace: GpsTrace, ego: EgoTrack, fix_xy: np.ndarray, t_fix: np.ndarray,

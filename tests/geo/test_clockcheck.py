@@ -13,8 +13,8 @@ from hypothesis import strategies as st
 
 from vid2sim.base.errors import InconsistentInputError
 from vid2sim.cli import main
+from vid2sim.geo.clockcheck import local_xy, repair_clock
 from vid2sim.geo.readers import read_gps
-from vid2sim.geo.timeline import local_xy, repair_clock
 from vid2sim.geo.trace import smooth_ego
 
 LAT0, LON0 = 60.17, 24.94
