@@ -173,7 +173,7 @@ def check_input_size(path: str | Path, max_bytes: int = MAX_INPUT_BYTES,
         raise InputError(path, f"cannot read: {exc.strerror or exc}") from None
     if size > max_bytes:
         raise InputError(path, f"{what} file of {size / 2**20:.0f} MiB is larger than the "
-                         f"{max_bytes / 2**20:.0f} MiB limit", "see README 'Limits'")
+                         f"{max_bytes / 2**20:.0f} MiB limit", "see docs/limits.md")
     return size
 
 

@@ -49,7 +49,7 @@ if TYPE_CHECKING:
     from vid2sim.app.build import BuildResult
 
 #: Closing speeds below this give no time to collision [m/s]: twice the lead range-rate
-#: RMSE measured on KITTI and on the composites (0.5-0.6 m/s, README "Measured figures"),
+#: RMSE measured on KITTI and on the composites (0.5-0.6 m/s, docs/measurements.md),
 #: so that a TTC is not made of range-rate noise alone.
 TTC_MIN_CLOSING_MPS = 1.0
 #: Where each attempt at a row leaves a marker (host, pid, start), under ``DIR``.
