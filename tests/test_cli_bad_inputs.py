@@ -76,7 +76,9 @@ def gps_csv(n: int = 60, gap_after: int | None = None, gap_s: float = 0.0) -> st
     rows = ["t,lat,lon"]
     for i in range(n):
         t = T0 + i / FPS + (gap_s if gap_after is not None and i > gap_after else 0.0)
-        rows.append(f"{t:.2f},{60.17 + i * 9e-6:.7f},24.94")  # 1 m per fix north: 10 m/s
+        # 1 m per fix north, 10 m/s: across a gap the car drove on (a clock that jumps
+        # while the fixes stay 1 m apart is re-timed, not a gap)
+        rows.append(f"{t:.2f},{60.17 + (t - T0) * FPS * 9e-6:.7f},24.94")
     return "\n".join(rows) + "\n"
 
 

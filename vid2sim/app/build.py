@@ -19,14 +19,14 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
 from vid2sim import __version__
-from vid2sim.app.commands import match_road
 from vid2sim.app.figures import stage_figures
+from vid2sim.app.gpsroad import match_road
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.loaders import (
     load_boxes,
@@ -42,6 +42,7 @@ from vid2sim.app.rendering import REPLAY_NAME, render_into_build
 from vid2sim.app.settings import Settings
 from vid2sim.app.settings_file import changed_settings, settings_tree
 from vid2sim.app.tracking import detect_and_range_with, lead_summary
+from vid2sim.base.defaults import EGO_LENGTH_M
 from vid2sim.base.errors import InconsistentInputError
 from vid2sim.base.fileio import staged_folder, write_text_atomic
 from vid2sim.core import scenario as scenario_io
@@ -150,6 +151,19 @@ def clip_ego_to_video(ego: EgoTrack, duration_s: float) -> tuple[EgoTrack, list[
     fields_ = {name: (getattr(ego, name)[keep] if isinstance(getattr(ego, name), np.ndarray)
                       else getattr(ego, name)) for name in EgoTrack.__slots__}
     return EgoTrack(**fields_), warnings
+
+
+def _road_under_the_actors(scenario, road_result):
+    """The scenario with its map road run on along the matched route under the vehicles the
+    camera saw ahead of the first or beyond the last fix (the road stage cuts the road a car
+    length beyond the fixes; a replay needs road under every vehicle it replays)."""
+    if road_result is None or not scenario.actors:
+        return scenario
+    xy = np.vstack([np.column_stack((a.trajectory.x, a.trajectory.y))
+                    for a in scenario.actors])
+    reach = max(a.length_m for a in scenario.actors) / 2.0 + EGO_LENGTH_M
+    return replace(scenario, roads=geo_roads.cover_points(road_result, list(scenario.roads), xy,
+                                                          reach))
 
 
 def path_length_m(ego: EgoTrack) -> float:
@@ -378,8 +392,8 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
                                              ego_noise_m=ego_noise_m)
     warnings.extend(assemble_warnings)
     # ---- the street: the road's lanes from the video (and map), parked cars on their strip
-    scene = stages.run("road cross-section", lay_out_scene, scenario, lateral,
-                       settings.layout_config())
+    scene = stages.run("road cross-section", lay_out_scene, _road_under_the_actors(
+        scenario, road_result), lateral, settings.layout_config())
     scenario = scene.scenario
     warnings.extend(notes_of(scene.notes, NoteKind.WARNING))
     scenario.source.assumptions.extend(str(n) for n in scene.notes

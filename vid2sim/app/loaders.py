@@ -9,17 +9,15 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from vid2sim.app.gpsinputs import load_trace, smooth_trace  # noqa: F401 - the GPS inputs
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.settings import Settings
 from vid2sim.base.errors import InconsistentInputError, MissingInputError
 from vid2sim.core.camera import Camera, fit_camera_to_frames, load_camera
 from vid2sim.core.records import (
     Detection,
-    EgoTrack,
-    GpsTrace,
     Keyframe,
     Note,
-    TraceStats,
     VideoInfo,
 )
 from vid2sim.core.videofile import image_files
@@ -27,8 +25,6 @@ from vid2sim.detect.vehicles.detector import OnnxDetector, load_detector
 from vid2sim.detect.vehicles.external import read_detections
 from vid2sim.detect.video import video_info
 from vid2sim.evaluate.annotations import read_keyframes
-from vid2sim.geo.readers import read_gps
-from vid2sim.geo.trace import smooth_ego
 
 
 def need_video(inputs: Inputs) -> Path:
@@ -80,20 +76,6 @@ def load_boxes(inputs: Inputs, settings: Settings
     if detector.refine_max_boxes > 0:
         label += f" + {detector.refine_max_boxes} refined"
     return detector, None, label
-
-
-def load_trace(inputs: Inputs) -> GpsTrace:
-    """The GPS trace of ``inputs.gps`` (format detected from the content)."""
-    if inputs.gps is None:
-        raise MissingInputError(None, "no GPS trace given")
-    return read_gps(Path(inputs.gps))
-
-
-def smooth_trace(trace: GpsTrace, inputs: Inputs, settings: Settings
-                 ) -> tuple[EgoTrack, TraceStats]:
-    """The ego trajectory of a trace on the run's GPS time base (``inputs.gps_offset_s``)."""
-    return smooth_ego(trace, rate_hz=settings.rate_hz, gps_offset_s=inputs.gps_offset_s,
-                      params=settings.trace)
 
 
 def load_keyframes_for(keyframes: Path, video: Path, info: VideoInfo,

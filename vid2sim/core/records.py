@@ -597,3 +597,4 @@ class RoadResult:
     warnings: list[str] = field(default_factory=list)
     #: ENU polylines [m] of the drivable OSM ways near the trace, for pictures only
     map_polylines: list = field(default_factory=list)
+    route_lines: list = field(default_factory=list)  # per road (route [m], span): cover_points
