@@ -220,7 +220,8 @@ def build(inputs: Inputs, out_dir: Path, settings: Settings | None = None,
     info = load_video_info(inputs)
     camera, notes = load_camera_for(inputs, info)
     if inputs.keyframes is not None:
-        load_keyframes_for(inputs.keyframes, video, info, inputs.fps)
+        load_keyframes_for(inputs.keyframes, video, info, inputs.fps, inputs.keyframe_calib,
+                           inputs.keyframe_rate_hz)
     # The detector (or imported boxes) before any long work: missing weights fail fast.
     detector, imported, boxes_label = load_boxes(inputs, settings)
     # The output folder last of the checks, first of the work: a read-only or full disk
@@ -336,7 +337,10 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
                                 # differ between identical builds
                                 scenario_label=str(out_dir / "scenario.json"),
                                 # actors drawn with the outlines the ranging read
-                                outlines=settings.ranging.outlines)
+                                # (as cuboids against tracklet keyframes)
+                                outlines=settings.ranging.outlines,
+                                keyframe_calib=inputs.keyframe_calib,
+                                keyframe_rate_hz=inputs.keyframe_rate_hz)
         files["metrics"] = Path("metrics.json")
     else:
         # Nothing scores the scene: show sampled frames with what the build saw beside the

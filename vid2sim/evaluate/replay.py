@@ -47,6 +47,11 @@ from vid2sim.core.records import Keyframe, ProjectedBox
 from vid2sim.core.scenario import Actor, Scenario, load
 from vid2sim.core.videofile import image_files, read_frames, video_size_and_fps
 from vid2sim.evaluate.annotations import describe, read_keyframes
+from vid2sim.evaluate.tracklet_keyframes import (
+    CUBOID_PROJECTION,
+    OUTLINE_PROJECTION,
+    is_tracklet_file,
+)
 from vid2sim.evaluate.metrics import score_keyframes
 from vid2sim.evaluate.projection import NEAR_PLANE_M, BoxView, project_box_clipped  # noqa: F401
 from vid2sim.evaluate.report import write_report
@@ -302,7 +307,9 @@ def run_eval(scenario_path: str | Path, keyframes_path: str | Path, *, video: Pa
              extra_figures: list[tuple[str, bytes | Path]] | None = None,
              extra_warnings: list[str] | None = None, report_inputs: dict | None = None,
              scenario_label: str | None = None,
-             outlines: dict[str, OutlineShape] | None = CLASS_SHAPES) -> tuple[dict, str]:
+             outlines: dict[str, OutlineShape] | None = CLASS_SHAPES,
+             keyframe_calib: Path | None = None,
+             keyframe_rate_hz: float | None = None) -> tuple[dict, str]:
     """Replay a scenario at its annotated keyframes and score it.
 
     Writes ``out_dir/metrics.json``, ``out_dir/keyframes/*.png`` (overlays) and
@@ -333,6 +340,12 @@ def run_eval(scenario_path: str | Path, keyframes_path: str | Path, *, video: Pa
         final path here), default ``scenario_path``.
     outlines : dict, optional
         Per-category vehicle outlines to project (see :func:`replay_boxes`); None: 3D boxes.
+        Against KITTI tracklet keyframes (projected lidar cuboids) the vehicles are always
+        projected as 3D boxes, cuboid hull against cuboid hull; ``metrics["projection"]``
+        says which projection was used.
+    keyframe_calib, keyframe_rate_hz : optional
+        Tracklet keyframes only: calibration folder and keyframes a second (see
+        :func:`vid2sim.evaluate.annotations.read_keyframes`).
 
     Returns
     -------
@@ -358,7 +371,12 @@ def run_eval(scenario_path: str | Path, keyframes_path: str | Path, *, video: Pa
         rate = IMAGE_FOLDER_FPS
         warnings.append(f"no frame rate given for the image folder: assumed {IMAGE_FOLDER_FPS:g} "
                         "frames/s as vid2sim build does (pass --fps)")
-    keyframes = read_keyframes(keyframes_path, fps=rate, frame_names=frame_names)
+    cuboids = is_tracklet_file(keyframes_path)
+    keyframes = read_keyframes(keyframes_path, fps=rate, frame_names=frame_names,
+                               calib_dir=keyframe_calib, rate_hz=keyframe_rate_hz,
+                               image_size_px=(camera.image_width, camera.image_height))
+    if cuboids:
+        outlines = None
     if rate is not None:
         # Timestamps give times; frames for seeking follow from the rate.
         for k in keyframes:
@@ -378,6 +396,8 @@ def run_eval(scenario_path: str | Path, keyframes_path: str | Path, *, video: Pa
     boxes = replay_boxes(scenario, times, use_env=env_used, camera=camera, outlines=outlines)
     metrics = score_keyframes(keyframes, boxes)
     metrics["replay"] = "gymnasium " + ENV_ID if env_used else "trajectory interpolation"
+    metrics["projection"] = (CUBOID_PROJECTION if outlines is None and cuboids else
+                             "3D box hull" if outlines is None else OUTLINE_PROJECTION)
     metrics["inputs"] = {"scenario": scenario_label or str(scenario_path),
                          "keyframes": str(keyframes_path),
                          "video": str(video) if video is not None else None, "fps": rate}
@@ -433,6 +453,7 @@ def _summary(m: dict, keyframes: list[Keyframe], out_dir: Path) -> str:
          f"  recall {_fmt(m['recall'])}  F1 {_fmt(m['f1'])}  mean IoU {_fmt(m['mean_iou'])}"),
         (f"reference: TP {ref['tp']}  FP {ref['fp']}  FN {ref['fn']}  precision "
          f"{_fmt(ref['precision'])}  recall {_fmt(ref['recall'])}  F1 {_fmt(ref['f1'])}"),
+        f"projection: {m.get('projection', 'n/a')}",
     ]
     if rng["pairs"]:
         lines.append(f"range error: {rng['pairs']} pairs, mean |e| {rng['mean_abs_m']:.2f} m, "
