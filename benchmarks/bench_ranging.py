@@ -44,8 +44,8 @@ from vid2sim.app.tracking import run_track
 from vid2sim.core.camera import Camera, fit_camera_to_frames, load_camera
 from vid2sim.core.outline import CAR_SHAPE, TRUCK_SHAPE, OutlineShape, project_outline
 from vid2sim.core.records import TrackedBox
-from vid2sim.detect.pipeline import detect_and_range
-from vid2sim.detect.ranging import RangingConfig, cuboid_config, range_tracks
+from vid2sim.detect.pipeline import detect_and_range, range_and_assign
+from vid2sim.detect.ranging import RangingConfig, cuboid_config
 from vid2sim.detect.tracking.tracker import TrackerConfig
 from vid2sim.detect.vehicles.detector import load_detector
 from vid2sim.detect.vehicles.external import read_kitti_tracking_labels
@@ -213,7 +213,7 @@ def bench_synthetic(n_clips: int, seconds: float, lane_hints: bool) -> None:
     agg = {"lead": [], "all": [], "rate": [], "hit": [], "x": [], "present": [], "lat": []}
     for seed in range(n_clips):
         boxes, truth, true_lead, cam, pitch, hints = synthetic_clip(seed, seconds)
-        res = range_tracks(boxes, cam, horizon_hints_px=hints if lane_hints else None)
+        res = range_and_assign(boxes, cam, horizon_hints_px=hints if lane_hints else None)
         rel_all, rel_lead, rate_err, x_lead, lat_err = [], [], [], [], []
         chosen = {b.frame: b.track_id for b in res.boxes if b.is_lead}
         for b in res.boxes:
@@ -271,7 +271,7 @@ def bench_kitti() -> None:
                 objs = [o for o in labels[frame] if o.type in cat]
                 if not objs:
                     continue
-                res = range_tracks([TrackedBox(frame, 0.0, o.track_id, cat[o.type], 1.0,
+                res = range_and_assign([TrackedBox(frame, 0.0, o.track_id, cat[o.type], 1.0,
                                                *o.box_px) for o in objs], cam, config=cfg)
                 for o, b in zip(objs, res.boxes, strict=True):
                     if o.box_px[3] - o.box_px[1] >= 25:
@@ -300,7 +300,7 @@ def bench_kitti_rate() -> None:
     per_seq = {}
     for lab in sorted((data / "label_02").glob("*.txt")):
         objs, boxes = kitti_label_boxes(lab)
-        res = range_tracks(boxes, load_camera(data / "calib" / lab.name),
+        res = range_and_assign(boxes, load_camera(data / "calib" / lab.name),
                            config=cuboid_config())  # label boxes are projected cuboids
         per_seq[lab.stem] = kitti_rate_rows(objs, res.boxes)
     print("KITTI tracking, labelled boxes of every frame (10 Hz) as tracks, default config; "
@@ -374,7 +374,7 @@ def bench_speed() -> None:
                              x.category, x.score, x.x1, x.y1, x.x2, x.y2) for x in b]
     cam = Camera.default_for(1280, 720)
     t0 = time.perf_counter()
-    range_tracks(boxes, cam)
+    range_and_assign(boxes, cam)
     dt = time.perf_counter() - t0
     print(f"range_tracks: {len(boxes)} boxes in {dt:.2f} s ({len(boxes) / dt:.0f} boxes/s)")
 

@@ -86,11 +86,11 @@ def test_lane_offsets_follow_the_measured_lane_not_the_camera_axis():
     np.testing.assert_allclose(off_axis, lat_on_centre)
     names2, lead2, _off2 = assign_lanes_and_lead(boxes, rng, np.full(len(t), lat_on_centre),
                                                 CFG, track)
-    assert set(names2) == {"ego"} and lead2.all()
+    assert set(names2) == {0} and lead2.all()
     # one lane to the left of it is "left"
     names3, lead3, _ = assign_lanes_and_lead(boxes, rng, np.full(len(t), lat_on_centre + 3.0),
                                              CFG, track)
-    assert set(names3) == {"left"} and not lead3.any()
+    assert set(names3) == {1} and not lead3.any()
 
 
 def test_unknown_positions_have_no_lane_and_are_never_the_lead():
@@ -99,7 +99,7 @@ def test_unknown_positions_have_no_lane_and_are_never_the_lead():
     rng = np.array([20.0, np.nan, 20.0, 200.0, 20.0])
     lat = np.array([0.0, 0.0, np.nan, 0.0, 0.0])
     names, lead, offset = assign_lanes_and_lead(boxes, rng, lat, CFG)
-    assert names == ["ego", "", "", "", "ego"]
+    assert names == [0, None, None, None, 0]
     assert lead.tolist() == [True, False, False, False, True]
     assert np.isnan(offset[2])
 
@@ -122,8 +122,8 @@ def test_relane_with_the_road_course():
                        range_rate_mps=0.0, range_std_m=1.0, is_lead=False)
              for i in range(len(t))]
     straight = relane(boxes, CFG, track)
-    assert {b.lane for b in straight} == {"left"} and not any(b.is_lead for b in straight)
+    assert {b.lane for b in straight} == {1} and not any(b.is_lead for b in straight)
     bent = relane(boxes, CFG, track, _StraightThenLeft())
-    assert {b.lane for b in bent} == {"ego"} and all(b.is_lead for b in bent)
+    assert {b.lane for b in bent} == {0} and all(b.is_lead for b in bent)
     assert [b.lane_offset_m for b in bent] == pytest.approx([0.0] * len(t), abs=1e-9)
     assert relane([], CFG, track) == []

@@ -64,10 +64,10 @@ def test_draw_frame_colours_by_lane_and_side_by_side_keeps_the_height():
     img = np.zeros((200, 300, 3), np.uint8)
     boxes = [RangedBox(frame=0, t_s=0.0, track_id=7, category="car", score=0.9, x1=20, y1=80,
                        x2=80, y2=140, range_m=12.0, lateral_m=0.0, range_rate_mps=0.0,
-                       range_std_m=0.3, is_lead=True, lane="ego"),
+                       range_std_m=0.3, is_lead=True, lane=0),
              RangedBox(frame=0, t_s=0.0, track_id=8, category="car", score=0.9, x1=150, y1=80,
                        x2=200, y2=120, range_m=20.0, lateral_m=3.5, range_rate_mps=0.0,
-                       range_std_m=0.3, is_lead=False, lane="left")]
+                       range_std_m=0.3, is_lead=False, lane=1)]
     out = draw_frame(img, boxes, [np.array([[0.0, 199.0], [150.0, 100.0]])])
     assert img.max() == 0  # the input is untouched
     assert tuple(out[110, 20]) == (0, 140, 255)  # the ego lane's box edge, orange

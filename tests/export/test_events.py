@@ -8,7 +8,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from tests.detect.test_assign import make_track
-from vid2sim.core.lead import lane_name
 from vid2sim.core.records import LaneChange, RangedBox
 from vid2sim.core.scenario import Actor, Trajectory
 from vid2sim.detect.assign import lane_indices
@@ -118,7 +117,7 @@ def test_track_crossings_count_lanes_on_the_road_with_the_lane_track():
     track = make_track(t, ego_lat, width_m=W, lane=(ego_lat > W / 2).astype(int))
     car_offset = W - track.lane * W  # from the ego lane's centre
     boxes = _boxes(t, car_offset, ego_lane=track.lane)
-    assert {b.lane for b in boxes} == {"left", "ego"}
+    assert {b.lane for b in boxes} == {1, 0}
     assert track_crossings(boxes, track, W) == {}
 
 
@@ -127,7 +126,7 @@ def _boxes(t, offset, range_m=20.0, ego_lane=None, tid=7):
     lane = lane_indices(offset, W, 0.3, e)
     return [RangedBox(i, float(t[i]), tid, "car", 0.9, 0, 0, 10, 10, range_m=range_m,
                       lateral_m=float(offset[i]), range_rate_mps=0.0, range_std_m=0.5,
-                      is_lead=False, lane=lane_name(int(lane[i])),
+                      is_lead=False, lane=int(lane[i]),
                       lane_offset_m=float(offset[i])) for i in range(len(t))]
 
 

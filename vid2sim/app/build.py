@@ -267,7 +267,8 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
         "detect, track and range", detect_and_range, video, camera, detector=detector,
         detections=imported, detect_every=settings.detector.detect_every, fps=inputs.fps,
         progress=settings.progress, config=settings.ranging,
-        tracker_config=settings.tracker_config(), schedule=settings.detector.schedule())
+        tracker_config=settings.tracker_config(), schedule=settings.detector.schedule(),
+        assign_lanes=inputs.gps is None)
     notes.extend(ranging_notes)
     notes.extend(ranging.warnings)
     notes.append(Note.estimate(

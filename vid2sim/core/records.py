@@ -240,8 +240,9 @@ class RangedBox(TrackedBox):
     :param range_rate_mps: d(range)/dt, negative when closing [m/s]
     :param range_std_m: one-sigma uncertainty of ``range_m`` [m]
     :param width_m: estimated vehicle width [m]
-    :param lane: "ego", "left", "right" (or "left2"/"right2"...) lane relative to the ego lane
-        of the frame ("" where unknown)
+    :param lane: the lane relative to the ego lane of the frame: 0 the ego lane, +1 the next
+        to the left, -1 the next to the right, ... (:func:`vid2sim.core.lead.lane_name` names
+        them); None where unknown or not yet assigned (:mod:`vid2sim.detect.assign`)
     :param lane_offset_m: the centre's offset from the ego lane's centre line at its range,
         positive left [m] (NaN where unknown)
     """
@@ -253,7 +254,7 @@ class RangedBox(TrackedBox):
     is_lead: bool
     width_m: float = float("nan")
     lateral_rate_mps: float = float("nan")
-    lane: str = ""
+    lane: int | None = None
     lane_offset_m: float = float("nan")
 
 

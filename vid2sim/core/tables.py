@@ -13,7 +13,7 @@ import numpy as np
 
 from vid2sim.base.errors import InputError
 from vid2sim.base.fileio import atomic_open
-from vid2sim.core.lead import MAX_RELATIVE_LANE, lane_index, lane_name
+from vid2sim.core.lead import MAX_RELATIVE_LANE
 from vid2sim.core.records import EgoTrack, RangedBox, TrackedBox
 
 EGO_CSV_COLUMNS = ("t_s", "lat", "lon", "x_m", "y_m", "heading_rad", "speed_mps")
@@ -84,16 +84,15 @@ def write_tracks_csv(boxes: list[RangedBox], path: str | Path) -> None:
                          _fmt(b.range_std_m, 2), int(b.is_lead), _lane_cell(b.lane)])
 
 
-def _lane_cell(name: str) -> str:
-    index = lane_index(name)
-    return "" if index is None else str(index)
+def _lane_cell(lane: int | None) -> str:
+    return "" if lane is None else str(int(lane))
 
 
 def read_tracks_csv(path: str | Path) -> list[RangedBox]:
     """Read a ``tracks.csv`` written by :func:`write_tracks_csv` (or by hand).
 
     A file without the ``lane`` column (written before it existed) reads with every lane
-    unknown ("").
+    unknown (None).
 
     Raises
     ------
@@ -133,12 +132,13 @@ def _row_to_box(row: dict[str, str]) -> RangedBox:
         lane=_lane_from_cell(row.get("lane")))
 
 
-def _lane_from_cell(cell: str | None) -> str:
-    """A ``lane`` cell -> the lane's name ("" for an empty cell or no column)."""
+def _lane_from_cell(cell: str | None) -> int | None:
+    """A ``lane`` cell -> the lane relative to the ego lane (None for an empty cell or no
+    column)."""
     text = (cell or "").strip()
     if not text:
-        return ""
+        return None
     index = int(text)  # a ValueError names the line
     if abs(index) > MAX_RELATIVE_LANE:
         raise ValueError(f"lane {index} is more than {MAX_RELATIVE_LANE} lanes from the ego's")
-    return lane_name(index)
+    return index

@@ -27,8 +27,6 @@ from vid2sim.core.lead import (
     MAX_RELATIVE_LANE,
     ego_lane_at,
     lane_centre_ahead_m,
-    lane_index,
-    lane_name,
     nearest_ahead,
 )
 from vid2sim.core.records import LaneTrack, RangedBox, TrackedBox
@@ -37,9 +35,7 @@ __all__ = [
     "Course",
     "LaneSettings",
     "assign_lanes_and_lead",
-    "lane_index",
     "lane_indices",
-    "lane_name",
     "lane_offsets",
     "relane",
 ]
@@ -154,12 +150,12 @@ def lane_offsets(boxes: list[TrackedBox], range_m: np.ndarray, lateral_m: np.nda
 def assign_lanes_and_lead(boxes: list[TrackedBox], range_m: np.ndarray, lateral_m: np.ndarray,
                           config: LaneSettings, lanes: LaneTrack | None = None,
                           course: Course | None = None, never_lead: np.ndarray | None = None
-                          ) -> tuple[list[str], np.ndarray, np.ndarray]:
+                          ) -> tuple[list[int | None], np.ndarray, np.ndarray]:
     """Lane of every box and whether it is the lead vehicle in its frame.
 
     Lanes are relative to the ego lane of the box's frame (:func:`lane_offsets`, with
     hysteresis per track: :func:`lane_indices`); a box whose range or lateral offset is
-    unknown, or beyond ``config.max_range_m``, has no lane ("").
+    unknown, or beyond ``config.max_range_m``, has no lane (None).
 
     The lead is the nearest vehicle in the ego lane. Another ego-lane vehicle that is only a
     little nearer (within 2 m + 10 %) takes over after it has been nearer for
@@ -186,8 +182,8 @@ def assign_lanes_and_lead(boxes: list[TrackedBox], range_m: np.ndarray, lateral_
 
     Returns
     -------
-    (lane names, is_lead mask, lane offsets [m] as :func:`lane_offsets`), in the order of
-    ``boxes``
+    (lanes relative to the ego lane or None, is_lead mask, lane offsets [m] as
+    :func:`lane_offsets`), in the order of ``boxes``
     """
     n = len(boxes)
     range_m = np.asarray(range_m, dtype=float)
@@ -204,7 +200,7 @@ def assign_lanes_and_lead(boxes: list[TrackedBox], range_m: np.ndarray, lateral_
         lane_idx[idx] = lane_indices(np.where(known[idx], offset[idx], np.nan), width[idx],
                                      config.lane_hysteresis_m, ego_lane[idx])
     known &= np.abs(lane_idx) <= MAX_RELATIVE_LANE
-    lane_names = [lane_name(int(k)) if known[i] else "" for i, k in enumerate(lane_idx)]
+    lanes_of = [int(k) if known[i] else None for i, k in enumerate(lane_idx)]
     in_ego_lane = known & (lane_idx == 0)
 
     is_lead = np.zeros(n, dtype=bool)
@@ -252,7 +248,7 @@ def assign_lanes_and_lead(boxes: list[TrackedBox], range_m: np.ndarray, lateral_
             challenger, challenge_frames = None, 0
         is_lead[chosen] = True
         lead_track, lead_seen_frame = boxes[chosen].track_id, frame
-    return lane_names, is_lead, offset
+    return lanes_of, is_lead, offset
 
 
 def relane(boxes: list[RangedBox], config: LaneSettings, lanes: LaneTrack | None,
@@ -267,7 +263,7 @@ def relane(boxes: list[RangedBox], config: LaneSettings, lanes: LaneTrack | None
     lateral_m = np.array([b.lateral_m for b in boxes], dtype=float)
     never = (np.array([int(b.track_id) in never_lead_tracks for b in boxes], bool)
              if never_lead_tracks else None)
-    names, is_lead, offset = assign_lanes_and_lead(boxes, range_m, lateral_m, config, lanes,
-                                                   course, never)
-    return [replace(b, lane=names[i], is_lead=bool(is_lead[i]),
+    lanes_of, is_lead, offset = assign_lanes_and_lead(boxes, range_m, lateral_m, config, lanes,
+                                                      course, never)
+    return [replace(b, lane=lanes_of[i], is_lead=bool(is_lead[i]),
                     lane_offset_m=float(offset[i])) for i, b in enumerate(boxes)]

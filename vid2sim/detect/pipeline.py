@@ -15,8 +15,9 @@ import numpy as np
 
 from vid2sim.base.errors import InputError
 from vid2sim.core.camera import Camera
-from vid2sim.core.records import Detection, Frame, Note, RangingResult, TrackedBox
+from vid2sim.core.records import Detection, Frame, LaneTrack, Note, RangingResult, TrackedBox
 from vid2sim.core.videofile import skipped_frames_note
+from vid2sim.detect.assign import relane
 from vid2sim.detect.lanes.markings import LaneMarkingDetector
 from vid2sim.detect.lanes.track import track_lanes
 from vid2sim.detect.lanes.vanishing import HorizonEstimator, yaw_for_vanishing_column
@@ -198,6 +199,18 @@ every 6th at 30 fps): about 6 ms a frame at 640 px wide, and ranging takes the m
 rows within a window of a second or more about each frame (lane_horizon_offsets), which
 half as many rows still fill."""
 
+def range_and_assign(boxes: list[TrackedBox], camera: Camera, *,
+                     config: RangingConfig | None = None, lanes: LaneTrack | None = None,
+                     **ranging_options) -> RangingResult:
+    """Ranging (:func:`vid2sim.detect.ranging.range_tracks`) followed by the one lane and
+    lead assignment (:func:`vid2sim.detect.assign.relane`), for tracked boxes that need no
+    tram search (evaluations and benchmarks on labelled boxes)."""
+    config = config or RangingConfig()
+    result = range_tracks(boxes, camera, config=config, lanes=lanes, **ranging_options)
+    result.boxes = relane(result.boxes, config, result.lanes)
+    return result
+
+
 # The lane vanishing point moves on curves; a median over this many sampled frames (every
 # 5th video frame: 2 s at 25 fps) is needed before it is trusted as straight ahead.
 MIN_LANE_FRAMES_FOR_YAW = 10
@@ -210,7 +223,8 @@ def detect_and_range(video: Path, camera: Camera, *, detector, detections=None,
                      config: RangingConfig | None = None,
                      tracker_config: TrackerConfig | None = None,
                      schedule: ScheduleConfig | None = None, stats: dict | None = None,
-                     lane_every: int | None = None) -> tuple[RangingResult, Camera, list[Note]]:
+                     lane_every: int | None = None, assign_lanes: bool = True
+                     ) -> tuple[RangingResult, Camera, list[Note]]:
     """Detect (or import), track and range every vehicle of a video: the shared core of
     ``vid2sim track`` and ``vid2sim build``.
 
@@ -238,6 +252,10 @@ def detect_and_range(video: Path, camera: Camera, *, detector, detections=None,
     lane_every : int, optional
         Measure lane markings on every N-th decoded frame (default: one frame per
         ``LANE_INTERVAL_S``).
+    assign_lanes : bool
+        Assign the vehicles' lanes and the lead (:func:`vid2sim.detect.assign.relane`) from
+        the lane track; False when the caller will assign them once the road's course is
+        known (``vid2sim build`` with GPS), so that they are assigned in one pass.
 
     Returns
     -------
@@ -298,7 +316,10 @@ def detect_and_range(video: Path, camera: Camera, *, detector, detections=None,
     result = range_tracks(boxes, camera, horizon_hints_px=horizon_est.rows_px,
                           horizon_hint_frames=horizon_est.frames, config=config, lanes=lanes,
                           horizon=chosen)
-    result, rail_notes = keep_trams_from_lead(result, rail, config)
+    result, rail_notes = keep_trams_from_lead(result, rail)
     result.frame_times_s = frame_times
     notes.extend(rail_notes)
+    if assign_lanes:
+        result.boxes = relane(result.boxes, config, result.lanes,
+                              never_lead_tracks=result.never_lead_tracks)
     return result, camera, notes

@@ -38,7 +38,6 @@ from vid2sim.core.records import (
     RangingResult,
     TrackedBox,
 )
-from vid2sim.detect.assign import LaneSettings, relane
 
 TRAM = RAIL_CATEGORIES[0]
 
@@ -215,10 +214,11 @@ def relabel(boxes: list[TrackedBox], tracks: set[int]) -> list[TrackedBox]:
             else b for b in boxes]
 
 
-def keep_trams_from_lead(result: RangingResult, rail: RailTracks,
-                         lane_settings: LaneSettings) -> tuple[RangingResult, list[Note]]:
+def keep_trams_from_lead(result: RangingResult, rail: RailTracks
+                         ) -> tuple[RangingResult, list[Note]]:
     """The ranging result with the trams of ``rail`` (:func:`find_rail_tracks`) named in
-    notes, and those on their own track bed kept from being the lead.
+    notes, and those on their own track bed marked never to be the lead
+    (``result.never_lead_tracks``, which the lane assignment honours).
 
     ``result`` is the ranging of the boxes with the trams relabelled (:func:`relabel`), so
     that a tram the detector called a truck was ranged with the tram's size prior: find the
@@ -232,6 +232,4 @@ def keep_trams_from_lead(result: RangingResult, rail: RailTracks,
                               else "")) for t in sorted(rail.trams)]
     if rail.own_bed:
         result.never_lead_tracks = frozenset(rail.own_bed)
-        result.boxes = relane(result.boxes, lane_settings, result.lanes,
-                              never_lead_tracks=result.never_lead_tracks)
     return result, notes

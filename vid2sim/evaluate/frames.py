@@ -22,7 +22,7 @@ from tqdm import tqdm
 
 from vid2sim.base.fileio import write_bytes_atomic
 from vid2sim.core.camera import Camera
-from vid2sim.core.lead import ego_lane_at, lane_centre_m, lane_index
+from vid2sim.core.lead import ego_lane_at, lane_centre_m
 from vid2sim.core.records import LaneTrack, RangedBox
 from vid2sim.core.scenario import Event, Scenario
 from vid2sim.core.videofile import read_frames
@@ -103,7 +103,7 @@ def draw_frame(image_bgr: np.ndarray, boxes: list[RangedBox], boundaries: list[n
     for line in boundaries:
         cv2.polylines(img, [np.round(line).astype(np.int32)], False, _BOUNDARY, 2, cv2.LINE_AA)
     for b in boxes:
-        lane = lane_index(b.lane)
+        lane = b.lane
         colour = _LANE_COLOURS.get(lane, _UNKNOWN) if lane is not None else _UNKNOWN
         p1, p2 = (round(b.x1), round(b.y1)), (round(b.x2), round(b.y2))
         cv2.rectangle(img, p1, p2, colour, 3 if b.is_lead else 2, cv2.LINE_8)

@@ -35,7 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vid2sim.core.lead import ego_lane_at, lane_index
+from vid2sim.core.lead import ego_lane_at
 from vid2sim.core.records import LaneChange, LaneTrack, RangedBox
 from vid2sim.core.scenario import EGO_ID, Actor, Event, Trajectory
 
@@ -181,7 +181,7 @@ def track_crossings(boxes: list[RangedBox], lanes: LaneTrack | None, lane_width_
     cfg = config or EventConfig()
     by_track: dict[int, list[RangedBox]] = defaultdict(list)
     for b in boxes:
-        if (lane_index(b.lane) is not None and math.isfinite(b.lane_offset_m)
+        if (b.lane is not None and math.isfinite(b.lane_offset_m)
                 and 0.0 < b.range_m <= cfg.max_range_m):
             by_track[b.track_id].append(b)
     tracks = []
@@ -204,7 +204,7 @@ def track_crossings(boxes: list[RangedBox], lanes: LaneTrack | None, lane_width_
             width = np.where(np.isfinite(at.lane_width_m[part]), at.lane_width_m[part], width)
             ego_lane = at.lane[part].astype(int)
         start += len(t)
-        found = lane_crossings(t, np.array([lane_index(b.lane) for b in rows]),
+        found = lane_crossings(t, np.array([b.lane for b in rows]),
                                np.array([b.lane_offset_m for b in rows]), width, ego_lane,
                                np.array([b.range_m for b in rows]), cfg.min_dwell_s)
         if found:

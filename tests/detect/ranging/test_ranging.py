@@ -23,10 +23,12 @@ from hypothesis import strategies as st
 
 from vid2sim.base.errors import InputError
 from vid2sim.core.camera import Camera, PitchSource
+from vid2sim.core.lead import lane_name
 from vid2sim.core.outline import CLASS_SHAPES, project_outline
 from vid2sim.core.records import TrackedBox
 from vid2sim.core.tables import read_tracks_csv, write_tracks_csv
-from vid2sim.detect.assign import lane_indices, lane_name
+from vid2sim.detect.assign import lane_indices
+from vid2sim.detect.pipeline import range_and_assign
 from vid2sim.detect.ranging import (
     DEFAULT_PRIORS,
     BoxArrays,
@@ -37,7 +39,6 @@ from vid2sim.detect.ranging import (
     fit_boxes,
     lane_horizon_offsets,
     pitch_for_horizon,
-    range_tracks,
     smooth_track,
     smooth_track_adaptive,
 )
@@ -321,7 +322,7 @@ def test_synthetic_braking_lead_range_and_rate():
                 Vehicle(3, lambda t: 45.0 - 1.0 * t, lambda t: -3.4, lambda t: -1.0,
                         width_m=2.5, length_m=9.0, height_m=3.2, category="truck")]
     boxes, truth = simulate(CAM, vehicles, noise_px=1.0, seed=1)
-    res = range_tracks(boxes, CAM)
+    res = range_and_assign(boxes, CAM)
     rel, rate = _errors(res, truth)
     lead = np.array([b.is_lead for b in res.boxes])
     tid = np.array([b.track_id for b in res.boxes])
@@ -332,7 +333,7 @@ def test_synthetic_braking_lead_range_and_rate():
     assert np.sqrt(np.mean(rate_lead ** 2)) <= 0.5
     assert lead[tid == 1].mean() >= 0.95 and not lead[tid != 1].any()
     lanes = {b.track_id: b.lane for b in res.boxes}
-    assert lanes == {1: "ego", 2: "left", 3: "right"}
+    assert lanes == {1: 0, 2: 1, 3: -1}
     assert res.width_m_by_track[3] > res.width_m_by_track[1]
 
 
@@ -345,14 +346,14 @@ def test_pitched_camera_horizon_is_estimated_from_vehicles():
         vehicles.append(Vehicle(k, lambda t, x0=x0, v=v: x0 + v * t, lambda t, y0=y0: y0,
                                 lambda t, v=v: v, width_m=float(rng.uniform(1.7, 1.9))))
     boxes, truth = simulate(true_cam, vehicles, duration_s=5.0, seed=2)
-    res = range_tracks(boxes, CAM)
+    res = range_and_assign(boxes, CAM)
     print(f"pitched camera: horizon {res.horizon_y_px:.1f} px (truth "
           f"{true_cam.horizon_y_px():.1f}), pitch {res.pitch_deg_estimated:.2f} deg (truth 2)")
     assert res.horizon_source == "vehicle consistency"
     assert res.horizon_y_px == pytest.approx(true_cam.horizon_y_px(), abs=4.0)
     assert res.pitch_deg_estimated == pytest.approx(2.0, abs=0.25)
     rel, _ = _errors(res, truth)
-    naive = range_tracks(boxes, CAM, config=RangingConfig(camera_pitch_std_deg=0.01))
+    naive = range_and_assign(boxes, CAM, config=RangingConfig(camera_pitch_std_deg=0.01))
     rel_naive, _ = _errors(naive, truth)
     assert np.median(rel) < 0.04 < np.median(rel_naive)
 
@@ -362,7 +363,7 @@ def test_lane_hints_win_over_camera_file():
     boxes, truth = simulate(true_cam, [Vehicle(1, lambda t: 25.0, lambda t: 0.0,
                                                lambda t: 0.0)], duration_s=2.0)
     hints = list(true_cam.horizon_y_px() + np.random.default_rng(0).normal(0, 2, 30))
-    res = range_tracks(boxes, CAM, horizon_hints_px=hints)
+    res = range_and_assign(boxes, CAM, horizon_hints_px=hints)
     assert res.horizon_source == "lane markings"
     assert res.horizon_y_px == pytest.approx(true_cam.horizon_y_px(), abs=2.0)
     rel, _ = _errors(res, truth)
@@ -378,9 +379,9 @@ def test_a_horizon_chosen_beforehand_gives_the_same_ranging():
                                            lambda t: 0.0)], duration_s=2.0)
     hints = list(true_cam.horizon_y_px() + np.random.default_rng(1).normal(0, 2, 30))
     config = RangingConfig()
-    own = range_tracks(boxes, CAM, horizon_hints_px=hints, config=config)
+    own = range_and_assign(boxes, CAM, horizon_hints_px=hints, config=config)
     chosen = choose_horizon(boxes, CAM, config, hints)
-    handed = range_tracks(boxes, CAM, horizon_hints_px=hints, config=config, horizon=chosen)
+    handed = range_and_assign(boxes, CAM, horizon_hints_px=hints, config=config, horizon=chosen)
     assert handed.horizon_y_px == own.horizon_y_px
     assert handed.horizon_source == own.horizon_source
     assert [b.range_m for b in handed.boxes] == [b.range_m for b in own.boxes]
@@ -403,8 +404,8 @@ def test_parked_cars_on_lower_ground_do_not_move_the_vehicle_horizon():
     lowered = [replace(b, y1=b.y1 + true_cam.fy * drop_m / truth[(b.frame, b.track_id)][0],
                        y2=b.y2 + true_cam.fy * drop_m / truth[(b.frame, b.track_id)][0])
                if b.track_id >= 10 else b for b in boxes]
-    res = range_tracks(lowered, CAM)
-    everyone = range_tracks(lowered, CAM, config=RangingConfig(
+    res = range_and_assign(lowered, CAM)
+    everyone = range_and_assign(lowered, CAM, config=RangingConfig(
         horizon_vehicle_max_lateral_m=math.inf))
     print(f"vehicle horizon {res.horizon_y_px:.1f} px, with the parked cars "
           f"{everyone.horizon_y_px:.1f}, truth {true_cam.horizon_y_px():.1f}")
@@ -451,8 +452,8 @@ def test_drifting_horizon_followed_by_per_frame_lane_hints_keeps_the_range_rate(
         hints.append(cam_k.horizon_y_px() + rng.normal(0, 2.0))
     hint_frames = list(range(100))
     cfg = RangingConfig(camera_pitch_std_deg=1.0, per_frame_pitch=False)
-    plain = range_tracks(boxes, CAM, horizon_hints_px=hints, config=cfg)
-    per_frame = range_tracks(boxes, CAM, horizon_hints_px=hints, horizon_hint_frames=hint_frames,
+    plain = range_and_assign(boxes, CAM, horizon_hints_px=hints, config=cfg)
+    per_frame = range_and_assign(boxes, CAM, horizon_hints_px=hints, horizon_hint_frames=hint_frames,
                              config=cfg)
     _, rate_plain = _errors(plain, truth)
     _, rate_frames = _errors(per_frame, truth)
@@ -470,7 +471,7 @@ def test_cut_in_switches_lead_once():
     vehicles = [Vehicle(1, lambda t: 40.0, lambda t: 0.0, lambda t: 0.0),
                 Vehicle(2, lambda t: 15.0, _ramp(4.0, 6.0, -3.6, 0.0), lambda t: 0.0)]
     boxes, _ = simulate(CAM, vehicles, noise_px=1.0, seed=5)
-    res = range_tracks(boxes, CAM)
+    res = range_and_assign(boxes, CAM)
     lead_by_frame = {b.frame: b.track_id for b in res.boxes if b.is_lead}
     seq = [lead_by_frame.get(k) for k in range(100)]
     switches = sum(1 for a, b in itertools.pairwise(seq) if a != b)
@@ -487,7 +488,7 @@ def test_cut_out_reveals_next_lead():
     vehicles = [Vehicle(1, lambda t: 20.0, _ramp(4.0, 6.0, 0.0, 3.6), lambda t: 0.0),
                 Vehicle(2, lambda t: 45.0, lambda t: 0.2, lambda t: 0.0)]
     boxes, _ = simulate(CAM, vehicles, noise_px=1.0, seed=6)
-    res = range_tracks(boxes, CAM)
+    res = range_and_assign(boxes, CAM)
     lead_by_frame = {b.frame: b.track_id for b in res.boxes if b.is_lead}
     seq = [lead_by_frame.get(k) for k in range(100)]
     switches = sum(1 for a, b in itertools.pairwise(seq) if a != b)
@@ -501,7 +502,7 @@ def test_lead_does_not_flicker_between_twins():
                 Vehicle(2, lambda t: 30.3, lambda t: -0.5, lambda t: 0.0, width_m=0.8,
                         category="motorcycle", length_m=2.1, height_m=1.4)]
     boxes, _ = simulate(CAM, vehicles, noise_px=2.0, seed=8)
-    res = range_tracks(boxes, CAM)
+    res = range_and_assign(boxes, CAM)
     lead = [b.track_id for b in sorted(res.boxes, key=lambda b: b.frame) if b.is_lead]
     switches = sum(1 for a, b in itertools.pairwise(lead) if a != b)
     assert len(lead) == 100 and switches <= 2
@@ -513,7 +514,7 @@ def test_missing_frames_and_single_frame_tracks():
     single = [TrackedBox(0, 0.0, 99, "car", 0.8, *project_outline(
         CAM, 22.0, 3.5, CAR_W, CAR_H, CAR_L))]
     truth[(0, 99)] = (22.0, 3.5, float("nan"))
-    res = range_tracks(boxes + single, CAM)
+    res = range_and_assign(boxes + single, CAM)
     rel, rate = _errors(res, truth)
     assert np.median(rel) < 0.03
     assert math.isnan(res.boxes[-1].range_rate_mps)  # one frame: no rate
@@ -522,7 +523,7 @@ def test_missing_frames_and_single_frame_tracks():
 
 
 def test_empty_input():
-    res = range_tracks([], CAM)
+    res = range_and_assign([], CAM)
     assert res.boxes == [] and res.horizon_source == "camera file"
 
 
@@ -532,7 +533,7 @@ def test_empty_input():
 def test_tracks_csv_round_trip(tmp_path):
     boxes, _ = simulate(CAM, [Vehicle(1, lambda t: 20.0, lambda t: 0.0, lambda t: 0.0)],
                         duration_s=1.0)
-    res = range_tracks(boxes, CAM)
+    res = range_and_assign(boxes, CAM)
     path = tmp_path / "tracks.csv"
     write_tracks_csv(res.boxes, path)
     header = path.read_text().splitlines()[0]
@@ -543,7 +544,7 @@ def test_tracks_csv_round_trip(tmp_path):
     for a, b in zip(back, res.boxes, strict=True):
         assert (a.frame, a.track_id, a.is_lead) == (b.frame, b.track_id, b.is_lead)
         assert a.range_m == pytest.approx(b.range_m, abs=0.006)
-        assert a.lane == b.lane == "ego"
+        assert a.lane == b.lane == 0
 
 
 def test_tracks_csv_bad_input(tmp_path):
@@ -584,7 +585,7 @@ def test_braking_nose_dive_is_corrected_per_frame():
                              x.x2, x.y2) for x in b]
         truth.update({(k, tid): v for (_, tid), v in tr.items()})
     in_dive = np.array([3.0 <= b.t_s < 5.0 for b in boxes])
-    on, off = (range_tracks(boxes, CAM, config=RangingConfig(per_frame_pitch=flag))
+    on, off = (range_and_assign(boxes, CAM, config=RangingConfig(per_frame_pitch=flag))
                for flag in (True, False))
     rel_on, _ = _errors(on, truth)
     rel_off, _ = _errors(off, truth)
@@ -603,7 +604,7 @@ def test_car_in_a_dip_keeps_a_plausible_width():
                 Vehicle(2, lambda t: 28.0 + 0.5 * t, lambda t: 0.0, lambda t: 0.5)]
     b1, t1 = simulate(CAM, vehicles[:1], duration_s=6.0, seed=21)
     b2, t2 = simulate(sag, vehicles[1:], duration_s=6.0, seed=22)
-    res = range_tracks(b1 + b2, CAM, config=RangingConfig(per_frame_pitch=False))
+    res = range_and_assign(b1 + b2, CAM, config=RangingConfig(per_frame_pitch=False))
     assert res.width_m_by_track[2] == pytest.approx(DEFAULT_PRIORS["car"].width_m, abs=0.01)
     rel, _ = _errors(res, {**t1, **t2})
     in_dip = np.array([b.track_id == 2 for b in res.boxes])
@@ -617,6 +618,6 @@ def test_lead_survives_a_missed_detection():
                 Vehicle(2, lambda t: 45.0, lambda t: 0.3, lambda t: 0.0)]
     boxes, _ = simulate(CAM, vehicles, duration_s=6.0, seed=12)
     boxes = [b for b in boxes if not (b.track_id == 1 and b.frame in (30, 31))]
-    res = range_tracks(boxes, CAM)
+    res = range_and_assign(boxes, CAM)
     lead_by_frame = {b.frame: b.track_id for b in res.boxes if b.is_lead}
     assert [lead_by_frame[k] for k in range(60)] == [1] * 30 + [2, 2] + [1] * 28

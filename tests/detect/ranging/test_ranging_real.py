@@ -24,7 +24,8 @@ import pytest
 
 from vid2sim.core.camera import load_camera
 from vid2sim.core.records import TrackedBox
-from vid2sim.detect.ranging import RangingConfig, cuboid_config, range_tracks
+from vid2sim.detect.pipeline import range_and_assign
+from vid2sim.detect.ranging import RangingConfig, cuboid_config
 from vid2sim.detect.vehicles.external import read_kitti_tracking_labels
 from vid2sim.evaluate.ranging.kitti import (
     join_rows,
@@ -56,7 +57,7 @@ def _range_frames(data: Path, seq: str, frames, config: RangingConfig):
             continue
         boxes = [TrackedBox(frame, 0.0, lb.track_id, KITTI_TO_CATEGORY[lb.type], 1.0,
                             *lb.box_px) for lb in objs]
-        result = range_tracks(boxes, camera, config=config)
+        result = range_and_assign(boxes, camera, config=config)
         for lb, rb in zip(objs, result.boxes, strict=True):
             if lb.box_px[3] - lb.box_px[1] < 25:
                 continue
@@ -134,7 +135,7 @@ def test_all_labelled_sequences_as_tracks(kitti_tracking_dir):
                 if lb.type in KITTI_TO_CATEGORY]
         boxes = [TrackedBox(lb.frame, lb.frame / 10.0, lb.track_id, KITTI_TO_CATEGORY[lb.type],
                             1.0, *lb.box_px) for lb in objs]
-        result = range_tracks(boxes, camera, config=LABEL_BOXES)
+        result = range_and_assign(boxes, camera, config=LABEL_BOXES)
         rows += [(lb.location_m[2] - lb.size_hwl_m[2] / 2, rb.range_m, lb.truncated,
                   lb.occluded) for lb, rb in zip(objs, result.boxes, strict=True)
                  if lb.frame % 20 == 0 and lb.box_px[3] - lb.box_px[1] >= 25]
@@ -156,7 +157,7 @@ def test_range_rate_and_lead_on_labelled_sequences(kitti_tracking_dir):
     per_seq = {}
     for lab in labels:
         objs, boxes = kitti_label_boxes(lab)
-        res = range_tracks(boxes, load_camera(kitti_tracking_dir / "calib" / lab.name),
+        res = range_and_assign(boxes, load_camera(kitti_tracking_dir / "calib" / lab.name),
                            config=LABEL_BOXES)
         per_seq[lab.stem] = kitti_rate_rows(objs, res.boxes)
     for name, rows in {**per_seq, "all": join_rows(per_seq)}.items():

@@ -22,7 +22,6 @@ import numpy as np
 
 from vid2sim.core.camera import Camera
 from vid2sim.core.records import LaneTrack, Note, NoteKind, RangedBox, RangingResult, TrackedBox
-from vid2sim.detect.assign import assign_lanes_and_lead
 from vid2sim.detect.ranging.boxfit import (
     BoxArrays,
     BoxFit,
@@ -137,8 +136,8 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
     config : RangingConfig, optional
         Priors and noise settings.
     lanes : LaneTrack, optional
-        The ego lane from the lane markings: lanes and the lead are counted from it (else
-        from the camera's axis); kept in the result.
+        The ego lane from the lane markings, kept in the result for the lane assignment
+        (:mod:`vid2sim.detect.assign`), which counts lanes and the lead from it.
     horizon : tuple, optional
         What :func:`choose_horizon` returns for these boxes, hints and camera, when the
         caller has it already (it costs a second on a minute of 720p video); else computed.
@@ -146,7 +145,8 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
     Returns
     -------
     RangingResult
-        One :class:`RangedBox` per input box in the input order; lead and lane assigned.
+        One :class:`RangedBox` per input box in the input order; lanes and the lead not yet
+        assigned (``lane`` None, ``is_lead`` False).
     """
     config = config or RangingConfig()
     warnings: list[Note] = []
@@ -329,16 +329,15 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
                 out_rate[piece] = fr.range_rate_mps
                 out_lat_rate[piece] = sm.lateral_rate_mps
 
-    lane_names, is_lead, lane_offset = assign_lanes_and_lead(boxes, out_range, out_lat, config,
-                                                             lanes)
+    # Lanes and the lead are assigned in one pass once every input is known
+    # (vid2sim.detect.assign, run by the pipeline or the build after the road's course).
     ranged = [
         RangedBox(frame=b.frame, t_s=b.t_s, track_id=b.track_id, category=b.category,
                   score=b.score, x1=b.x1, y1=b.y1, x2=b.x2, y2=b.y2,
                   range_m=float(out_range[i]), lateral_m=float(out_lat[i]),
                   range_rate_mps=float(out_rate[i]), range_std_m=float(out_std[i]),
-                  is_lead=bool(is_lead[i]), width_m=float(w_track[i]),
-                  lateral_rate_mps=float(out_lat_rate[i]), lane=lane_names[i],
-                  lane_offset_m=float(lane_offset[i]))
+                  is_lead=False, width_m=float(w_track[i]),
+                  lateral_rate_mps=float(out_lat_rate[i]))
         for i, b in enumerate(boxes)]
     return RangingResult(ranged, pitch, horizon, source, width_by_track, warnings + [
         n for n in notes if n.kind is not NoteKind.WARNING], lanes=lanes)
