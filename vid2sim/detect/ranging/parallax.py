@@ -1,0 +1,231 @@
+"""Standing vehicles ranged from the ego's own motion: motion parallax with a known baseline.
+
+A vehicle that stands still (parked, queued at a light) moves in the ego's frame only by the
+ego's motion, which the GPS/OXTS trajectory measures. Every box of its track is then the
+projection of ONE rigid vehicle at one place in the world, seen from camera poses a known
+distance apart: its bearing and image size change as the ego's displacement over its range
+(structure from motion with a known baseline; Hartley & Zisserman, Multiple View Geometry,
+2nd ed., ch. 10), and its bottom row as that displacement over the camera's height above the
+ground UNDER IT. So the track's range no longer rests on the road plane through the ego's
+wheels nor on the class's size prior: one fit of the whole track gives its position, size and
+the height of the ground it stands on (:func:`fit_standing_track`), and the ego's speed is a
+measurement of its range rate in the track filter.
+
+Whether a track stands still is itself a question of the fit: a vehicle moving along the ego's
+axis is indistinguishable from a standing one of another size on other ground (the monocular
+scale ambiguity), so a track counts as standing only where the fit needs no implausible size
+or ground height and its edges agree with one place in the world (:func:`is_standing`); a
+vehicle moving across the ego's path, turning or braking leaves residuals no single place
+explains.
+
+Frames: the ego's vehicle frame at each box's time (x forward, y left, z up, origin on the road
+below the camera); the world pose of the ego comes from :class:`EgoPath`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from vid2sim.core.camera import Camera
+from vid2sim.core.outline import outline_boxes
+from vid2sim.core.records import EgoTrack
+
+# Numerical settings of the track fit (not properties of the world).
+FD_STEP = 1e-4  # finite-difference step in the parameters' units [m]
+MAX_ITERATIONS = 25
+CONVERGED_M = 1e-4  # largest parameter step at convergence [m]
+LM_DAMPING = 1e-3  # Levenberg-Marquardt damping relative to the diagonal
+MIN_SIZE_M = 0.2
+N_PARAMS = 6  # rear range, lateral, width, height, length, ground height (at the reference)
+
+
+@dataclass(frozen=True)
+class EgoPath:
+    """The ego's planar pose over time on the scenario clock: where each box was seen from.
+
+    ``noise_m``: one-sigma position noise of the trajectory (the trace stage's estimate;
+    None: unknown).
+    """
+
+    t_s: np.ndarray
+    x_m: np.ndarray
+    y_m: np.ndarray
+    heading_rad: np.ndarray
+    noise_m: float | None = None
+
+    @classmethod
+    def from_track(cls, ego: EgoTrack, noise_m: float | None = None) -> EgoPath:
+        return cls(np.asarray(ego.t_s, float), np.asarray(ego.x_m, float),
+                   np.asarray(ego.y_m, float), np.unwrap(np.asarray(ego.heading_rad, float)),
+                   noise_m)
+
+    def covers(self, t_s: np.ndarray) -> bool:
+        return bool(len(self.t_s) > 1 and np.min(t_s) >= self.t_s[0] - 1e-6
+                    and np.max(t_s) <= self.t_s[-1] + 1e-6)
+
+    def relative_poses(self, t_s: np.ndarray, t_ref_s: float) -> np.ndarray:
+        """(N, 3): the ego's position (forward, left) [m] and heading change [rad] at each
+        ``t_s`` in its own frame at ``t_ref_s``."""
+        x = np.interp(t_s, self.t_s, self.x_m) - np.interp(t_ref_s, self.t_s, self.x_m)
+        y = np.interp(t_s, self.t_s, self.y_m) - np.interp(t_ref_s, self.t_s, self.y_m)
+        h_ref = float(np.interp(t_ref_s, self.t_s, self.heading_rad))
+        c, s = math.cos(h_ref), math.sin(h_ref)
+        return np.column_stack((c * x + s * y, -s * x + c * y,
+                                np.interp(t_s, self.t_s, self.heading_rad) - h_ref))
+
+    def speed_yaw_rate(self, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Speed [m/s] and yaw rate [rad/s] at ``t_s`` (central differences of the path)."""
+        vx, vy = np.gradient(self.x_m, self.t_s), np.gradient(self.y_m, self.t_s)
+        w = np.gradient(self.heading_rad, self.t_s)
+        return (np.interp(t_s, self.t_s, np.hypot(vx, vy)), np.interp(t_s, self.t_s, w))
+
+
+def place_standing(theta: np.ndarray, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray,
+                                                                   np.ndarray]:
+    """Rear range, lateral offset and yaw of a standing vehicle in the ego's frame at each
+    pose (:meth:`EgoPath.relative_poses`), from its rear range ``theta[0]``, lateral
+    ``theta[1]`` and length ``theta[4]`` in the reference frame (aligned with it)."""
+    half = theta[4] / 2
+    dx, dy = theta[0] + half - poses[:, 0], theta[1] - poses[:, 1]
+    c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
+    return c * dx + s * dy - half, -s * dx + c * dy, -poses[:, 2]
+
+
+def standing_range_rate(range_m: np.ndarray, lateral_m: np.ndarray, speed_mps: np.ndarray,
+                        yaw_rate_radps: np.ndarray) -> np.ndarray:
+    """d(range)/dt of a standing point at (``range_m``, ``lateral_m``) for an ego moving
+    forward at ``speed_mps`` and turning at ``yaw_rate_radps`` (left positive): the point's
+    velocity in the rotating ego frame is -v - w x p, whose forward part is -v + w y."""
+    del range_m  # the forward component does not depend on it
+    return -np.asarray(speed_mps) + np.asarray(yaw_rate_radps) * np.asarray(lateral_m)
+
+
+@dataclass(frozen=True)
+class StandingFit:
+    """One track fitted as a standing vehicle.
+
+    ``theta``: rear range and lateral offset at the reference time, width, height, length and
+    the height of the ground under it relative to the ego's road plane [m]; ``cov`` their
+    covariance; ``chi2_per_dof``: the robust fit's normalised residual; ``range_m`` /
+    ``lateral_m``: its place at every box.
+    """
+
+    theta: np.ndarray
+    cov: np.ndarray
+    chi2_per_dof: float
+    range_m: np.ndarray
+    lateral_m: np.ndarray
+    converged: bool
+
+    @property
+    def ground_m(self) -> float:
+        return float(self.theta[5])
+
+    @property
+    def ground_std_m(self) -> float:
+        return float(math.sqrt(max(self.cov[5, 5], 0.0)))
+
+
+def _edges(camera: Camera, theta: np.ndarray, poses: np.ndarray, outline: np.ndarray
+           ) -> np.ndarray:
+    """Predicted (u1, v1, u2, v2) of every box for the parameters ``theta`` (one row each)
+    or (K, 6) rows evaluated at once (K blocks of len(poses) boxes)."""
+    th = np.atleast_2d(theta)
+    k, n = th.shape[0], len(poses)
+    rng, lat, yaw = [], [], []
+    for row in th:
+        r, y, w = place_standing(row, poses)
+        rng.append(r), lat.append(y), yaw.append(w)
+    rep = np.repeat(th, n, axis=0)
+    return outline_boxes(camera, np.concatenate(rng), np.concatenate(lat), rep[:, 2],
+                         rep[:, 3], rep[:, 4], np.tile(outline, (k, 1)), np.concatenate(yaw),
+                         z_m=rep[:, 5]).reshape(k, n, 4)
+
+
+def _weights(r: np.ndarray, c: float) -> np.ndarray:
+    """Cauchy IRLS weights of normalised residuals (c: the scale, in sigmas): a box edge on
+    another car (occlusion, a merged box) pulls no more than a few sigmas' worth."""
+    return 1.0 / (1.0 + (r / c) ** 2)
+
+
+def fit_standing_track(camera: Camera, obs: np.ndarray, sig: np.ndarray, use: np.ndarray,
+                       outline: np.ndarray, poses: np.ndarray, start: np.ndarray,
+                       prior_mean: np.ndarray, prior_std: np.ndarray,
+                       robust_sigmas: float = 3.0) -> StandingFit:
+    """Fit one track's boxes as ONE standing vehicle seen from the ego's poses.
+
+    Parameters
+    ----------
+    obs, sig, use : (N, 4) ndarray
+        Box edges (u1, v1, u2, v2) [px], their one-sigma noise [px] and which are usable
+        (not cut by the image border).
+    outline : (N, K) ndarray
+        The vehicle's outline rows (:func:`vid2sim.core.outline.shape_matrix`).
+    poses : (N, 3) ndarray
+        The ego's pose at each box relative to the reference (:meth:`EgoPath.relative_poses`).
+    start : (6,) ndarray
+        Starting parameters (rear range, lateral, width, height, length, ground height).
+    prior_mean, prior_std : (4,) ndarray
+        Priors of width, height, length and ground height [m].
+    robust_sigmas : float
+        Scale of the Cauchy weights of the edge residuals.
+
+    Returns
+    -------
+    StandingFit
+    """
+    theta = np.asarray(start, float).copy()
+    wts = np.ones(obs.shape)
+    steps = np.full(N_PARAMS, FD_STEP)
+    converged = False
+    for _ in range(MAX_ITERATIONS):
+        r0, jac = _residuals_and_jacobian(camera, theta, obs, sig, use, outline, poses,
+                                          prior_mean, prior_std, steps)
+        n_edge = obs.size
+        wts = _weights(r0[:n_edge].reshape(obs.shape), robust_sigmas)
+        w_all = np.concatenate([wts.ravel(), np.ones(len(r0) - n_edge)])
+        jw = jac * w_all[:, None]
+        a = jac.T @ jw
+        a += LM_DAMPING * np.diag(np.diag(a)) + 1e-12 * np.eye(N_PARAMS)
+        delta = np.linalg.solve(a, jw.T @ r0)
+        theta = theta + delta
+        theta[0] = max(theta[0], 0.5)
+        theta[2:5] = np.maximum(theta[2:5], MIN_SIZE_M)
+        if np.max(np.abs(delta)) < CONVERGED_M:
+            converged = True
+            break
+    r0, jac = _residuals_and_jacobian(camera, theta, obs, sig, use, outline, poses,
+                                      prior_mean, prior_std, steps)
+    n_edge = obs.size
+    w_edge = _weights(r0[:n_edge].reshape(obs.shape), robust_sigmas).ravel()
+    w_all = np.concatenate([w_edge, np.ones(len(r0) - n_edge)])
+    cov = np.linalg.inv(jac.T @ (jac * w_all[:, None]) + 1e-12 * np.eye(N_PARAMS))
+    n_used = int(use.sum())
+    # Robust normalised residual: the Cauchy loss's per-edge value in sigmas^2 (log form), so
+    # a few occluded edges do not decide but a track that fits no single place does.
+    edge = r0[:n_edge][use.ravel()]
+    chi2 = float(np.sum(robust_sigmas ** 2 * np.log1p((edge / robust_sigmas) ** 2)))
+    chi2_per_dof = chi2 / max(n_used - N_PARAMS, 1)
+    rng, lat, _ = place_standing(theta, poses)
+    return StandingFit(theta, cov, chi2_per_dof, rng, lat, converged)
+
+
+def _residuals_and_jacobian(camera: Camera, theta: np.ndarray, obs: np.ndarray,
+                            sig: np.ndarray, use: np.ndarray, outline: np.ndarray,
+                            poses: np.ndarray, prior_mean: np.ndarray, prior_std: np.ndarray,
+                            steps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Normalised residuals (edges, then the four priors) and their Jacobian with respect to
+    ``theta`` (forward differences, all parameter steps in one projection)."""
+    th = np.tile(theta, (N_PARAMS + 1, 1))
+    th[1:] += np.diag(steps)
+    pred = _edges(camera, th, poses, outline)
+    r_edge = np.where(use, (obs - pred) / sig, 0.0)
+    r_edge = np.nan_to_num(r_edge, nan=0.0).reshape(N_PARAMS + 1, -1)
+    r_prior = (prior_mean - th[:, 2:6]) / prior_std
+    r = np.concatenate([r_edge, r_prior], axis=1)
+    jac = -(r[1:] - r[0]) / steps[:, None]
+    return r[0], jac.T
+
