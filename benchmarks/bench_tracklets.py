@@ -26,8 +26,8 @@ from vid2sim.app.settings import DetectorSettings, Settings
 from vid2sim.core.tables import read_tracks_csv
 from vid2sim.detect.video import video_info
 from vid2sim.evaluate.ranging.static import ego_motion
-from vid2sim.evaluate.ranging.trackletscore import format_tracklet_report, match_tracklets
 from vid2sim.evaluate.ranging.tracklets import calibration_beside, read_tracklets, tracklet_truth
+from vid2sim.evaluate.ranging.trackletscore import format_tracklet_report, match_tracklets
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared"
 

@@ -49,6 +49,7 @@ from vid2sim.core.tables import write_tracks_csv
 from vid2sim.detect.assign import relane
 from vid2sim.detect.lanes.track import lane_track
 from vid2sim.detect.pipeline import detect_and_range
+from vid2sim.detect.ranging import EgoPath
 from vid2sim.evaluate.frames import sample_frame_figures
 from vid2sim.evaluate.replay import run_eval
 from vid2sim.evaluate.report import write_report
@@ -263,11 +264,14 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
             + (" (a camera-relative scenario)" if inputs.ego_speed_mps == 0 else "")))
 
     # ---- detect, track, range
+    # With GPS the ego's own motion ranges the vehicles that stand still
+    ego_path = EgoPath.from_track(ego, ego_noise_m) if inputs.gps is not None else None
     ranging, camera, ranging_notes = stages.run(
         "detect, track and range", detect_and_range, video, camera, detector=detector,
         detections=imported, detect_every=settings.detector.detect_every, fps=inputs.fps,
         progress=settings.progress, config=settings.ranging,
         tracker_config=settings.tracker_config(), schedule=settings.detector.schedule(),
+        ego_path=ego_path,
         assign_lanes=inputs.gps is None)
     notes.extend(ranging_notes)
     notes.extend(ranging.warnings)

@@ -10,13 +10,13 @@ from vid2sim.app.inputs import Inputs
 from vid2sim.cli.group import cli
 from vid2sim.cli.options import (
     EXISTING_PATH,
-    tracklet_options,
     check_out_dir,
     detector_options,
     echo,
     frame_source_options,
     settings_from,
     show_progress,
+    tracklet_options,
 )
 from vid2sim.detect.vehicles.models import DEFAULT_DETECTOR
 

@@ -463,6 +463,10 @@ class RangingResult:
     :param horizon_source: "lane markings", "vehicle consistency" or "camera file"
     :param width_m_by_track: estimated width of each track's vehicle [m]
     :param warnings: :class:`Note` lines (warnings, and estimates such as the horizon's)
+    :param ground_m_by_track: the ground each track's vehicle stands on: (height above the
+        ego's road plane [m], its one-sigma spread [m], its source: "standing fit",
+        "standing neighbours" or "ego plane")
+    :param standing_tracks: tracks ranged as standing vehicles from the ego's own motion
     """
 
     boxes: list[RangedBox]
@@ -479,6 +483,8 @@ class RangingResult:
     #: the time of every frame the detection streamed (0-based index -> s, the container's
     #: clock; skipped frames absent), when it was recorded
     frame_times_s: dict[int, float] | None = None
+    ground_m_by_track: dict[int, tuple[float, float, str]] = field(default_factory=dict)
+    standing_tracks: frozenset[int] = frozenset()
 
 
 #: What an event is (scenario.json's ``events``, :mod:`vid2sim.core.scenario`).

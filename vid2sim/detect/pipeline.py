@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from vid2sim.base.errors import InputError
-from vid2sim.core.camera import Camera
+from vid2sim.core.camera import Camera, PitchSource
 from vid2sim.core.records import Detection, Frame, LaneTrack, Note, RangingResult, TrackedBox
 from vid2sim.core.videofile import skipped_frames_note
 from vid2sim.detect.assign import relane
@@ -23,6 +23,7 @@ from vid2sim.detect.lanes.track import track_lanes
 from vid2sim.detect.lanes.vanishing import HorizonEstimator, yaw_for_vanishing_column
 from vid2sim.detect.rail import find_rail_tracks, keep_trams_from_lead, relabel
 from vid2sim.detect.ranging import (
+    EgoPath,
     RangingConfig,
     choose_horizon,
     pitch_for_horizon,
@@ -223,7 +224,8 @@ def detect_and_range(video: Path, camera: Camera, *, detector, detections=None,
                      config: RangingConfig | None = None,
                      tracker_config: TrackerConfig | None = None,
                      schedule: ScheduleConfig | None = None, stats: dict | None = None,
-                     lane_every: int | None = None, assign_lanes: bool = True
+                     lane_every: int | None = None, assign_lanes: bool = True,
+                     ego_path: EgoPath | None = None
                      ) -> tuple[RangingResult, Camera, list[Note]]:
     """Detect (or import), track and range every vehicle of a video: the shared core of
     ``vid2sim track`` and ``vid2sim build``.
@@ -256,6 +258,11 @@ def detect_and_range(video: Path, camera: Camera, *, detector, detections=None,
         Assign the vehicles' lanes and the lead (:func:`vid2sim.detect.assign.relane`) from
         the lane track; False when the caller will assign them once the road's course is
         known (``vid2sim build`` with GPS), so that they are assigned in one pass.
+    ego_path : EgoPath, optional
+        The ego's trajectory (``vid2sim build`` with GPS): standing vehicles are then ranged
+        from the ego's own motion (:mod:`vid2sim.detect.ranging.surface`). Its direction of
+        travel starts from the camera file's axis (the body's, when the lane markings turned
+        the camera towards their vanishing point) and is refined from the standing vehicles.
 
     Returns
     -------
@@ -313,9 +320,12 @@ def detect_and_range(video: Path, camera: Camera, *, detector, detections=None,
     if rail.relabelled:
         # the trams' sizes change the vehicles' horizon: ranging chooses it again
         boxes, chosen = relabel(boxes, rail.relabelled), None
+    if ego_path is not None and camera.pitch_source is not PitchSource.DEFAULT:
+        # a camera file states the mounting: the body (and its travel) lies along its axis
+        ego_path = replace(ego_path, travel_yaw_rad=math.radians(camera.yaw_deg - yaw_before))
     result = range_tracks(boxes, camera, horizon_hints_px=horizon_est.rows_px,
                           horizon_hint_frames=horizon_est.frames, config=config, lanes=lanes,
-                          horizon=chosen)
+                          horizon=chosen, ego_path=ego_path)
     result, rail_notes = keep_trams_from_lead(result, rail)
     result.frame_times_s = frame_times
     notes.extend(rail_notes)

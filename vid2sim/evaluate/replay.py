@@ -47,14 +47,14 @@ from vid2sim.core.records import Keyframe, ProjectedBox
 from vid2sim.core.scenario import Actor, Scenario, load
 from vid2sim.core.videofile import image_files, read_frames, video_size_and_fps
 from vid2sim.evaluate.annotations import describe, read_keyframes
+from vid2sim.evaluate.metrics import score_keyframes
+from vid2sim.evaluate.projection import NEAR_PLANE_M, BoxView, project_box_clipped  # noqa: F401
+from vid2sim.evaluate.report import write_report
 from vid2sim.evaluate.tracklet_keyframes import (
     CUBOID_PROJECTION,
     OUTLINE_PROJECTION,
     is_tracklet_file,
 )
-from vid2sim.evaluate.metrics import score_keyframes
-from vid2sim.evaluate.projection import NEAR_PLANE_M, BoxView, project_box_clipped  # noqa: F401
-from vid2sim.evaluate.report import write_report
 
 log = logging.getLogger(__name__)
 

@@ -47,7 +47,14 @@ class EgoPath:
     """The ego's planar pose over time on the scenario clock: where each box was seen from.
 
     ``noise_m``: one-sigma position noise of the trajectory (the trace stage's estimate;
-    None: unknown).
+    None: unknown). ``travel_yaw_rad``: the direction the ego travels in, in the ranging's
+    vehicle frame (counter-clockwise from its x axis): a car moves along its body's axis,
+    and where the ranging turned the camera towards the lane markings' vanishing point
+    (:func:`vid2sim.detect.pipeline.detect_and_range`) while the camera file measured the
+    mounting, the body's axis lies that turn away from the ranging frame's (KITTI raw 0001:
+    the calibration says 0.06 deg off the IMU axis, the lane markings 0.50 deg; a standing
+    car 9 m to the side then fits 1-2 m off with the lanes' axis, within 0.3 m with the
+    body's).
     """
 
     t_s: np.ndarray
@@ -55,6 +62,7 @@ class EgoPath:
     y_m: np.ndarray
     heading_rad: np.ndarray
     noise_m: float | None = None
+    travel_yaw_rad: float = 0.0
 
     @classmethod
     def from_track(cls, ego: EgoTrack, noise_m: float | None = None) -> EgoPath:
@@ -68,13 +76,16 @@ class EgoPath:
 
     def relative_poses(self, t_s: np.ndarray, t_ref_s: float) -> np.ndarray:
         """(N, 3): the ego's position (forward, left) [m] and heading change [rad] at each
-        ``t_s`` in its own frame at ``t_ref_s``."""
+        ``t_s`` in the ranging's vehicle frame at ``t_ref_s`` (travelling along
+        ``travel_yaw_rad``)."""
         x = np.interp(t_s, self.t_s, self.x_m) - np.interp(t_ref_s, self.t_s, self.x_m)
         y = np.interp(t_s, self.t_s, self.y_m) - np.interp(t_ref_s, self.t_s, self.y_m)
-        h_ref = float(np.interp(t_ref_s, self.t_s, self.heading_rad))
-        c, s = math.cos(h_ref), math.sin(h_ref)
+        heading_ref = float(np.interp(t_ref_s, self.t_s, self.heading_rad))
+        # the ranging frame's x axis lies travel_yaw_rad clockwise of the travel direction
+        h_axis = heading_ref - self.travel_yaw_rad
+        c, s = math.cos(h_axis), math.sin(h_axis)
         return np.column_stack((c * x + s * y, -s * x + c * y,
-                                np.interp(t_s, self.t_s, self.heading_rad) - h_ref))
+                                np.interp(t_s, self.t_s, self.heading_rad) - heading_ref))
 
     def speed_yaw_rate(self, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Speed [m/s] and yaw rate [rad/s] at ``t_s`` (central differences of the path)."""
@@ -83,15 +94,18 @@ class EgoPath:
         return (np.interp(t_s, self.t_s, np.hypot(vx, vy)), np.interp(t_s, self.t_s, w))
 
 
-def place_standing(theta: np.ndarray, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray,
-                                                                   np.ndarray]:
+def place_standing(theta: np.ndarray, poses: np.ndarray, yaw_ref_rad: float = 0.0
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Rear range, lateral offset and yaw of a standing vehicle in the ego's frame at each
     pose (:meth:`EgoPath.relative_poses`), from its rear range ``theta[0]``, lateral
-    ``theta[1]`` and length ``theta[4]`` in the reference frame (aligned with it)."""
+    ``theta[1]`` and length ``theta[4]`` in the reference frame, where it stands at
+    ``yaw_ref_rad`` (parallel to the ego's travel)."""
     half = theta[4] / 2
+    # its footprint centre (where outline_boxes turns it about: half a length ahead of the
+    # rear range) in the reference frame, then in each pose's frame
     dx, dy = theta[0] + half - poses[:, 0], theta[1] - poses[:, 1]
     c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
-    return c * dx + s * dy - half, -s * dx + c * dy, -poses[:, 2]
+    return c * dx + s * dy - half, -s * dx + c * dy, yaw_ref_rad - poses[:, 2]
 
 
 def standing_range_rate(range_m: np.ndarray, lateral_m: np.ndarray, speed_mps: np.ndarray,
@@ -129,15 +143,15 @@ class StandingFit:
         return float(math.sqrt(max(self.cov[5, 5], 0.0)))
 
 
-def _edges(camera: Camera, theta: np.ndarray, poses: np.ndarray, outline: np.ndarray
-           ) -> np.ndarray:
+def _edges(camera: Camera, theta: np.ndarray, poses: np.ndarray, outline: np.ndarray,
+           yaw_ref_rad: float) -> np.ndarray:
     """Predicted (u1, v1, u2, v2) of every box for the parameters ``theta`` (one row each)
     or (K, 6) rows evaluated at once (K blocks of len(poses) boxes)."""
     th = np.atleast_2d(theta)
     k, n = th.shape[0], len(poses)
     rng, lat, yaw = [], [], []
     for row in th:
-        r, y, w = place_standing(row, poses)
+        r, y, w = place_standing(row, poses, yaw_ref_rad)
         rng.append(r), lat.append(y), yaw.append(w)
     rep = np.repeat(th, n, axis=0)
     return outline_boxes(camera, np.concatenate(rng), np.concatenate(lat), rep[:, 2],
@@ -154,7 +168,7 @@ def _weights(r: np.ndarray, c: float) -> np.ndarray:
 def fit_standing_track(camera: Camera, obs: np.ndarray, sig: np.ndarray, use: np.ndarray,
                        outline: np.ndarray, poses: np.ndarray, start: np.ndarray,
                        prior_mean: np.ndarray, prior_std: np.ndarray,
-                       robust_sigmas: float = 3.0) -> StandingFit:
+                       robust_sigmas: float = 3.0, yaw_ref_rad: float = 0.0) -> StandingFit:
     """Fit one track's boxes as ONE standing vehicle seen from the ego's poses.
 
     Parameters
@@ -172,6 +186,9 @@ def fit_standing_track(camera: Camera, obs: np.ndarray, sig: np.ndarray, use: np
         Priors of width, height, length and ground height [m].
     robust_sigmas : float
         Scale of the Cauchy weights of the edge residuals.
+    yaw_ref_rad : float
+        The vehicle's heading in the reference frame: parallel to the ego's travel
+        (:attr:`EgoPath.travel_yaw_rad`), as a parked or queued vehicle stands.
 
     Returns
     -------
@@ -183,7 +200,7 @@ def fit_standing_track(camera: Camera, obs: np.ndarray, sig: np.ndarray, use: np
     converged = False
     for _ in range(MAX_ITERATIONS):
         r0, jac = _residuals_and_jacobian(camera, theta, obs, sig, use, outline, poses,
-                                          prior_mean, prior_std, steps)
+                                          prior_mean, prior_std, steps, yaw_ref_rad)
         n_edge = obs.size
         wts = _weights(r0[:n_edge].reshape(obs.shape), robust_sigmas)
         w_all = np.concatenate([wts.ravel(), np.ones(len(r0) - n_edge)])
@@ -198,7 +215,7 @@ def fit_standing_track(camera: Camera, obs: np.ndarray, sig: np.ndarray, use: np
             converged = True
             break
     r0, jac = _residuals_and_jacobian(camera, theta, obs, sig, use, outline, poses,
-                                      prior_mean, prior_std, steps)
+                                      prior_mean, prior_std, steps, yaw_ref_rad)
     n_edge = obs.size
     w_edge = _weights(r0[:n_edge].reshape(obs.shape), robust_sigmas).ravel()
     w_all = np.concatenate([w_edge, np.ones(len(r0) - n_edge)])
@@ -209,19 +226,20 @@ def fit_standing_track(camera: Camera, obs: np.ndarray, sig: np.ndarray, use: np
     edge = r0[:n_edge][use.ravel()]
     chi2 = float(np.sum(robust_sigmas ** 2 * np.log1p((edge / robust_sigmas) ** 2)))
     chi2_per_dof = chi2 / max(n_used - N_PARAMS, 1)
-    rng, lat, _ = place_standing(theta, poses)
+    rng, lat, _ = place_standing(theta, poses, yaw_ref_rad)
     return StandingFit(theta, cov, chi2_per_dof, rng, lat, converged)
 
 
 def _residuals_and_jacobian(camera: Camera, theta: np.ndarray, obs: np.ndarray,
                             sig: np.ndarray, use: np.ndarray, outline: np.ndarray,
                             poses: np.ndarray, prior_mean: np.ndarray, prior_std: np.ndarray,
-                            steps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                            steps: np.ndarray, yaw_ref_rad: float
+                            ) -> tuple[np.ndarray, np.ndarray]:
     """Normalised residuals (edges, then the four priors) and their Jacobian with respect to
     ``theta`` (forward differences, all parameter steps in one projection)."""
     th = np.tile(theta, (N_PARAMS + 1, 1))
     th[1:] += np.diag(steps)
-    pred = _edges(camera, th, poses, outline)
+    pred = _edges(camera, th, poses, outline, yaw_ref_rad)
     r_edge = np.where(use, (obs - pred) / sig, 0.0)
     r_edge = np.nan_to_num(r_edge, nan=0.0).reshape(N_PARAMS + 1, -1)
     r_prior = (prior_mean - th[:, 2:6]) / prior_std

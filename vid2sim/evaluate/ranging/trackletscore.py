@@ -136,8 +136,8 @@ def range_table(rows: TrackletRows) -> list[str]:
 
 def rate_table(rows: TrackletRows) -> list[str]:
     """Markdown rows: range rate per group and per true-range bin: n, RMSE, median bias."""
-    lines = ["| group | true range | n | rate RMSE [m/s] | median bias [m/s] | "
-             "median abs [m/s] |", "| --- | --- | ---: | ---: | ---: | ---: |"]
+    lines = [("| group | true range | n | rate RMSE [m/s] | median bias [m/s] | "
+              "median abs [m/s] |"), "| --- | --- | ---: | ---: | ---: | ---: |"]
     for name, g in groups(rows).items():
         bins = [("all", np.ones(len(g), bool))] + [
             (bin_label(lo, hi), (g.range_true >= lo) & (g.range_true < hi))
