@@ -260,6 +260,10 @@ class RangingConfig:
     travel_yaw_min_tracks : int
         Standing tracks the direction of travel needs before it is estimated from them
         (3: two lines meet in one point, a third checks it).
+    standing_free_prior_factor : float
+        The scale test fits each track once more with its size priors this many times as
+        wide (10: a car's width then free within +-1.2 m), so that its sizes are what the
+        boxes and the baseline alone say.
     standing_robust_sigmas : float
         Scale of the Cauchy weights of a standing fit's edges [sigmas]: an edge on another
         car (occlusion, a box over two cars) pulls no more than a few sigmas' worth (3: the
@@ -337,6 +341,7 @@ class RangingConfig:
     standing_road_half_width_m: float = 5.4
     standing_scale_sigmas_beside_road: float = 6.0
     standing_robust_sigmas: float = 3.0
+    standing_free_prior_factor: float = 10.0
     travel_yaw_search_deg: float = 1.5
     travel_yaw_min_tracks: int = 3
     standing_ground_prior_factor: float = 2.0

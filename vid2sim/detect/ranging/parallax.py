@@ -35,8 +35,8 @@ from vid2sim.core.records import EgoTrack
 
 # Numerical settings of the track fit (not properties of the world).
 FD_STEP = 1e-4  # finite-difference step in the parameters' units [m]
-MAX_ITERATIONS = 25
-CONVERGED_M = 1e-4  # largest parameter step at convergence [m]
+MAX_ITERATIONS = 40
+CONVERGED_M = 1e-3  # largest parameter step at convergence [m] (a millimetre)
 LM_DAMPING = 1e-3  # Levenberg-Marquardt damping relative to the diagonal
 MIN_SIZE_M = 0.2
 N_PARAMS = 6  # rear range, lateral, width, height, length, ground height (at the reference)
@@ -194,56 +194,97 @@ def fit_standing_track(camera: Camera, obs: np.ndarray, sig: np.ndarray, use: np
     -------
     StandingFit
     """
+    args = (camera, obs, sig, use, outline, poses, prior_mean, prior_std, yaw_ref_rad)
     theta = np.asarray(start, float).copy()
-    wts = np.ones(obs.shape)
-    steps = np.full(N_PARAMS, FD_STEP)
+    n_edge = obs.size
+    r0, jac = _residuals_and_jacobian(*args, theta=theta)
+    cost = _robust_cost(r0, n_edge, robust_sigmas)
+    damping = LM_DAMPING
     converged = False
     for _ in range(MAX_ITERATIONS):
-        r0, jac = _residuals_and_jacobian(camera, theta, obs, sig, use, outline, poses,
-                                          prior_mean, prior_std, steps, yaw_ref_rad)
-        n_edge = obs.size
-        wts = _weights(r0[:n_edge].reshape(obs.shape), robust_sigmas)
-        w_all = np.concatenate([wts.ravel(), np.ones(len(r0) - n_edge)])
+        w_all = np.concatenate([_weights(r0[:n_edge], robust_sigmas), np.ones(len(r0) - n_edge)])
         jw = jac * w_all[:, None]
         a = jac.T @ jw
-        a += LM_DAMPING * np.diag(np.diag(a)) + 1e-12 * np.eye(N_PARAMS)
-        delta = np.linalg.solve(a, jw.T @ r0)
-        theta = theta + delta
-        theta[0] = max(theta[0], 0.5)
-        theta[2:5] = np.maximum(theta[2:5], MIN_SIZE_M)
-        if np.max(np.abs(delta)) < CONVERGED_M:
+        g = jw.T @ r0
+        for _ in range(MAX_DAMPING_TRIES):
+            delta = np.linalg.solve(a + damping * np.diag(np.diag(a)) + 1e-12 * np.eye(N_PARAMS), g)
+            trial = _bounded(theta + delta)
+            r_t = _residuals(*args, theta=trial)
+            c_t = _robust_cost(r_t, n_edge, robust_sigmas)
+            if c_t <= cost:
+                break
+            damping *= 10.0
+        else:
+            converged = True  # no step lowers the cost: at a minimum to numerical precision
+            break
+        step = np.max(np.abs(trial - theta))
+        theta, damping = trial, max(damping / 3.0, 1e-9)
+        done = step < CONVERGED_M or cost - c_t < 1e-9 * max(cost, 1.0)
+        cost = c_t
+        r0, jac = _residuals_and_jacobian(*args, theta=theta)
+        if done:
             converged = True
             break
-    r0, jac = _residuals_and_jacobian(camera, theta, obs, sig, use, outline, poses,
-                                      prior_mean, prior_std, steps, yaw_ref_rad)
-    n_edge = obs.size
-    w_edge = _weights(r0[:n_edge].reshape(obs.shape), robust_sigmas).ravel()
-    w_all = np.concatenate([w_edge, np.ones(len(r0) - n_edge)])
+    return _standing_fit(theta, r0, jac, use, poses, robust_sigmas, yaw_ref_rad, converged)
+
+
+#: Levenberg-Marquardt: tries of a larger damping before a step is given up.
+MAX_DAMPING_TRIES = 8
+
+
+def _bounded(theta: np.ndarray) -> np.ndarray:
+    """Parameters kept physical: a rear range ahead of the camera, sizes above a floor."""
+    out = theta.copy()
+    out[0] = max(out[0], 0.5)
+    out[2:5] = np.maximum(out[2:5], MIN_SIZE_M)
+    return out
+
+
+def _robust_cost(r: np.ndarray, n_edge: int, c: float) -> float:
+    """Cauchy loss of the edge residuals (in sigmas^2) plus the priors' squares."""
+    edge = r[:n_edge]
+    return float(np.sum(c ** 2 * np.log1p((edge / c) ** 2)) + np.sum(r[n_edge:] ** 2))
+
+
+def _standing_fit(theta: np.ndarray, r0: np.ndarray, jac: np.ndarray, use: np.ndarray,
+                  poses: np.ndarray, robust_sigmas: float, yaw_ref_rad: float,
+                  converged: bool) -> StandingFit:
+    """The fit's covariance (robust weights at the solution), normalised residual and the
+    vehicle's place at every box."""
+    n_edge = use.size
+    w_all = np.concatenate([_weights(r0[:n_edge], robust_sigmas), np.ones(len(r0) - n_edge)])
     cov = np.linalg.inv(jac.T @ (jac * w_all[:, None]) + 1e-12 * np.eye(N_PARAMS))
-    n_used = int(use.sum())
     # Robust normalised residual: the Cauchy loss's per-edge value in sigmas^2 (log form), so
     # a few occluded edges do not decide but a track that fits no single place does.
     edge = r0[:n_edge][use.ravel()]
     chi2 = float(np.sum(robust_sigmas ** 2 * np.log1p((edge / robust_sigmas) ** 2)))
-    chi2_per_dof = chi2 / max(n_used - N_PARAMS, 1)
+    chi2_per_dof = chi2 / max(int(use.sum()) - N_PARAMS, 1)
     rng, lat, _ = place_standing(theta, poses, yaw_ref_rad)
     return StandingFit(theta, cov, chi2_per_dof, rng, lat, converged)
 
 
-def _residuals_and_jacobian(camera: Camera, theta: np.ndarray, obs: np.ndarray,
-                            sig: np.ndarray, use: np.ndarray, outline: np.ndarray,
-                            poses: np.ndarray, prior_mean: np.ndarray, prior_std: np.ndarray,
-                            steps: np.ndarray, yaw_ref_rad: float
-                            ) -> tuple[np.ndarray, np.ndarray]:
+def _residuals(camera: Camera, obs: np.ndarray, sig: np.ndarray, use: np.ndarray,
+               outline: np.ndarray, poses: np.ndarray, prior_mean: np.ndarray,
+               prior_std: np.ndarray, yaw_ref_rad: float, *, theta: np.ndarray
+               ) -> np.ndarray:
+    """Normalised residuals at one parameter vector (edges, then the four priors)."""
+    pred = _edges(camera, theta, poses, outline, yaw_ref_rad)[0]
+    r_edge = np.nan_to_num(np.where(use, (obs - pred) / sig, 0.0), nan=0.0).ravel()
+    return np.concatenate([r_edge, (prior_mean - theta[2:6]) / prior_std])
+
+
+def _residuals_and_jacobian(camera: Camera, obs: np.ndarray, sig: np.ndarray,
+                            use: np.ndarray, outline: np.ndarray, poses: np.ndarray,
+                            prior_mean: np.ndarray, prior_std: np.ndarray, yaw_ref_rad: float,
+                            *, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Normalised residuals (edges, then the four priors) and their Jacobian with respect to
     ``theta`` (forward differences, all parameter steps in one projection)."""
     th = np.tile(theta, (N_PARAMS + 1, 1))
-    th[1:] += np.diag(steps)
+    th[1:] += np.diag(np.full(N_PARAMS, FD_STEP))
     pred = _edges(camera, th, poses, outline, yaw_ref_rad)
     r_edge = np.where(use, (obs - pred) / sig, 0.0)
     r_edge = np.nan_to_num(r_edge, nan=0.0).reshape(N_PARAMS + 1, -1)
     r_prior = (prior_mean - th[:, 2:6]) / prior_std
     r = np.concatenate([r_edge, r_prior], axis=1)
-    jac = -(r[1:] - r[0]) / steps[:, None]
+    jac = -(r[1:] - r[0]) / FD_STEP
     return r[0], jac.T
-

@@ -54,29 +54,42 @@ def road_std_at(lateral_m: float, config: RangingConfig) -> float:
     return math.hypot(config.road_height_std_m, config.road_height_std_per_lateral_m * beyond)
 
 
-def scale_sigmas(fit: StandingFit, prior_mean: np.ndarray, prior_std: np.ndarray,
+def scale_sigmas(free: StandingFit, prior_mean: np.ndarray, prior_std: np.ndarray,
                  camera_height_m: float, ground_std_m: float) -> float:
-    """How many sigmas the fit's common scale lies from 1.
+    """How many sigmas the data's own scale lies from 1.
 
     A vehicle moving along the ego's axis at u fits as a standing one with every length
     scaled by k = v / (v - u): its width, height, length and the camera's height above its
-    ground alike (the monocular scale ambiguity). The weighted mean of the log ratios of
-    those four to their priors estimates ln k; each weight is its prior's (mean / sigma)^2.
+    ground alike (the monocular scale ambiguity). ``free`` is the standing fit with the size
+    priors let go, so that its sizes are the data's; the generalised least-squares mean of
+    the log ratios of those four to their priors estimates ln k (Aitken's estimator, with
+    their covariance: the priors' relative variances plus the fit's).
     """
-    vals = np.array([fit.theta[2], fit.theta[3], fit.theta[4], camera_height_m - fit.theta[5]])
+    th = free.theta
+    vals = np.array([th[2], th[3], th[4], camera_height_m - th[5]])
     mean = np.array([prior_mean[0], prior_mean[1], prior_mean[2], camera_height_m])
     std = np.array([prior_std[0], prior_std[1], prior_std[2], ground_std_m])
-    if np.any(vals <= 0):
+    if not free.converged or np.any(vals <= 0) or not np.all(np.isfinite(free.cov)):
         return math.inf
-    w = (mean / std) ** 2
-    log_k = float(np.sum(w * np.log(vals / mean)) / np.sum(w))
-    return abs(log_k) * math.sqrt(float(np.sum(w)))
+    # the logs' covariance: the priors' relative spreads and the fit's (full: a width and a
+    # length seen obliquely trade against each other), d ln(H_cam - dz) = -d dz / (H_cam - dz)
+    jac = np.zeros((4, 6))
+    jac[0, 2], jac[1, 3], jac[2, 4], jac[3, 5] = 1 / vals[0], 1 / vals[1], 1 / vals[2], -1 / vals[3]
+    cov = np.diag((std / mean) ** 2) + jac @ free.cov @ jac.T
+    y = np.log(vals / mean)
+    ones = np.ones(4)
+    ci1 = np.linalg.solve(cov, ones)
+    info = float(ones @ ci1)
+    log_k = float(ci1 @ y) / info
+    return abs(log_k) * math.sqrt(info)
 
 
-def standing_verdict(fit: StandingFit, prior_mean: np.ndarray, prior_std: np.ndarray,
-                     camera_height_m: float, ground_std_m: float, config: RangingConfig
-                     ) -> str | None:
-    """None when the fit is a plausible standing vehicle, else the reason it is not."""
+def standing_verdict(fit: StandingFit, free: StandingFit, prior_mean: np.ndarray,
+                     prior_std: np.ndarray, camera_height_m: float, ground_std_m: float,
+                     config: RangingConfig) -> str | None:
+    """None when ``fit`` (with the class priors) is a plausible standing vehicle whose data
+    alone (``free``: the same fit with the size priors let go) need no other scale, else the
+    reason it is not."""
     if not fit.converged:
         return "the standing fit did not converge"
     if not fit.chi2_per_dof <= config.standing_max_chi2:
@@ -88,11 +101,11 @@ def standing_verdict(fit: StandingFit, prior_mean: np.ndarray, prior_std: np.nda
                 f"({z.max():.0f} sigma from its class)")
     if abs(fit.ground_m) > config.standing_max_ground_m:
         return f"standing, its ground would be {fit.ground_m:+.2f} m off the ego's road"
-    k = scale_sigmas(fit, prior_mean, prior_std, camera_height_m, ground_std_m)
+    k = scale_sigmas(free, prior_mean, prior_std, camera_height_m, ground_std_m)
     bound = (config.standing_scale_sigmas if abs(fit.theta[1]) <= config.standing_road_half_width_m
              else config.standing_scale_sigmas_beside_road)
     if k > bound:
-        return f"its size and ground scale together ({k:.1f} sigma): moving along the road"
+        return f"its own size and ground scale together ({k:.1f} sigma): moving along the road"
     return None
 
 
@@ -133,7 +146,8 @@ def find_standing_tracks(camera: Camera, ba: BoxArrays, t_s: np.ndarray,
                                                    start_lateral_m, prior_mean, prior_std,
                                                    path, config)
     fits = {tid: pr.fit(camera, path.travel_yaw_rad, config) for tid, pr in problems.items()}
-    first = {t for t, f in fits.items() if problems[t].verdict(f, camera, config) is None}
+    first = {t for t, f in fits.items()
+             if problems[t].verdict(f, camera, path.travel_yaw_rad, config) is None}
     if len(first) >= config.travel_yaw_min_tracks:
         out.travel_yaw_rad = estimate_travel_yaw(camera, {t: problems[t] for t in first},
                                                  {t: fits[t] for t in first},
@@ -142,12 +156,33 @@ def find_standing_tracks(camera: Camera, ba: BoxArrays, t_s: np.ndarray,
             fits = {tid: pr.fit(camera, out.travel_yaw_rad, config, fits[tid].theta)
                     for tid, pr in problems.items()}
     for tid, fit in fits.items():
-        why = problems[tid].verdict(fit, camera, config)
+        why = problems[tid].verdict(fit, camera, out.travel_yaw_rad, config)
+        if why:
+            fit, why = _one_sided(camera, problems[tid], fit, why, out.travel_yaw_rad, config)
         if why:
             out.rejected[tid] = why
         else:
             out.fits[tid] = fit
     return out
+
+
+def _one_sided(camera: Camera, problem: _StandingProblem, fit: StandingFit, why: str,
+               travel_yaw_rad: float, config: RangingConfig) -> tuple[StandingFit, str | None]:
+    """A track whose standing fit needs an implausible size, refitted without its left or
+    its right box edges: one side of a box may lie on another vehicle for many frames (two
+    parked cars in one box, a neighbour hiding a flank), which no robust weight of single
+    edges discounts; the other side, the rows and the size priors still place it. The
+    better plausible one-sided fit, else the reason of the two-sided one."""
+    if "sigma from its class" not in why:
+        return fit, why
+    best: tuple[float, StandingFit] | None = None
+    for side in (0, 2):
+        one = replace(problem, use=problem.use.copy())
+        one.use[:, side] = False
+        f = one.fit(camera, travel_yaw_rad, config, fit.theta)
+        if one.verdict(f, camera, travel_yaw_rad, config) is None and (best is None or f.chi2_per_dof < best[0]):
+            best = (f.chi2_per_dof, f)
+    return (best[1], None) if best is not None else (fit, why)
 
 
 @dataclass
@@ -188,8 +223,11 @@ class _StandingProblem:
                                   self.prior_std, config.standing_robust_sigmas,
                                   travel_yaw_rad)
 
-    def verdict(self, fit: StandingFit, camera: Camera, config: RangingConfig) -> str | None:
-        return standing_verdict(fit, self.prior_mean, self.prior_std, camera.height_m,
+    def verdict(self, fit: StandingFit, camera: Camera, travel_yaw_rad: float,
+                config: RangingConfig) -> str | None:
+        free_std = self.prior_std * np.array([config.standing_free_prior_factor] * 3 + [1.0])
+        free = replace(self, prior_std=free_std).fit(camera, travel_yaw_rad, config, fit.theta)
+        return standing_verdict(fit, free, self.prior_mean, self.prior_std, camera.height_m,
                                 self.ground_std_m, config)
 
     def cost(self, fit: StandingFit) -> float:
