@@ -305,7 +305,8 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
     scenario, assemble_warnings = stages.run("assemble scenario", assemble_scenario, ego, roads,
                                              ranging.boxes, camera_used, source=source,
                                              config=settings.assemble,
-                                             ego_noise_m=ego_noise_m)
+                                             ego_noise_m=ego_noise_m,
+                                             standing_tracks=ranging.standing_tracks)
     warnings.extend(assemble_warnings)
     # ---- the street: the road's lanes from the video (and map), parked cars on their strip
     scene = stages.run("road cross-section", lay_out_scene, scenario, lateral)

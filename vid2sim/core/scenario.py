@@ -11,7 +11,11 @@ Every exporter and evaluator reads this file; the field names are a contract:
   driving lanes of ``lane_width_m`` centred on the centerline
 - ``ego``: ``{length_m, width_m, height_m, trajectory}``
 - ``actors``: ``[{id, category, length_m, width_m, height_m, trajectory}]``, and
-  ``static: true`` for a vehicle that stood still (parked) and is replayed standing
+  ``static: true`` for a vehicle that stood still (parked) and is replayed standing, with
+  ``static_by``: ``"ranging"`` (the ranging fitted its track as one standing vehicle seen
+  from the ego's measured motion), ``"assembly"`` (its world speed stayed below a share of
+  the ego's: the assembly's hold of a monocular range's scale error) or ``"road layout"``
+  (off the driving lanes and slower than the ego: held by the road's cross-section)
 - trajectories: ``[{t, x, y, heading, speed}]`` with ``t`` seconds from the video's first
   frame, ``x``/``y`` ENU metres, ``heading`` radians counter-clockwise from east, ``speed`` m/s
 - ``camera``: the camera record (see :mod:`vid2sim.core.camera`)
@@ -171,10 +175,15 @@ class Ego:
                 "height_m": self.height_m, "trajectory": self.trajectory.to_json()}
 
 
+#: What found a static actor standing: the ranging's fit from the ego's motion, the
+#: assembly's hold of a slow track, or the road layout's of a slow one off the lanes.
+STATIC_BY = ("ranging", "assembly", "road layout")
+
+
 @dataclass(slots=True)
 class Actor:
     """A recorded vehicle. ``static``: it stood still (a parked car) and is replayed
-    standing where it was seen."""
+    standing where it was seen; ``static_by``: what found it standing (:data:`STATIC_BY`)."""
 
     id: str
     category: str
@@ -183,6 +192,7 @@ class Actor:
     height_m: float
     trajectory: Trajectory
     static: bool = False
+    static_by: str | None = None
 
     def to_json(self) -> dict[str, Any]:
         out = {"id": self.id, "category": self.category, "length_m": self.length_m,
@@ -190,6 +200,8 @@ class Actor:
                "trajectory": self.trajectory.to_json()}
         if self.static:
             out["static"] = True
+            if self.static_by:
+                out["static_by"] = self.static_by
         return out
 
 
@@ -514,6 +526,8 @@ def validate(data: Any, path: str | Path | None = None) -> None:
         _require(actor, "category", str, w, path)
         if "static" in actor:
             _require(actor, "static", bool, w, path)
+        if "static_by" in actor and actor["static_by"] not in STATIC_BY:
+            raise ScenarioError(path, f"{w}static_by", f"must be one of {', '.join(STATIC_BY)}")
         _validate_box(actor, w, path)
         traj = _require(actor, "trajectory", list, w, path)
         if n_points + len(traj) > MAX_TRAJECTORY_POINTS:
@@ -549,7 +563,7 @@ def from_json(data: dict[str, Any], path: str | Path | None = None) -> Scenario:
         actors=[
             Actor(str(a["id"]), a["category"], float(a["length_m"]), float(a["width_m"]),
                   float(a["height_m"]), Trajectory.from_json(a["trajectory"]),
-                  static=bool(a.get("static", False)))
+                  static=bool(a.get("static", False)), static_by=a.get("static_by"))
             for a in data["actors"]
         ],
         camera=dict(data["camera"]),
