@@ -463,10 +463,7 @@ class RangingResult:
     :param horizon_source: "lane markings", "vehicle consistency" or "camera file"
     :param width_m_by_track: estimated width of each track's vehicle [m]
     :param warnings: :class:`Note` lines (warnings, and estimates such as the horizon's)
-    :param ground_m_by_track: the ground each track's vehicle stands on: (height above the
-        ego's road plane [m], its one-sigma spread [m], its source: "standing fit",
-        "standing neighbours" or "ego plane")
-    :param standing_tracks: tracks ranged as standing vehicles from the ego's own motion
+    :param ground_m_by_track: (height over the ego's road, spread [m], source) per track
     """
 
     boxes: list[RangedBox]
@@ -480,11 +477,10 @@ class RangingResult:
     #: tracks that may never be the lead whatever their lane (trams on their own track bed,
     #: :mod:`vid2sim.detect.rail`); every later lane assignment keeps them out
     never_lead_tracks: frozenset[int] = frozenset()
-    #: the time of every frame the detection streamed (0-based index -> s, the container's
-    #: clock; skipped frames absent), when it was recorded
+    #: every streamed frame's time (index -> s, the container's clock; skipped frames absent)
     frame_times_s: dict[int, float] | None = None
     ground_m_by_track: dict[int, tuple[float, float, str]] = field(default_factory=dict)
-    standing_tracks: frozenset[int] = frozenset()
+    standing_tracks: frozenset[int] = frozenset()  # ranged from the ego's own motion
 
 
 #: What an event is (scenario.json's ``events``, :mod:`vid2sim.core.scenario`).
