@@ -99,12 +99,13 @@ def test_velo_to_cam_and_projection_known_answer():
 
 def test_hull_box_in_view_cut_and_behind():
     corners = CALIB.velo_to_cam(box_corners_velo((1.5, 2.0, 4.0), np.array([10, 0, -1.65, 0, 0, 0])))
-    box, frac, cut = hull_box_px(corners, CALIB, 1242, 375)
+    box, frac, cut, margin = hull_box_px(corners, CALIB, 1242, 375)
     # nearest face 8 m: its bottom 1.65 m below the camera at 8 m is F * 1.65 / 8 under cy
     assert box[3] == pytest.approx(CY + F * 1.65 / 8)
     assert box[0] == pytest.approx(CX - F * 1.0 / 8) and frac == 1.0 and not cut
+    assert margin == pytest.approx(CX - F * 1.0 / 8)
     near = CALIB.velo_to_cam(box_corners_velo((1.5, 2.0, 4.0), np.array([4, 0, -1.65, 0, 0, 0])))
-    box, frac, cut = hull_box_px(near, CALIB, 1242, 375)
+    box, frac, cut, _ = hull_box_px(near, CALIB, 1242, 375)
     assert cut and box[3] == 374 and frac < 1.0
     behind = CALIB.velo_to_cam(box_corners_velo((1.5, 2.0, 4.0), np.array([-10, 0, 0, 0, 0, 0])))
     assert hull_box_px(behind, CALIB, 1242, 375)[0] is None

@@ -108,7 +108,7 @@ def read_tracklet_keyframes(text: str, path: Path, *, fps: float,
             if frame % stride:
                 continue
             corners = calib.velo_to_cam(box_corners_velo(t.size_hwl_m, t.pose[k]))
-            box, _, _ = hull_box_px(corners, calib, *size)
+            box = hull_box_px(corners, calib, *size)[0]
             if box is None:
                 continue
             occlusion, truncation = int(t.flags[k, 1]), int(t.flags[k, 2])

@@ -212,6 +212,13 @@ class RangingConfig:
     max_log_range_std : float
         A single-frame fit whose log-range spread exceeds this is unobservable (0.5: the
         range is known to no better than a factor 1.65 either way).
+    carry_frames : int
+        A box whose bottom is below the image takes the ratio of the full fit to the fit of
+        its sides alone from this many of its track's nearest frames that had both (10: a
+        second at 10 fps; the ratio changes slowly as the bearing does).
+    carry_floor_rel : float
+        Least relative spread of that carried scale (0.02: the sides' pixel noise of a
+        near car is 1-2 % of its width, and the ratio's drift over a second as much).
     standing_min_boxes : int
         Boxes a track needs before the ego's motion tests it as standing (5: half a second
         at 10 fps; fewer say little about one place in the world).
@@ -331,6 +338,8 @@ class RangingConfig:
     filter_max_gap_s: float = 2.0
     top_alone_max_rel_error: float = 0.25
     max_log_range_std: float = 0.5
+    carry_frames: int = 10
+    carry_floor_rel: float = 0.02
     standing_min_boxes: int = 5
     standing_min_travel_m: float = 3.0
     standing_max_ego_noise_m: float = 0.5

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from vid2sim.base.defaults import MAD_TO_SIGMA
 from vid2sim.core.camera import Camera
 from vid2sim.core.records import LaneTrack, Note, NoteKind, RangedBox, RangingResult, TrackedBox
 from vid2sim.detect.ranging.boxfit import (
@@ -337,6 +338,45 @@ def _filter_cues(cam: Camera, ba: BoxArrays, fit: BoxFit, sizes: _Sizes,
                  log_w_ok, lin, np.full(n, np.nan), np.full(n, np.nan))
 
 
+def _carry_scale(cam: Camera, ba: BoxArrays, cues: _Cues, sizes: _Sizes, t_box: np.ndarray,
+                 tracks: dict[int, np.ndarray], inflation: np.ndarray,
+                 config: RangingConfig) -> int:
+    """Into ``cues``: for boxes whose ground contact is out of view (a near vehicle's bottom
+    below the image), the range the track learnt while its bottom was visible, carried by
+    the box's size. A rigid vehicle's image size changes as 1 / Z: the ratio of the full fit
+    (ground cue included) to the fit of the box's sides alone, over the nearest frames that
+    had both, scales the sides-alone range of the cut frames. So neither the width prior nor
+    the top edge, whose lever below a camera at a car's roof height is a few centimetres,
+    takes over a range the track has measured. Returns the boxes so ranged."""
+    fit = cues.fit
+    side = fit_boxes(cam, ba, sizes.w, sizes.w_std, sizes.h, sizes.h_std, sizes.l0, config,
+                     use_ground=False, use_height=False, length_std_m=sizes.l0_std,
+                     pitch_noise_inflation=inflation, road_height_std_m=sizes.road_std,
+                     road_z_m=sizes.road_z)
+    ref = fit.valid & fit.ground_ok & fit.width_ok & side.valid
+    cut = ~fit.ground_ok & ba.cut_bottom & side.valid & fit.width_ok
+    carried = 0
+    for members in tracks.values():
+        m_cut, m_ref = members[cut[members]], members[ref[members]]
+        if not (m_cut.size and m_ref.size):
+            continue
+        ratio = fit.range_m[m_ref] / side.range_m[m_ref]
+        for i in m_cut:
+            near = np.argsort(np.abs(t_box[m_ref] - t_box[i]), kind="stable")[
+                :config.carry_frames]
+            if np.min(np.abs(t_box[m_ref[near]] - t_box[i])) > config.filter_max_gap_s:
+                continue
+            k = float(np.median(ratio[near]))
+            k_sd = max(MAD_TO_SIGMA * float(np.median(np.abs(ratio[near] - k)))
+                       / math.sqrt(near.size), config.carry_floor_rel)
+            cues.abs_m[i] = k * side.range_m[i]
+            cues.abs_var[i] = k ** 2 * side.range_white_var_m2[i] + (k_sd * cues.abs_m[i]) ** 2
+            cues.abs_ok[i] = True
+            cues.log_w_ok[i] = False  # the sides' scale is in it already
+            carried += 1
+    return carried
+
+
 def _standing_rates(cues: _Cues, t_box: np.ndarray, standing: StandingTracks,
                     tracks: dict[int, np.ndarray], path: EgoPath | None,
                     config: RangingConfig) -> None:
@@ -517,6 +557,11 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
             f"{int((~fit.valid).sum())} boxes gave no usable range cue (cut by the border on "
             "too many sides); their range comes from the track filter"))
     cues = _filter_cues(cam, ba, fit, sizes, inflation, config)
+    carried = _carry_scale(cam, ba, cues, sizes, t_box, tracks, inflation, config)
+    if carried:
+        notes.append(Note.estimate(
+            f"{carried} boxes with their bottom below the image ranged by the scale their "
+            "track learnt while its bottom was visible"))
     _standing_rates(cues, t_box, standing, tracks, ego_path, config)
     out = _Output.empty(len(boxes))
     for members in tracks.values():

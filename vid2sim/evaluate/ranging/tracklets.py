@@ -241,17 +241,19 @@ _EDGES = ((0, 1), (1, 2), (2, 3), (3, 0), (4, 5), (5, 6), (6, 7), (7, 4),
 
 def hull_box_px(corners_cam_m: np.ndarray, calib: RawCalibration, width_px: int,
                 height_px: int, near_m: float = NEAR_PLANE_M
-                ) -> tuple[tuple[float, float, float, float] | None, float, bool]:
+                ) -> tuple[tuple[float, float, float, float] | None, float, bool, float]:
     """Pixel box of a 3D box's projection, cut at a near plane where it reaches behind it.
 
-    Returns ``(box, in_image_fraction, bottom_cut)``: the hull clipped to the image (None when
-    nothing of it is in view), the share of the unclipped hull inside the image, and whether
-    the hull's lowest row lies below the image's last row (its ground contact not in view).
+    Returns ``(box, in_image_fraction, bottom_cut, side_margin_px)``: the hull clipped to the
+    image (None when nothing of it is in view), the share of the unclipped hull inside the
+    image, whether the hull's lowest row lies below the image's last row (its ground contact
+    not in view), and how far the unclipped hull stays inside the left and right borders
+    (negative: beyond one).
     """
     depth = corners_cam_m[:, 2]
     front = depth > near_m
     if not front.any():
-        return None, 0.0, False
+        return None, 0.0, False, -math.inf
     pts = [corners_cam_m[front]]
     for i, j in _EDGES:
         if front[i] != front[j]:
@@ -261,14 +263,16 @@ def hull_box_px(corners_cam_m: np.ndarray, calib: RawCalibration, width_px: int,
     x1, y1 = uv.min(axis=0)
     x2, y2 = uv.max(axis=0)
     w, h = width_px - 1, height_px - 1
+    margin = float(min(x1, w - x2)) if front.all() else -math.inf
     if x2 <= 0 or y2 <= 0 or x1 >= w or y1 >= h:
-        return None, 0.0, False
+        return None, 0.0, False, margin
     area = max((x2 - x1) * (y2 - y1), 1e-9)
     cx1, cx2 = float(np.clip(x1, 0, w)), float(np.clip(x2, 0, w))
     cy1, cy2 = float(np.clip(y1, 0, h)), float(np.clip(y2, 0, h))
     if cx2 - cx1 < 1.0 or cy2 - cy1 < 1.0:
-        return None, 0.0, False
-    return (cx1, cy1, cx2, cy2), float((cx2 - cx1) * (cy2 - cy1) / area), bool(y2 > h)
+        return None, 0.0, False, margin
+    return ((cx1, cy1, cx2, cy2), float((cx2 - cx1) * (cy2 - cy1) / area), bool(y2 > h),
+            margin)
 
 
 def central_difference(frames: np.ndarray, values: np.ndarray, half: int, dt_s: float
@@ -302,7 +306,8 @@ class TrackletTruth:
     centre's offset, left positive; ``ground_z_m``: height of its bottom face relative to the
     road under the camera (camera height minus the bottom's depth below the camera);
     ``box_px``: (N, 4) projected hull in the image (NaN: not in view); ``bottom_cut``: the
-    hull's lowest row is below the image; ``speed_mps``: world speed (NaN without ego
+    hull's lowest row is below the image; ``side_margin_px``: how far the unclipped hull stays
+    inside the side borders; ``speed_mps``: world speed (NaN without ego
     motion); ``range_rate_mps``: central difference of ``range_m`` over +-2 frames;
     ``parked``: the object's median speed below :data:`PARKED_MAX_SPEED_MPS`.
     """
@@ -316,6 +321,7 @@ class TrackletTruth:
     box_px: np.ndarray
     in_image: np.ndarray
     bottom_cut: np.ndarray
+    side_margin_px: np.ndarray
     occlusion: np.ndarray
     truncation: np.ndarray
     speed_mps: np.ndarray
@@ -365,6 +371,7 @@ def _object_rows(t: Tracklet, calib: RawCalibration, size_px: tuple[int, int],
             "ground_z_m": camera_height_m - corners[:, :4, 1].mean(axis=1),
             "box_px": box, "in_image": np.array([v[1] for v in views]),
             "bottom_cut": np.array([v[2] for v in views], dtype=bool),
+            "side_margin_px": np.array([v[3] for v in views], dtype=float),
             "occlusion": flags[:, 1], "truncation": flags[:, 2], "speed_mps": speed,
             "range_rate_mps": central_difference(frames, rng, RATE_HALF_WINDOW, dt_s),
             "parked": np.full(len(frames), parked)}
@@ -387,7 +394,7 @@ def tracklet_truth(tracklets: list[Tracklet], calib: RawCalibration, image_size_
                           n_frames) for t in tracklets]
     if not parts:
         empty = np.zeros(0)
-        return TrackletTruth(*(empty,) * 6, np.zeros((0, 4)), *(empty,) * 7)
+        return TrackletTruth(*(empty,) * 6, np.zeros((0, 4)), *(empty,) * 8)
     cols = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
     order = np.lexsort((cols["object_id"], cols["frame"]))
     return TrackletTruth(**{k: v[order] for k, v in cols.items()})

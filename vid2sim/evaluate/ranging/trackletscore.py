@@ -22,6 +22,10 @@ from vid2sim.evaluate.ranging.tracklets import TrackletTruth
 
 #: A ranged box is the tracklet whose projected hull it overlaps by at least this.
 MATCH_IOU = 0.5
+#: A tracklet hull this far inside both side borders [px] has its side edges in view: its
+#: box's bottom may be cut while its width is whole (the near lead's regime), unlike a car
+#: leaving the image at the side, whose box a detector stops short of the border.
+SIDES_IN_VIEW_PX = 40.0
 
 
 @dataclass
@@ -42,6 +46,7 @@ class TrackletRows:
     ground_true: np.ndarray
     parked: np.ndarray
     bottom_cut: np.ndarray
+    side_margin_px: np.ndarray
 
     def __len__(self) -> int:
         return len(self.frame)
@@ -78,7 +83,7 @@ def match_tracklets(boxes: Sequence[RangedBox], truth: TrackletTruth,
         range_est=est("range_m"), rate_true=truth.range_rate_mps[j],
         rate_est=est("range_rate_mps"), lateral_true=truth.lateral_m[j],
         lateral_est=est("lateral_m"), ground_true=truth.ground_z_m[j], parked=truth.parked[j],
-        bottom_cut=truth.bottom_cut[j])
+        bottom_cut=truth.bottom_cut[j], side_margin_px=truth.side_margin_px[j])
 
 
 @dataclass(frozen=True)
@@ -111,9 +116,11 @@ def lateral_figures(rows: TrackletRows) -> tuple[int, float, float]:
 
 def groups(rows: TrackletRows) -> dict[str, TrackletRows]:
     """The rows split the ways the report reads them: all, parked/moving, bottom cut/not."""
+    sides = rows.side_margin_px >= SIDES_IN_VIEW_PX
     return {"all": rows, "parked": rows.subset(rows.parked),
             "moving": rows.subset(~rows.parked),
             "bottom cut by the border": rows.subset(rows.bottom_cut),
+            "bottom cut, sides in view": rows.subset(rows.bottom_cut & sides),
             "bottom in view": rows.subset(~rows.bottom_cut)}
 
 
