@@ -306,7 +306,10 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
                                              ranging.boxes, camera_used, source=source,
                                              config=settings.assemble,
                                              ego_noise_m=ego_noise_m,
-                                             standing_tracks=ranging.standing_tracks)
+                                             standing_tracks=ranging.standing_tracks,
+                                             ground_m_by_track={
+                                                 t: g[0] for t, g in
+                                                 ranging.ground_m_by_track.items()})
     warnings.extend(assemble_warnings)
     # ---- the street: the road's lanes from the video (and map), parked cars on their strip
     scene = stages.run("road cross-section", lay_out_scene, scenario, lateral)

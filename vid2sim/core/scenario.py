@@ -15,7 +15,9 @@ Every exporter and evaluator reads this file; the field names are a contract:
   ``static_by``: ``"ranging"`` (the ranging fitted its track as one standing vehicle seen
   from the ego's measured motion), ``"assembly"`` (its world speed stayed below a share of
   the ego's: the assembly's hold of a monocular range's scale error) or ``"road layout"``
-  (off the driving lanes and slower than the ego: held by the road's cross-section)
+  (off the driving lanes and slower than the ego: held by the road's cross-section); and
+  ``ground_m``: the height of the ground the vehicle stands on above the ego's road plane
+  (the ranging's measurement; absent: 0)
 - trajectories: ``[{t, x, y, heading, speed}]`` with ``t`` seconds from the video's first
   frame, ``x``/``y`` ENU metres, ``heading`` radians counter-clockwise from east, ``speed`` m/s
 - ``camera``: the camera record (see :mod:`vid2sim.core.camera`)
@@ -175,6 +177,9 @@ class Ego:
                 "height_m": self.height_m, "trajectory": self.trajectory.to_json()}
 
 
+#: Largest |ground height| of an actor off the ego's road plane [m]: kerbs, banks and crowns
+#: reach a metre; beyond it a value is no road surface.
+MAX_GROUND_M = 5.0
 #: What found a static actor standing: the ranging's fit from the ego's motion, the
 #: assembly's hold of a slow track, or the road layout's of a slow one off the lanes.
 STATIC_BY = ("ranging", "assembly", "road layout")
@@ -193,6 +198,8 @@ class Actor:
     trajectory: Trajectory
     static: bool = False
     static_by: str | None = None
+    #: height of the ground it stands on above the ego's road plane [m] (the ranging's)
+    ground_m: float = 0.0
 
     def to_json(self) -> dict[str, Any]:
         out = {"id": self.id, "category": self.category, "length_m": self.length_m,
@@ -202,6 +209,8 @@ class Actor:
             out["static"] = True
             if self.static_by:
                 out["static_by"] = self.static_by
+        if self.ground_m:
+            out["ground_m"] = self.ground_m
         return out
 
 
@@ -526,6 +535,10 @@ def validate(data: Any, path: str | Path | None = None) -> None:
         _require(actor, "category", str, w, path)
         if "static" in actor:
             _require(actor, "static", bool, w, path)
+        if "ground_m" in actor:
+            g = _require(actor, "ground_m", (int, float), w, path)
+            if isinstance(g, bool) or not (math.isfinite(g) and abs(g) <= MAX_GROUND_M):
+                raise ScenarioError(path, f"{w}ground_m", f"must be within +-{MAX_GROUND_M:g} m")
         if "static_by" in actor and actor["static_by"] not in STATIC_BY:
             raise ScenarioError(path, f"{w}static_by", f"must be one of {', '.join(STATIC_BY)}")
         _validate_box(actor, w, path)
@@ -563,7 +576,8 @@ def from_json(data: dict[str, Any], path: str | Path | None = None) -> Scenario:
         actors=[
             Actor(str(a["id"]), a["category"], float(a["length_m"]), float(a["width_m"]),
                   float(a["height_m"]), Trajectory.from_json(a["trajectory"]),
-                  static=bool(a.get("static", False)), static_by=a.get("static_by"))
+                  static=bool(a.get("static", False)), static_by=a.get("static_by"),
+                  ground_m=float(a.get("ground_m", 0.0)))
             for a in data["actors"]
         ],
         camera=dict(data["camera"]),

@@ -195,7 +195,8 @@ def boxes_at(scenario: Scenario, camera: Camera, ego: tuple[float, float, float]
             continue
         ax, ay, ah = actors[a.id]
         dx, dy = ax - ex, ay - ey
-        center = np.array([c * dx + s * dy, -s * dx + c * dy, 0.0])
+        # on the ground it stands on (the ranging measured it beside the ego's road plane)
+        center = np.array([c * dx + s * dy, -s * dx + c * dy, a.ground_m])
         view = project_box_clipped(camera, center, a.length_m, a.width_m, a.height_m, ah - eh,
                                    outline=outlines and outlines.get(a.category, CAR_SHAPE))
         if view is not None:
