@@ -170,11 +170,21 @@ def test_track_grounds_carry_the_neighbours_surface():
                            np.zeros(1), np.zeros(1), True) for t, g in ((1, -0.30), (2, -0.40))}
     grounds = track_grounds(StandingTracks(fits), {1: 8.5, 2: 8.7, 3: 9.0, 4: 0.0}, cfg)
     assert grounds[1].height_m == -0.30 and grounds[1].source == "standing fit"
-    assert grounds[3].height_m == pytest.approx(-0.35) and grounds[3].source == (
-        "standing neighbours")
-    # the scatter of the two (0.05 m) and their mean's spread (each at the 0.03 m floor)
-    assert grounds[3].std_m == pytest.approx(math.hypot(0.05, 0.03 / math.sqrt(2)))
+    # the ego plane's spread 9 m to the side as the prior, updated by the two neighbours'
+    # mean (-0.35 m), spread by their scatter (0.05 m) and the mean's error (0.03 / sqrt 2)
+    prior = math.hypot(0.10, 0.03 * (9.0 - 1.8))
+    spread = math.hypot(0.05, 0.03 / math.sqrt(2))
+    expect = -0.35 / spread ** 2 / (1 / prior ** 2 + 1 / spread ** 2)
+    assert grounds[3].source == "standing neighbours"
+    assert grounds[3].height_m == pytest.approx(expect)
+    assert grounds[3].std_m == pytest.approx((1 / prior ** 2 + 1 / spread ** 2) ** -0.5)
     assert grounds[4].height_m == 0.0 and grounds[4].source == "ego plane"
+    # a vehicle in the ego's lane stands on the lane the markings measure, whatever stands
+    # beside it
+    fits[5] = StandingFit(np.array([45, -1.2, W, H, L, 0.4]), np.diag([1e-2] * 6), 1.0,
+                          np.zeros(1), np.zeros(1), True)
+    lead = track_grounds(StandingTracks(fits), {5: -1.2, 6: 0.1}, cfg)[6]
+    assert lead.height_m == 0.0 and lead.source == "ego plane"
 
 
 def test_filter_takes_the_ego_speed_as_the_rate_of_a_standing_vehicle():

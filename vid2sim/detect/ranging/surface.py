@@ -283,10 +283,15 @@ def _untestable(t_s: np.ndarray, path: EgoPath, config: RangingConfig) -> str | 
 
 def track_grounds(standing: StandingTracks, lateral_by_track: dict[int, float],
                   config: RangingConfig) -> dict[int, TrackGround]:
-    """The ground under every track: its own standing fit's; else the inverse-variance mean
-    of the standing tracks within ``config.surface_lateral_window_m`` of its lateral offset
-    (the spread: the mean's and the scatter among them, at least the road's own roughness);
-    else the ego's plane with the spread that grows beside the ego's lane."""
+    """The ground under every track.
+
+    A standing track: its own fit's. A moving one in the ego's lane: the ego's plane, which
+    the lane markings measure (the horizon of the lane they bound). Any other: the ego's
+    plane with the spread that grows beside the ego's lane as the prior, updated by the
+    standing tracks within ``config.surface_lateral_window_m`` of its lateral offset (their
+    inverse-variance mean, spread by the mean's error and their scatter), so that one weak
+    far fit cannot lift a car by its whole prior range.
+    """
     out: dict[int, TrackGround] = {}
     known = [(float(lateral_by_track[t]), f.ground_m, f.ground_std_m)
              for t, f in standing.fits.items() if t in lateral_by_track]
@@ -296,15 +301,19 @@ def track_grounds(standing: StandingTracks, lateral_by_track: dict[int, float],
             out[tid] = TrackGround(f.ground_m, max(f.ground_std_m, config.surface_floor_std_m),
                                    "standing fit")
             continue
-        near = [(g, s) for y, g, s in known if abs(y - lat) <= config.surface_lateral_window_m]
-        if not near:
-            out[tid] = TrackGround(0.0, road_std_at(lat, config), "ego plane")
+        prior = road_std_at(lat, config)
+        near = [(g, sd) for y, g, sd in known
+                if abs(y - lat) <= config.surface_lateral_window_m]
+        if not near or abs(lat) <= config.lane_width_m / 2:
+            out[tid] = TrackGround(0.0, prior, "ego plane")
             continue
         g = np.array([v[0] for v in near])
         w = 1.0 / np.maximum(np.array([v[1] for v in near]), config.surface_floor_std_m) ** 2
         mean = float(np.sum(w * g) / np.sum(w))
-        scatter = float(np.std(g)) if len(g) > 1 else config.road_height_std_m
-        std = max(math.hypot(1.0 / math.sqrt(float(np.sum(w))), scatter),
-                  config.surface_floor_std_m)
-        out[tid] = TrackGround(mean, std, "standing neighbours")
+        spread = math.hypot(1.0 / math.sqrt(float(np.sum(w))),
+                            float(np.std(g)) if len(g) > 1 else 0.0)
+        info = 1.0 / prior ** 2 + 1.0 / spread ** 2
+        est = (mean / spread ** 2) / info
+        std = max(math.sqrt(1.0 / info), config.surface_floor_std_m)
+        out[tid] = TrackGround(est, std, "standing neighbours")
     return out
