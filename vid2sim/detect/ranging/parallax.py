@@ -168,7 +168,8 @@ def _weights(r: np.ndarray, c: float) -> np.ndarray:
 def fit_standing_track(camera: Camera, obs: np.ndarray, sig: np.ndarray, use: np.ndarray,
                        outline: np.ndarray, poses: np.ndarray, start: np.ndarray,
                        prior_mean: np.ndarray, prior_std: np.ndarray,
-                       robust_sigmas: float = 3.0, yaw_ref_rad: float = 0.0) -> StandingFit:
+                       robust_sigmas: float = 3.0, yaw_ref_rad: float = 0.0,
+                       max_iterations: int | None = None) -> StandingFit:
     """Fit one track's boxes as ONE standing vehicle seen from the ego's poses.
 
     Parameters
@@ -189,6 +190,8 @@ def fit_standing_track(camera: Camera, obs: np.ndarray, sig: np.ndarray, use: np
     yaw_ref_rad : float
         The vehicle's heading in the reference frame: parallel to the ego's travel
         (:attr:`EgoPath.travel_yaw_rad`), as a parked or queued vehicle stands.
+    max_iterations : int, optional
+        Levenberg-Marquardt steps at most (default :data:`MAX_ITERATIONS`).
 
     Returns
     -------
@@ -201,7 +204,7 @@ def fit_standing_track(camera: Camera, obs: np.ndarray, sig: np.ndarray, use: np
     cost = _robust_cost(r0, n_edge, robust_sigmas)
     damping = LM_DAMPING
     converged = False
-    for _ in range(MAX_ITERATIONS):
+    for _ in range(max_iterations or MAX_ITERATIONS):
         w_all = np.concatenate([_weights(r0[:n_edge], robust_sigmas), np.ones(len(r0) - n_edge)])
         jw = jac * w_all[:, None]
         a = jac.T @ jw

@@ -84,12 +84,13 @@ def scale_sigmas(free: StandingFit, prior_mean: np.ndarray, prior_std: np.ndarra
     return abs(log_k) * math.sqrt(info)
 
 
-def standing_verdict(fit: StandingFit, free: StandingFit, prior_mean: np.ndarray,
+def standing_verdict(fit: StandingFit, free: StandingFit | None, prior_mean: np.ndarray,
                      prior_std: np.ndarray, camera_height_m: float, ground_std_m: float,
                      config: RangingConfig) -> str | None:
     """None when ``fit`` (with the class priors) is a plausible standing vehicle whose data
     alone (``free``: the same fit with the size priors let go) need no other scale, else the
-    reason it is not."""
+    reason it is not. Without ``free`` the scale test is left out (a vehicle moving along the
+    ego's travel expands from the same focus as a standing one)."""
     if not fit.converged:
         return "the standing fit did not converge"
     if not fit.chi2_per_dof <= config.standing_max_chi2:
@@ -101,6 +102,8 @@ def standing_verdict(fit: StandingFit, free: StandingFit, prior_mean: np.ndarray
                 f"({z.max():.0f} sigma from its class)")
     if abs(fit.ground_m) > config.standing_max_ground_m:
         return f"standing, its ground would be {fit.ground_m:+.2f} m off the ego's road"
+    if free is None:
+        return None
     k = scale_sigmas(free, prior_mean, prior_std, camera_height_m, ground_std_m)
     bound = (config.standing_scale_sigmas if abs(fit.theta[1]) <= config.standing_road_half_width_m
              else config.standing_scale_sigmas_beside_road)
@@ -146,8 +149,11 @@ def find_standing_tracks(camera: Camera, ba: BoxArrays, t_s: np.ndarray,
                                                    start_lateral_m, prior_mean, prior_std,
                                                    path, config)
     fits = {tid: pr.fit(camera, path.travel_yaw_rad, config) for tid, pr in problems.items()}
+    # the direction of travel from every track that fits one place with a plausible car
+    # (the scale test is not needed here: a vehicle moving along the ego's travel expands
+    # from the same focus as a standing one)
     first = {t for t, f in fits.items()
-             if problems[t].verdict(f, camera, path.travel_yaw_rad, config) is None}
+             if problems[t].verdict(f, camera, path.travel_yaw_rad, config, False) is None}
     if len(first) >= config.travel_yaw_min_tracks:
         out.travel_yaw_rad = estimate_travel_yaw(camera, {t: problems[t] for t in first},
                                                  {t: fits[t] for t in first},
@@ -185,6 +191,11 @@ def _one_sided(camera: Camera, problem: _StandingProblem, fit: StandingFit, why:
     return (best[1], None) if best is not None else (fit, why)
 
 
+#: Levenberg-Marquardt steps of each warm-started fit of the direction-of-travel search (a
+#: tenth of a degree moves the optimum a few centimetres: it converges in 3-6).
+YAW_SEARCH_ITERATIONS = 8
+
+
 @dataclass
 class _StandingProblem:
     """One track's standing fit, set up once and solved for any direction of travel."""
@@ -216,17 +227,21 @@ class _StandingProblem:
                    np.append(prior_mean[i0], 0.0), np.append(prior_std[i0], g_std), g_std)
 
     def fit(self, camera: Camera, travel_yaw_rad: float, config: RangingConfig,
-            start: np.ndarray | None = None) -> StandingFit:
+            start: np.ndarray | None = None, max_iterations: int | None = None
+            ) -> StandingFit:
         return fit_standing_track(camera, self.obs, self.sig, self.use, self.outline,
                                   self.poses_at(travel_yaw_rad),
                                   self.start if start is None else start, self.prior_mean,
                                   self.prior_std, config.standing_robust_sigmas,
-                                  travel_yaw_rad)
+                                  travel_yaw_rad, max_iterations)
 
     def verdict(self, fit: StandingFit, camera: Camera, travel_yaw_rad: float,
-                config: RangingConfig) -> str | None:
-        free_std = self.prior_std * np.array([config.standing_free_prior_factor] * 3 + [1.0])
-        free = replace(self, prior_std=free_std).fit(camera, travel_yaw_rad, config, fit.theta)
+                config: RangingConfig, scale_test: bool = True) -> str | None:
+        free = None
+        if scale_test:
+            free_std = self.prior_std * np.array([config.standing_free_prior_factor] * 3 + [1.0])
+            free = replace(self, prior_std=free_std).fit(camera, travel_yaw_rad, config,
+                                                         fit.theta)
         return standing_verdict(fit, free, self.prior_mean, self.prior_std, camera.height_m,
                                 self.ground_std_m, config)
 
@@ -252,8 +267,8 @@ def estimate_travel_yaw(camera: Camera, problems: dict[int, _StandingProblem],
     grid = yaw0_rad + half * np.linspace(-1.0, 1.0, 5)
 
     def total(yaw: float) -> float:
-        return sum(pr.cost(pr.fit(camera, float(yaw), config, fits[t].theta))
-                   for t, pr in problems.items())
+        return sum(pr.cost(pr.fit(camera, float(yaw), config, fits[t].theta,
+                                  YAW_SEARCH_ITERATIONS)) for t, pr in problems.items())
 
     costs = np.array([total(y) for y in grid])
     k = int(np.clip(np.argmin(costs), 1, len(grid) - 2))
