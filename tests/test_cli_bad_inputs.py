@@ -434,7 +434,7 @@ sys.exit(main(sys.argv[3:]))
 
 @pytest.mark.parametrize("sig,code", [(signal.SIGTERM, 143), (signal.SIGINT, 130)],
                          ids=["SIGTERM", "SIGINT"])
-@pytest.mark.parametrize("stage", ["detect_and_range", "write_openscenario"])
+@pytest.mark.parametrize("stage", ["detect_and_range_with", "write_openscenario"])
 def test_signal_leaves_no_staging_and_old_outputs(sig, code, stage, world, tmp_path):
     # A real `vid2sim build` process, stopped by a real signal while a stage runs (detection,
     # or writing the outputs into the staging folder).

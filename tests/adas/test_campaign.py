@@ -117,7 +117,8 @@ def test_variants_are_written_with_their_parameters(scenario_dir, tmp_path):
     root = ET.parse(folder / "scenario.xosc").getroot()
     params = {p.get("name"): float(p.get("value"))
               for p in root.iter("ParameterDeclaration")}
-    assert params == {"lead_decel": 2.0, "ego_speed": 1.0}
+    # every variation parameter is declared, the unvaried ones at their neutral values
+    assert params == {"lead_decel": 2.0, "ego_speed": 1.0, "gap": 1.0, "cut_in": 0.0}
     assert (folder / "road.xodr").exists()
 
 

@@ -19,6 +19,7 @@ from vid2sim.core.lead import (
     lane_centre_m,
     lane_index,
     lane_name,
+    lead_of,
     smoothed_curvature,
 )
 
@@ -129,3 +130,16 @@ def test_a_heading_spike_of_two_frames_does_not_move_the_lane_far_ahead():
     h[15:17] = 0.12  # the lane track's heading jumps on clutter for two frames
     at = ego_lane_at(make_track(t, 0.0, heading_rad=h), t)
     np.testing.assert_allclose(at.heading_rad, 0.01)  # the median over 0.5 s
+
+
+def test_the_lead_rule_is_one_function_for_one_instant_and_over_time():
+    ahead = np.array([[30.0, 30.0, -5.0], [12.0, np.nan, 12.0], [8.0, 8.0, 8.0]])
+    lateral = np.array([[0.2, 0.2, 0.2], [0.5, 0.5, 0.5], [2.5, 2.5, 2.5]])  # third: next lane
+    # per instant: the nearest ahead in the corridor; none where nobody qualifies
+    assert lead_of(ahead, lateral, 3.5).tolist() == [1, 0, 1]
+    assert lead_of(ahead[:, 0], lateral[:, 0], 3.5) == 1
+    assert lead_of(ahead[:1, 2:], lateral[:1, 2:], 3.5).tolist() == [-1]  # behind the ego
+    # "nearest" by another measure (the gap) among those ahead
+    assert lead_of(np.array([10.0, 12.0]), np.zeros(2), 3.5,
+                   nearness_m=np.array([6.0, 5.0])) == 1
+    assert lead_of(np.zeros((0, 4)), np.zeros((0, 4)), 3.5).tolist() == [-1] * 4

@@ -12,8 +12,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from vid2sim.base.errors import InputError, ScenarioError
+from vid2sim.core import _scenario_schema as schema
 from vid2sim.core import scenario as sc
-from vid2sim.core.records import Origin
+from vid2sim.core.records import EVENT_TYPES, Origin
 
 
 def make_scenario() -> sc.Scenario:
@@ -271,7 +272,7 @@ def test_size_limits_fail_fast(tmp_path, monkeypatch):
         fh.truncate(sc.MAX_SCENARIO_BYTES + 1)
     with pytest.raises(InputError, match="limit"):
         sc.load(big)
-    monkeypatch.setattr(sc, "MAX_TRAJECTORY_POINTS", 15)
+    monkeypatch.setattr(schema, "MAX_TRAJECTORY_POINTS", 15)
     with pytest.raises(ScenarioError, match="trajectory points"):
         sc.validate(valid_dict())  # 11 ego + 11 actor points
     deep = tmp_path / "deep.json"
@@ -351,7 +352,7 @@ def test_event_damage_gives_scenario_error_only():
         except ScenarioError:
             return
         for ev in loaded.events:
-            assert ev.type in sc.EVENT_TYPES and math.isfinite(ev.t_s)
+            assert ev.type in EVENT_TYPES and math.isfinite(ev.t_s)
             assert ev.from_lane != ev.to_lane
 
     check()

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import gymnasium
@@ -16,7 +17,8 @@ from vid2sim.adas.policies import AccPolicy, AebPolicy, FollowLogPolicy, run_epi
 from vid2sim.base.errors import InputError
 from vid2sim.core.scenario import save
 from vid2sim.export.highway import ReplayEnv, enu_to_hw, hw_to_enu
-from vid2sim.samples.scenarios import left_turn_scenario, straight_scenario
+from vid2sim.export.highway.info import StepInfo
+from vid2sim.samples.scenarios import braking_lead_scenario, left_turn_scenario, straight_scenario
 
 ZERO = np.zeros(1, dtype=np.float32)
 
@@ -355,7 +357,6 @@ def test_exported_replay_script_runs(tmp_path):
     from pathlib import Path
 
     from vid2sim.cli import main
-    from vid2sim.samples.scenarios import braking_lead_scenario
 
     path = tmp_path / "scenario.json"
     save(braking_lead_scenario(), path)
@@ -425,3 +426,18 @@ def test_policy_ego_changes_lane_when_the_logged_ego_did(ego_path):
         for _ in range(env.n_steps):
             *_, info = env.step(np.array([-0.05], np.float32))
         assert info["ego_lane"] == 0
+
+
+def test_info_is_exactly_the_typed_record_and_a_missing_key_is_an_error():
+    env = gymnasium.make("vid2sim/Replay-v0", scenario=braking_lead_scenario())
+    _, info = env.reset(seed=0)
+    assert set(info) == {f.name for f in dataclasses.fields(StepInfo)}
+    assert StepInfo.of(info).to_dict() == info
+    renamed = {("gap" if k == "gap_m" else k): v for k, v in info.items()}
+    with pytest.raises(KeyError, match="gap_m"):
+        StepInfo.of(renamed)
+    # a policy reading a renamed key fails at once instead of never braking
+    ttc_gone = {k: v for k, v in info.items() if k != "ttc_s"}
+    with pytest.raises(KeyError, match="ttc_s"):
+        AebPolicy()(np.zeros((1, 1)), ttc_gone)
+    env.close()

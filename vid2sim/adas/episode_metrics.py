@@ -22,6 +22,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from vid2sim.export.highway.info import StepInfo
+
 COLUMNS = ("collision", "min_ttc_s", "min_headway_s", "min_gap_m", "max_decel_mps2",
            "max_jerk_mps3", "lane_departures", "duration_s")
 DEPARTURE_HYSTERESIS_M = 0.1
@@ -55,29 +57,31 @@ def lane_departures(offsets_m: np.ndarray, lane_widths_m: np.ndarray, ego_width_
     return count
 
 
-def episode_metrics(infos: list[dict], step_s: float, ego_width_m: float) -> EpisodeMetrics:
+def episode_metrics(infos: list[StepInfo | dict], step_s: float, ego_width_m: float
+                    ) -> EpisodeMetrics:
     """The figures of an episode from its ``info`` list (reset first, then every step).
 
     Parameters
     ----------
-    infos : list of dict
+    infos : list of StepInfo or dict
         ``info`` of ``vid2sim/Replay-v0`` at the reset and after each step.
     step_s : float
         Policy period [s].
     ego_width_m : float
         For lane departures.
     """
-    speed = np.array([i["ego_speed_mps"] for i in infos], float)
+    infos = [StepInfo.of(i) for i in infos]
+    speed = np.array([i.ego_speed_mps for i in infos], float)
     accel = np.diff(speed) / step_s if len(speed) > 1 else np.zeros(0)
     jerk = np.diff(accel) / step_s if len(accel) > 1 else np.zeros(0)
-    lead = [i for i in infos if i.get("has_lead")]
+    lead = [i for i in infos if i.has_lead]
     return EpisodeMetrics(
-        collision=any(bool(i["crashed"]) for i in infos),
-        min_ttc_s=min((float(i["ttc_s"]) for i in lead), default=math.inf),
-        min_headway_s=min((float(i["time_headway_s"]) for i in lead), default=math.inf),
-        min_gap_m=min((float(i["gap_m"]) for i in lead), default=math.inf),
+        collision=any(i.crashed for i in infos),
+        min_ttc_s=min((float(i.ttc_s) for i in lead), default=math.inf),
+        min_headway_s=min((float(i.time_headway_s) for i in lead), default=math.inf),
+        min_gap_m=min((float(i.gap_m) for i in lead), default=math.inf),
         max_decel_mps2=float(max(0.0, -accel.min())) if accel.size else 0.0,
         max_jerk_mps3=float(np.abs(jerk).max()) if jerk.size else 0.0,
-        lane_departures=lane_departures([i["lane_offset_m"] for i in infos],
-                                        [i["lane_width_m"] for i in infos], ego_width_m),
-        duration_s=float(infos[-1]["t_s"] - infos[0]["t_s"]))
+        lane_departures=lane_departures([i.lane_offset_m for i in infos],
+                                        [i.lane_width_m for i in infos], ego_width_m),
+        duration_s=float(infos[-1].t_s - infos[0].t_s))

@@ -1,8 +1,8 @@
 """Minimal reference policies on the simulator's exact values: follow the log, ACC (IDM), AEB.
 
 A policy is a callable ``policy(obs, info) -> action``; these read the environment's ``info``
-(``t_s``, ``ego_speed_mps``, ``has_lead``, ``gap_m``, ``closing_speed_mps``, ``ttc_s``, ...;
-see :mod:`vid2sim.export.highway`) and return the action array: one value in [-1, 1] mapped
+as a typed record (:class:`vid2sim.export.highway.info.StepInfo`: ``t_s``,
+``ego_speed_mps``, ``has_lead``, ``gap_m``, ``closing_speed_mps``, ``ttc_s``, ...) and return the action array: one value in [-1, 1] mapped
 linearly to the acceleration range ``acceleration_range_mps2`` of the environment's config.
 They are short examples for the raw environment; the driving functions that
 ``vid2sim test-policy`` runs (ISO-limited ACC, staged AEB, LKA, through a camera model) are in
@@ -19,6 +19,7 @@ import numpy as np
 
 from vid2sim.adas.functions import DEFAULT_ACCEL_RANGE_MPS2, accel_to_action, idm_acceleration
 from vid2sim.core.scenario import Trajectory
+from vid2sim.export.highway.info import StepInfo
 
 Policy = Callable[[np.ndarray, dict], np.ndarray]
 __all__ = ["DEFAULT_ACCEL_RANGE_MPS2", "AccPolicy", "AebPolicy", "FollowLogPolicy", "Policy",
@@ -42,15 +43,16 @@ class FollowLogPolicy:
     def __post_init__(self) -> None:
         self._accel = np.gradient(self.log.speed, self.log.t) if len(self.log) > 1 else np.zeros(1)
 
-    def __call__(self, obs: np.ndarray, info: dict) -> np.ndarray:
-        t = info["t_s"]
+    def __call__(self, obs: np.ndarray, info: StepInfo | dict) -> np.ndarray:
+        state = StepInfo.of(info)
+        t = state.t_s
         ref = self.log.state_at(t)
         x_enu, y_enu = float(obs[0][1]), -float(obs[0][2])
         heading = float(ref["heading"])
         along_err_m = ((float(ref["x"]) - x_enu) * math.cos(heading)
                        + (float(ref["y"]) - y_enu) * math.sin(heading))
         a = (float(np.interp(t, self.log.t, self._accel))
-             + self.kp_speed_per_s * (float(ref["speed"]) - info["ego_speed_mps"])
+             + self.kp_speed_per_s * (float(ref["speed"]) - state.ego_speed_mps)
              + self.kp_position_per_s2 * along_err_m)
         return accel_to_action(a, self.accel_range_mps2)
 
@@ -71,13 +73,13 @@ class AccPolicy:
     max_decel_mps2: float = 8.0
     accel_range_mps2: tuple[float, float] = DEFAULT_ACCEL_RANGE_MPS2
 
-    def acceleration(self, info: dict) -> float:
+    def acceleration(self, info: StepInfo | dict) -> float:
         """IDM acceleration [m/s^2] for the state in ``info``."""
-        gap = float(info.get("gap_m", math.inf))
-        has_lead = info.get("has_lead", info.get("lead_id") is not None)
+        state = StepInfo.of(info)
         a = idm_acceleration(
-            float(info["ego_speed_mps"]), self.desired_speed_mps, gap if has_lead else None,
-            float(info.get("closing_speed_mps", 0.0)), time_gap_s=self.time_headway_s,
+            state.ego_speed_mps, self.desired_speed_mps,
+            state.gap_m if state.has_lead else None,
+            state.closing_speed_mps, time_gap_s=self.time_headway_s,
             min_gap_m=self.min_gap_m, max_accel_mps2=self.max_accel_mps2,
             comfort_decel_mps2=self.comfort_decel_mps2)
         return max(a, -self.max_decel_mps2)
@@ -103,10 +105,11 @@ class AebPolicy:
     braking: bool = False
 
     def __call__(self, obs: np.ndarray, info: dict) -> np.ndarray:
-        ttc = float(info.get("ttc_s", math.inf))
+        state = StepInfo.of(info)
+        ttc = state.ttc_s
         if ttc < self.trigger_ttc_s:
             self.braking = True
-        elif self.braking and (ttc > self.release_ttc_s or info["ego_speed_mps"] < 0.1):
+        elif self.braking and (ttc > self.release_ttc_s or state.ego_speed_mps < 0.1):
             self.braking = False
         if self.braking:
             return accel_to_action(-self.brake_decel_mps2, self.accel_range_mps2)

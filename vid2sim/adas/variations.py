@@ -41,15 +41,17 @@ from shapely.geometry import Polygon
 from vid2sim.base.errors import InputError
 from vid2sim.core.scenario import Scenario, Trajectory
 from vid2sim.export.highway import ReplayEnv, enu_to_hw, hw_to_enu
+from vid2sim.export.openscenario import VARIATION_PARAMETERS
 
 PARAMETERS = {
-    "lead_decel": ("scale of the lead's deceleration", 1.0, None),
-    "gap": ("scale of the initial gap to the lead", 1.0, None),
-    "ego_speed": ("offset of the ego's speed [m/s]", 0.0, None),
-    "cut_in": ("time shift of the cut-in [s]", 0.0, None),
+    "lead_decel": ("scale of the lead's deceleration", VARIATION_PARAMETERS["lead_decel"], None),
+    "gap": ("scale of the initial gap to the lead", VARIATION_PARAMETERS["gap"], None),
+    "ego_speed": ("offset of the ego's speed [m/s]", VARIATION_PARAMETERS["ego_speed"], None),
+    "cut_in": ("time shift of the cut-in [s]", VARIATION_PARAMETERS["cut_in"], None),
     "noise": ("sensor noise level", 0.0, 0.0),
 }
-"""name -> (meaning, neutral value, smallest value --vary accepts or None). Values that make a
+"""name -> (meaning, neutral value, smallest value --vary accepts or None); the neutral values
+are the ones every exported scenario.xosc declares. Values that make a
 variant physically impossible (a gap scale of 0 or less, a negative deceleration scale) are
 accepted and their variants skipped with the reason, so that a grid can span them."""
 MAX_GRID = 10_000

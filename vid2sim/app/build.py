@@ -37,8 +37,11 @@ from vid2sim.app.loaders import (
     need_video,
     smooth_trace,
 )
+from vid2sim.app.recording import video_clock, video_span_s, with_embedded_gps
+from vid2sim.app.rendering import REPLAY_NAME, render_into_build
 from vid2sim.app.settings import Settings
-from vid2sim.app.tracking import lead_summary
+from vid2sim.app.settings_file import changed_settings, settings_tree
+from vid2sim.app.tracking import detect_and_range_with, lead_summary
 from vid2sim.base.errors import InputError
 from vid2sim.base.fileio import staged_folder, write_text_atomic
 from vid2sim.core import scenario as scenario_io
@@ -48,7 +51,6 @@ from vid2sim.core.scenario import Event, Source, dumps_canonical
 from vid2sim.core.tables import write_tracks_csv
 from vid2sim.detect.assign import relane
 from vid2sim.detect.lanes.track import lane_track
-from vid2sim.detect.pipeline import detect_and_range
 from vid2sim.detect.ranging import EgoPath
 from vid2sim.evaluate.frames import sample_frame_figures
 from vid2sim.evaluate.replay import run_eval
@@ -193,11 +195,12 @@ def _write_tables(staging: Path, scenario, ranging, road_result) -> dict[str, Pa
 #: (replay.py, preview.png), which would otherwise describe a scenario no longer there.
 BUILD_OUTPUTS: tuple[str, ...] = (
     "scenario.json", "scenario.xosc", "road.xodr", "tracks.csv", "road.json", "report.html",
-    "figures", "metrics.json", "keyframes", "replay.py", "preview.png")
+    "figures", "metrics.json", "keyframes", "replay.py", "preview.png", REPLAY_NAME)
 
 
 def build(inputs: Inputs, out_dir: Path, settings: Settings | None = None,
-          report: Callable[[str], None] | None = None) -> BuildResult:
+          report: Callable[[str], None] | None = None,
+          extra_notes: list[Note] | None = None) -> BuildResult:
     """Run the whole pipeline for one video and write its outputs into ``out_dir``.
 
     Parameters
@@ -211,6 +214,8 @@ def build(inputs: Inputs, out_dir: Path, settings: Settings | None = None,
         Detector, tracker, ranging, smoothing and assembly settings (defaults otherwise).
     report : callable, optional
         Receives one line per stage as it starts (progress).
+    extra_notes : list of Note, optional
+        What the caller learnt about the inputs (segments joined), kept with the build's.
     """
     settings = settings or Settings()
     out_dir = Path(out_dir)
@@ -220,9 +225,12 @@ def build(inputs: Inputs, out_dir: Path, settings: Settings | None = None,
     video = need_video(inputs)
     info = load_video_info(inputs)
     camera, notes = load_camera_for(inputs, info)
+    # A recording that carries its GPS (GoPro, dash-cams) is its own GPS input.
+    inputs, gps_notes = with_embedded_gps(inputs)
+    notes.extend([*(extra_notes or []), *gps_notes])
     if inputs.keyframes is not None:
-        load_keyframes_for(inputs.keyframes, video, info, inputs.fps, inputs.keyframe_calib,
-                           inputs.keyframe_rate_hz)
+        load_keyframes_for(inputs.keyframes, video, info, inputs.fps,
+                           inputs.keyframe_calib, inputs.keyframe_rate_hz)
     # The detector (or imported boxes) before any long work: missing weights fail fast.
     detector, imported, boxes_label = load_boxes(inputs, settings)
     # The output folder last of the checks, first of the work: a read-only or full disk
@@ -233,14 +241,10 @@ def build(inputs: Inputs, out_dir: Path, settings: Settings | None = None,
                            imported, boxes_label, _Stages(report))
 
 
-def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings,
-                info: VideoInfo, camera: Camera, notes: list, detector, imported,
-                boxes_label: str, stages: _Stages) -> BuildResult:
-    """The stages of :func:`build`, writing into ``staging`` (``out_dir`` once moved)."""
-    video = need_video(inputs)
-    video_duration_s = (info.n_frames - 1) / info.fps if info.n_frames > 1 else 0.0
-
-    # ---- geo: ego trajectory and road
+def _ego_and_road(inputs: Inputs, settings: Settings, video_duration_s: float, notes: list,
+                  stages: _Stages):
+    """The geo stages: the ego trajectory (GPS smoothed, or a straight drive without one) and
+    the road; ``(ego, roads, road_result, trace, ego_noise_m)``, notes added to ``notes``."""
     roads, road_result, trace = [], None, None
     ego_noise_m = None  # the ego trajectory's position noise: known with a GPS only
     if inputs.gps is not None:
@@ -262,69 +266,17 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
             f"no GPS: the ego drives a straight road heading east at {inputs.ego_speed_mps:g} "
             "m/s from an arbitrary origin (lat 0, lon 0)"
             + (" (a camera-relative scenario)" if inputs.ego_speed_mps == 0 else "")))
+    return ego, roads, road_result, trace, ego_noise_m
 
-    # ---- detect, track, range
-    # With GPS the ego's own motion ranges the vehicles that stand still
-    ego_path = EgoPath.from_track(ego, ego_noise_m) if inputs.gps is not None else None
-    ranging, camera, ranging_notes = stages.run(
-        "detect, track and range", detect_and_range, video, camera, detector=detector,
-        detections=imported, detect_every=settings.detector.detect_every, fps=inputs.fps,
-        progress=settings.progress, config=settings.ranging,
-        tracker_config=settings.tracker_config(), schedule=settings.detector.schedule(),
-        ego_path=ego_path,
-        assign_lanes=inputs.gps is None)
-    notes.extend(ranging_notes)
-    notes.extend(ranging.warnings)
-    notes.append(Note.estimate(
-        f"horizon at row {ranging.horizon_y_px:.1f} px (pitch {ranging.pitch_deg_estimated:.2f} "
-        f"deg) from {ranging.horizon_source}"))
-    camera_used = camera.with_pitch(ranging.pitch_deg_estimated)
-    # ---- the ego's lateral position from the lane markings (GPS keeps the along-track one)
-    lateral = stages.run("ego lateral position", fuse_lateral, ego, ranging.lanes, road_result,
-                         speed_known=inputs.gps is not None,
-                         refilter=lambda track, speed: lane_track(
-                             track.observations, settings.lanes, speed_mps=speed))
-    ego = lateral.ego
-    notes.extend(lateral.notes)
-    if inputs.gps is not None:
-        # With a trajectory the road's course ahead is where the ego drove: lanes (and the
-        # lead) beyond the lane model's reach follow it.
-        ranging.boxes = stages.run("lanes of the vehicles", relane, ranging.boxes,
-                                   settings.ranging, ranging.lanes, road_course(lateral),
-                                   ranging.never_lead_tracks)
-    warnings = notes_of(notes, NoteKind.WARNING)
-    assumptions = [n for n in notes if getattr(n, "kind", None) in (NoteKind.ASSUMPTION,
-                                                                     NoteKind.ESTIMATE)]
 
-    # ---- assemble
-    options = {**inputs.recorded(), **settings.recorded(detector_used=detector is not None),
-               "detector_used": boxes_label,
-               "fps": info.fps}
-    source = Source(inputs=inputs.fingerprints(), tool_version=__version__, options=options,
-                    assumptions=[str(a) for a in assumptions])
-    scenario, assemble_warnings = stages.run("assemble scenario", assemble_scenario, ego, roads,
-                                             ranging.boxes, camera_used, source=source,
-                                             config=settings.assemble,
-                                             ego_noise_m=ego_noise_m,
-                                             standing_tracks=ranging.standing_tracks,
-                                             ground_m_by_track={
-                                                 t: g[0] for t, g in
-                                                 ranging.ground_m_by_track.items()})
-    warnings.extend(assemble_warnings)
-    # ---- the street: the road's lanes from the video (and map), parked cars on their strip
-    scene = stages.run("road cross-section", lay_out_scene, scenario, lateral)
-    scenario = scene.scenario
-    warnings.extend(notes_of(scene.notes, NoteKind.WARNING))
-    scenario.source.assumptions.extend(str(n) for n in scene.notes
-                                       if getattr(n, "kind", None) is not NoteKind.WARNING)
-    scenario.source.warnings = [str(w) for w in warnings]
-    # ---- lane-change events: the actors' (lanes counted from the ego lane the ranging
-    # used) and the ego's own
-    scenario.events = stages.run("lane-change events", scenario_events, ranging.boxes,
-                                 ranging.lanes, scenario.actors, lateral.lane_changes,
-                                 settings.ranging.lane_width_m, scenario.ego.trajectory)
 
-    # ---- write into the staging folder (moved into place by the caller)
+def _write_outputs(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings,
+                   info: VideoInfo, camera_used: Camera, ranging, scenario, road_result, trace,
+                   ego, warnings: list[str], stages: _Stages) -> tuple[dict[str, Path], dict | None]:
+    """Write the build's outputs into ``staging`` (moved into place by the caller): tables,
+    OpenSCENARIO/OpenDRIVE, figures, the evaluation or the sampled frames, the report, and
+    with ``settings.render_replay`` the replay video; ``(files, metrics)``."""
+    video = need_video(inputs)
     files = stages.run("write scenario and tables", _write_tables, staging, scenario, ranging,
                        road_result)
     xosc, xodr = stages.run("export OpenSCENARIO/OpenDRIVE", write_openscenario, scenario,
@@ -333,7 +285,10 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
     files["opendrive"] = Path(xodr.name)
     figures = stages.run("figures", stage_figures, staging / "figures", road_result, trace, ego,
                          ranging.boxes)
-    report_inputs = {**inputs.labelled_paths(), "output folder": str(out_dir)}
+    changed = changed_settings(settings)
+    report_inputs = {**inputs.labelled_paths(), "output folder": str(out_dir),
+                     "settings changed from the defaults": ", ".join(
+                         f"{k} = {v}" for k, v in changed.items()) or "none"}
     metrics = None
     if inputs.keyframes is not None:
         # run_eval writes metrics.json, the keyframe overlays and the one report.html,
@@ -357,12 +312,99 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
         frames = stages.run("sampled frames", sample_frame_figures,
                             staging / "figures" / "frames", video, camera_used, ranging.boxes,
                             ranging.lanes, scenario, info.fps, info.n_frames,
-                            video_fps=inputs.fps, progress=settings.progress,
-                            frame_times_s=ranging.frame_times_s)
+                            video_fps=inputs.fps, config=settings.frames,
+                            progress=settings.progress, frame_times_s=ranging.frame_times_s)
         stages.run("report", write_report, staging / "report.html", scenario=scenario,
                    metrics=None, extra_figures=figures, warnings=warnings, inputs=report_inputs,
                    frame_images=[(c, p, p.relative_to(staging).as_posix()) for c, p in frames])
     files["report"] = Path("report.html")
+    if settings.render_replay:
+        # the replay of the whole clip, put into the report written above
+        keyframes = (load_keyframes_for(inputs.keyframes, video, info, inputs.fps,
+                                        inputs.keyframe_calib, inputs.keyframe_rate_hz)
+                     if inputs.keyframes is not None else [])
+        stages.run("replay video", render_into_build, staging, scenario, camera_used,
+                   ranging.boxes, ranging.lanes, video, info, keyframes, inputs.fps,
+                   settings.replay, settings.progress)
+        files["replay"] = Path(REPLAY_NAME)
+    return files, metrics
+
+
+def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings,
+                info: VideoInfo, camera: Camera, notes: list, detector, imported,
+                boxes_label: str, stages: _Stages) -> BuildResult:
+    """The stages of :func:`build`, writing into ``staging`` (``out_dir`` once moved)."""
+    video = need_video(inputs)
+    # The frames' clock is the container's (variable frame rates keep their times).
+    clock, container = video_clock(video, info)
+    video_duration_s = video_span_s(info, container)
+
+    # ---- geo: ego trajectory and road
+    ego, roads, road_result, trace, ego_noise_m = _ego_and_road(inputs, settings,
+                                                                video_duration_s, notes, stages)
+
+    # ---- detect, track, range (with GPS the ego's own motion ranges the standing vehicles)
+    ego_path = EgoPath.from_track(ego, ego_noise_m) if inputs.gps is not None else None
+    ranging, camera, ranging_notes = stages.run(
+        "detect, track and range", detect_and_range_with, settings, inputs, video, camera,
+        detector, imported, assign_lanes=inputs.gps is None, ego_path=ego_path)
+    notes.extend(ranging_notes)
+    notes.extend(ranging.warnings)
+    notes.append(Note.estimate(
+        f"horizon at row {ranging.horizon_y_px:.1f} px (pitch {ranging.pitch_deg_estimated:.2f} "
+        f"deg) from {ranging.horizon_source}"))
+    camera_used = camera.with_pitch(ranging.pitch_deg_estimated)
+    # ---- the ego's lateral position from the lane markings (GPS keeps the along-track one)
+    lateral = stages.run("ego lateral position", fuse_lateral, ego, ranging.lanes, road_result,
+                         config=settings.lateral, speed_known=inputs.gps is not None,
+                         refilter=lambda track, speed: lane_track(
+                             track.observations, settings.lanes, speed_mps=speed))
+    ego = lateral.ego
+    notes.extend(lateral.notes)
+    if inputs.gps is not None:
+        # With a trajectory the road's course ahead is where the ego drove: lanes (and the
+        # lead) beyond the lane model's reach follow it.
+        ranging.boxes = stages.run("lanes of the vehicles", relane, ranging.boxes,
+                                   settings.ranging, ranging.lanes, road_course(lateral),
+                                   ranging.never_lead_tracks)
+    warnings = notes_of(notes, NoteKind.WARNING)
+    assumptions = [n for n in notes if getattr(n, "kind", None) in (NoteKind.ASSUMPTION,
+                                                                     NoteKind.ESTIMATE)]
+
+    # ---- assemble
+    options = {**inputs.recorded(), **settings.recorded(detector_used=detector is not None),
+               "detector_used": boxes_label,
+               "fps": info.fps, "n_frames": info.n_frames, "video_clock": clock}
+    source = Source(inputs=inputs.fingerprints(), tool_version=__version__, options=options,
+                    assumptions=[str(a) for a in assumptions],
+                    settings=settings_tree(settings))
+    scenario, assemble_warnings = stages.run("assemble scenario", assemble_scenario, ego, roads,
+                                             ranging.boxes, camera_used, source=source,
+                                             config=settings.assemble,
+                                             ego_noise_m=ego_noise_m,
+                                             standing_tracks=ranging.standing_tracks,
+                                             ground_m_by_track={
+                                                 t: g[0] for t, g in
+                                                 ranging.ground_m_by_track.items()})
+    warnings.extend(assemble_warnings)
+    # ---- the street: the road's lanes from the video (and map), parked cars on their strip
+    scene = stages.run("road cross-section", lay_out_scene, scenario, lateral,
+                       settings.layout_config())
+    scenario = scene.scenario
+    warnings.extend(notes_of(scene.notes, NoteKind.WARNING))
+    scenario.source.assumptions.extend(str(n) for n in scene.notes
+                                       if getattr(n, "kind", None) is not NoteKind.WARNING)
+    scenario.source.warnings = [str(w) for w in warnings]
+    # ---- lane-change events: the actors' (lanes counted from the ego lane the ranging
+    # used) and the ego's own
+    scenario.events = stages.run("lane-change events", scenario_events, ranging.boxes,
+                                 ranging.lanes, scenario.actors, lateral.lane_changes,
+                                 settings.ranging.lane_width_m, scenario.ego.trajectory,
+                                 settings.events)
+
+    # ---- write into the staging folder (moved into place by the caller)
+    files, metrics = _write_outputs(staging, out_dir, inputs, settings, info, camera_used,
+                                    ranging, scenario, road_result, trace, ego, warnings, stages)
 
     lead = lead_summary(ranging, info.n_frames)
     lead_range = (None if not np.isfinite(lead["lead_range_median_m"]) else

@@ -84,6 +84,34 @@ def atomic_open(path: str | Path, mode: str = "w", **kwargs) -> Iterator[IO]:
         raise
 
 
+@contextlib.contextmanager
+def atomic_path(path: str | Path) -> Iterator[Path]:
+    """A temporary path beside ``path``, with its suffix, for a writer that takes a file name
+    (a video encoder); renamed over ``path`` only if the block succeeds (as
+    :func:`atomic_open`: a failure leaves any existing ``path`` untouched and removes the
+    temporary file; a read-only location or a full disk raises :class:`InputError`)."""
+    path = Path(path)
+    if path.is_symlink():
+        path = path.resolve()
+    tmp = None
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix or ".tmp",
+                                   dir=path.parent)
+        os.close(fd)
+        os.chmod(tmp, 0o666 & ~_umask())
+        yield Path(tmp)
+        os.replace(tmp, path)
+    except OSError as exc:
+        _remove_quietly(tmp)
+        if exc.errno in OUTPUT_ERRNOS:
+            raise output_error(path, exc) from exc
+        raise
+    except BaseException:
+        _remove_quietly(tmp)
+        raise
+
+
 def _remove_quietly(path: str | Path | None) -> None:
     if path is not None:
         with contextlib.suppress(OSError):
@@ -145,7 +173,7 @@ def check_input_size(path: str | Path, max_bytes: int = MAX_INPUT_BYTES,
         raise InputError(path, f"cannot read: {exc.strerror or exc}") from None
     if size > max_bytes:
         raise InputError(path, f"{what} file of {size / 2**20:.0f} MiB is larger than the "
-                         f"{max_bytes / 2**20:.0f} MiB limit", "see README 'Limits'")
+                         f"{max_bytes / 2**20:.0f} MiB limit", "see docs/limits.md")
     return size
 
 

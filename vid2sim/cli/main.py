@@ -63,6 +63,11 @@ def main(argv: list[str] | None = None) -> int:
         # FFmpeg inside OpenCV prints its own lines for a broken video ("moov atom not
         # found"); our one-line error says the same with the file name. -v shows them.
         os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
+        # and OpenCV's own log ("Could not find decoder for codec_id=0") likewise; it read
+        # its environment when imported, so it is told directly.
+        import cv2
+
+        cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
     previous = {}
     try:
         for s in _termination_signals():
@@ -112,8 +117,8 @@ def _run(argv: list[str] | None, verbose: bool) -> int:
             traceback.print_exc()
         return 2
     except MemoryError:
-        click.echo("error: out of memory: an input is too large for this machine (see README "
-                   "'Limits')", err=True)
+        click.echo("error: out of memory: an input is too large for this machine (see "
+                   "docs/limits.md)", err=True)
         return 2
     except OSError as exc:
         line = _os_error_line(exc)

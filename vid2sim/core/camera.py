@@ -145,7 +145,7 @@ class Camera:
         missing = [k for k in _REQUIRED if k not in d]
         if missing:
             raise InputError(path, f"camera description lacks {', '.join(missing)}",
-                             "see README 'Camera file'")
+                             "see docs/formats.md, 'Camera file'")
         try:
             raw_dist = d.get("dist", [0.0] * 5)
             if not isinstance(raw_dist, (list, tuple)):

@@ -103,33 +103,52 @@ def in_ego_corridor(lateral_m: np.ndarray | float, lane_width_m: float) -> np.nd
 
 
 def nearest_ahead(ahead_m: np.ndarray, candidate: np.ndarray,
-                  max_range_m: float = math.inf) -> int:
+                  max_range_m: float = math.inf, nearness_m: np.ndarray | None = None
+                  ) -> np.ndarray | int:
     """Index of the nearest candidate with ``0 < ahead_m <= max_range_m``, or -1.
 
     Parameters
     ----------
-    ahead_m : ndarray
-        Distance from the ego's reference point to each vehicle's rear along the lane [m]
-        (NaN for unknown).
-    candidate : ndarray of bool
+    ahead_m : ndarray, (A,) or (A, T)
+        Distance from the ego's reference point along the lane to each vehicle [m] (NaN for
+        unknown): a vehicle is ahead where it is positive. With a second axis, one answer per
+        instant (vehicles along the first axis).
+    candidate : ndarray of bool, shaped as ``ahead_m``
         Vehicles that may be the lead (in the ego corridor).
     max_range_m : float
         Farther vehicles are not the lead [m].
+    nearness_m : ndarray, optional
+        What "nearest" compares (default ``ahead_m``): e.g. the bumper-to-bumper gap where
+        ``ahead_m`` is measured between the vehicles' centres.
+
+    Returns
+    -------
+    int for (A,) input, (T,) int array for (A, T) input; -1 where there is no candidate. Of
+    equally near candidates the first wins.
     """
     ahead = np.asarray(ahead_m, dtype=float)
     ok = np.asarray(candidate, dtype=bool) & np.isfinite(ahead) & (ahead > 0) & (
         ahead <= max_range_m)
-    if not ok.any():
-        return -1
-    idx = np.flatnonzero(ok)
-    return int(idx[np.argmin(ahead[idx])])
+    near = ahead if nearness_m is None else np.asarray(nearness_m, dtype=float)
+    ok &= ~np.isnan(near)
+    keyed = np.where(ok, near, np.inf)
+    if keyed.size == 0:
+        return -1 if ahead.ndim <= 1 else np.full(ahead.shape[1:], -1, dtype=int)
+    best = np.argmin(keyed, axis=0)
+    found = np.take_along_axis(ok, best[None], axis=0)[0] if ahead.ndim > 1 else ok[best]
+    out = np.where(found, best, -1)
+    return int(out) if ahead.ndim <= 1 else out.astype(int)
 
 
 def lead_of(ahead_m: np.ndarray, lateral_m: np.ndarray, lane_width_m: float,
-            max_range_m: float = math.inf) -> int:
-    """Index of the lead among vehicles at ``ahead_m`` (to their rear) and ``lateral_m`` (of
-    their centre) relative to the ego lane [m], or -1 when there is none."""
-    return nearest_ahead(ahead_m, in_ego_corridor(lateral_m, lane_width_m), max_range_m)
+            max_range_m: float = math.inf, nearness_m: np.ndarray | None = None
+            ) -> np.ndarray | int:
+    """THE lead rule: index of the lead among vehicles at ``ahead_m`` along and ``lateral_m``
+    (of their centre) across the ego lane [m], or -1 when there is none: the nearest one
+    ahead whose centre lies in the ego's corridor. Shapes and ``nearness_m`` as
+    :func:`nearest_ahead` ((A, T) arrays give one lead per instant)."""
+    return nearest_ahead(ahead_m, in_ego_corridor(lateral_m, lane_width_m), max_range_m,
+                         nearness_m)
 
 
 def lane_centre_ahead_m(x_m: np.ndarray | float, offset_m: np.ndarray | float,

@@ -33,6 +33,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from vid2sim.core.camera import Camera
+from vid2sim.core.records import VehicleCategory
 
 
 @dataclass(frozen=True)
@@ -107,9 +108,6 @@ class OutlineShape:
 #   bumper lower edge 0.30-0.45 m above the road (departure angles of 15-25 deg over the
 #   overhang); front overhang 0.85-0.95 m; roof from ~0.6 m (hatchback tailgate) behind to
 #   ~1.6 m (bonnet and windscreen) before the ends, ~0.2 m narrower on each side.
-# - Vans (VW Transporter T6, Ford Transit, Mercedes Sprinter): rear overhang 0.95-1.3 m, a
-#   boxy body whose rear is nearly full width, bumper edge ~0.45 m, large mirrors 0.2 m out
-#   at ~1.3 m behind the front, 1.2 m high; roof over the whole body.
 # - Trucks (rigid delivery trucks and semi-trailers seen from behind): the box body is the
 #   full 2.55 m legal width (EU 96/53/EC) and square; the rear underrun protection's lower
 #   edge is at most 0.45-0.55 m above the road (UN ECE R58); the rear overhang behind the
@@ -127,11 +125,6 @@ CAR_SHAPE = OutlineShape(rear_clearance_m=0.35, rear_inset_m=0.12, rear_top_frac
                          contact_m=0.8, tyre_inset_m=0.05, widest_m=0.8, belt_frac=0.6,
                          roof_rear_m=0.6, roof_front_m=1.6, roof_inset_m=0.2,
                          mirror_from_front_m=1.6, mirror_out_m=0.1, mirror_height_m=1.0,
-                         front_contact_m=0.9)
-VAN_SHAPE = OutlineShape(rear_clearance_m=0.45, rear_inset_m=0.05, rear_top_frac=0.9,
-                         contact_m=1.0, tyre_inset_m=0.1, widest_m=1.0, belt_frac=0.55,
-                         roof_rear_m=0.15, roof_front_m=1.1, roof_inset_m=0.1,
-                         mirror_from_front_m=1.3, mirror_out_m=0.2, mirror_height_m=1.2,
                          front_contact_m=0.9)
 TRUCK_SHAPE = OutlineShape(rear_clearance_m=0.5, rear_inset_m=0.0, rear_top_frac=1.0,
                            contact_m=2.0, tyre_inset_m=0.05, widest_m=0.0, belt_frac=0.9,
@@ -160,9 +153,10 @@ CUBOID = OutlineShape(rear_clearance_m=0.0, rear_inset_m=0.0, rear_top_frac=1.0,
                       mirror_out_m=0.0, mirror_height_m=0.0, front_contact_m=0.0)
 
 #: The outline of each detector class (a class not listed takes the car's).
-CLASS_SHAPES: dict[str, OutlineShape] = {
-    "car": CAR_SHAPE, "van": VAN_SHAPE, "truck": TRUCK_SHAPE, "bus": BUS_SHAPE,
-    "motorcycle": MOTORCYCLE_SHAPE, "tram": TRAM_SHAPE,
+CLASS_SHAPES: dict[VehicleCategory, OutlineShape] = {
+    VehicleCategory.CAR: CAR_SHAPE, VehicleCategory.TRUCK: TRUCK_SHAPE,
+    VehicleCategory.BUS: BUS_SHAPE, VehicleCategory.MOTORCYCLE: MOTORCYCLE_SHAPE,
+    VehicleCategory.TRAM: TRAM_SHAPE,
 }
 
 _SHAPE_FIELDS = tuple(f.name for f in fields(OutlineShape))
@@ -181,7 +175,7 @@ def shape_matrix_for(categories: list[str], shapes: dict[str, OutlineShape] | No
                      ) -> np.ndarray:
     """:func:`shape_matrix` of each category's shape (unknown categories: the car's)."""
     table = CLASS_SHAPES if shapes is None else shapes
-    fallback = table.get("car", CAR_SHAPE)
+    fallback = table.get(VehicleCategory.CAR, CAR_SHAPE)
     return shape_matrix([table.get(c, fallback) for c in categories])
 
 

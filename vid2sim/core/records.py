@@ -17,6 +17,12 @@ from typing import Any, Self
 
 import numpy as np
 
+from vid2sim.core.vocabulary import (  # noqa: F401  part of the records' vocabulary
+    RAIL_CATEGORIES,
+    VEHICLE_CATEGORIES,
+    VehicleCategory,
+)
+
 # --------------------------------------------------------------------------- notes
 
 
@@ -177,11 +183,6 @@ class TraceStats:
 # --------------------------------------------------------------------------- detection
 
 
-VEHICLE_CATEGORIES = ("car", "truck", "bus", "motorcycle", "tram")
-#: Vehicles that run on rails: a tram on its own track bed is never the ego's lead.
-RAIL_CATEGORIES = ("tram",)
-
-
 @dataclass(frozen=True, slots=True)
 class VideoInfo:
     """What a video (or an image folder) is: frame size [px], rate [frames/s], frame count."""
@@ -213,7 +214,7 @@ class Detection:
 
     box_px: tuple[float, float, float, float]
     score: float
-    category: str
+    category: VehicleCategory
 
 
 @dataclass(frozen=True, slots=True)
@@ -223,7 +224,7 @@ class TrackedBox:
     frame: int
     t_s: float
     track_id: int
-    category: str
+    category: VehicleCategory
     score: float
     x1: float
     y1: float
@@ -462,8 +463,8 @@ class RangingResult:
     :param horizon_y_px: image row of the road's vanishing line used for ranging [px]
     :param horizon_source: "lane markings", "vehicle consistency" or "camera file"
     :param width_m_by_track: estimated width of each track's vehicle [m]
-    :param warnings: :class:`Note` lines (warnings, and estimates such as the horizon's)
-    :param ground_m_by_track: (height over the ego's road, spread [m], source) per track
+    :param warnings: :class:`Note` lines (warnings, estimates); ground_m_by_track: (height
+        over the ego's road, spread [m], source) per track
     """
 
     boxes: list[RangedBox]
@@ -474,8 +475,7 @@ class RangingResult:
     warnings: list[str] = field(default_factory=list)
     #: the ego lane measured from the lane markings while the frames streamed, if it was
     lanes: LaneTrack | None = None
-    #: tracks that may never be the lead whatever their lane (trams on their own track bed,
-    #: :mod:`vid2sim.detect.rail`); every later lane assignment keeps them out
+    #: tracks never the lead whatever their lane (trams on their own bed, detect.rail)
     never_lead_tracks: frozenset[int] = frozenset()
     #: every streamed frame's time (index -> s, the container's clock; skipped frames absent)
     frame_times_s: dict[int, float] | None = None
@@ -518,8 +518,8 @@ class AnnotatedBox:
     """A human-drawn box on a keyframe.
 
     :param box_px: (x1, y1, x2, y2) in pixels
-    :param category: normalised vehicle category ("car", "truck", "bus", "motorcycle") or the
-        source's own name for an ignore region
+    :param category: the :class:`VehicleCategory` of a vehicle, or the source's own class
+        name for an ignore region (KITTI "dontcare", "misc")
     :param id: the annotation's track/label id, None where the format has none
     :param range_m: longitudinal distance from the camera to the vehicle's near face [m]
         where the annotation carries 3D (KITTI), else None
@@ -528,7 +528,7 @@ class AnnotatedBox:
     """
 
     box_px: tuple[float, float, float, float]
-    category: str
+    category: VehicleCategory | str
     id: str | None = None
     range_m: float | None = None
     ignore: bool = False
@@ -561,7 +561,7 @@ class ProjectedBox:
 
     actor_id: str
     box_px: tuple[float, float, float, float]
-    category: str
+    category: VehicleCategory
     range_m: float
     hard: bool = False
 

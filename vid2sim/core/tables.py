@@ -7,6 +7,7 @@ decimals, fixed row order), so the same records give the same bytes.
 from __future__ import annotations
 
 import csv
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -14,7 +15,7 @@ import numpy as np
 from vid2sim.base.errors import InputError
 from vid2sim.base.fileio import atomic_open
 from vid2sim.core.lead import MAX_RELATIVE_LANE
-from vid2sim.core.records import EgoTrack, RangedBox, TrackedBox
+from vid2sim.core.records import EgoTrack, RangedBox, TrackedBox, VehicleCategory
 
 EGO_CSV_COLUMNS = ("t_s", "lat", "lon", "x_m", "y_m", "heading_rad", "speed_mps")
 DETECTIONS_CSV_COLUMNS = ("frame", "t_s", "track_id", "category", "score", "x1", "y1", "x2",
@@ -100,10 +101,16 @@ def read_tracks_csv(path: str | Path) -> list[RangedBox]:
         If the file is missing, lacks a column, or holds a value that is not a number (or a
         lane that is not a whole number of lanes within +-16).
     """
+    return list(iter_tracks_csv(path))
+
+
+def iter_tracks_csv(path: str | Path) -> Iterator[RangedBox]:
+    """The rows of a ``tracks.csv`` one at a time, in file order (frame order for the files
+    :func:`write_tracks_csv` writes), so a long clip's table is never held whole; errors as
+    :func:`read_tracks_csv`'s, raised at the row where they occur."""
     path = Path(path)
     if not path.is_file():
         raise InputError(path, "no such file")
-    out: list[RangedBox] = []
     try:
         with open(path, encoding="utf-8", newline="") as fh:
             reader = csv.DictReader(fh)
@@ -113,18 +120,18 @@ def read_tracks_csv(path: str | Path) -> list[RangedBox]:
                                  "write it with `vid2sim track`")
             for line, row in enumerate(reader, start=2):
                 try:
-                    out.append(_row_to_box(row))
+                    box = _row_to_box(row)
                 except (TypeError, ValueError, KeyError) as exc:
                     raise InputError(path, f"line {line}: {exc}") from None
+                yield box
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(path, f"cannot read: {exc}") from None
-    return out
 
 
 def _row_to_box(row: dict[str, str]) -> RangedBox:
     return RangedBox(
         frame=int(row["frame"]), t_s=float(row["t_s"]), track_id=int(row["track_id"]),
-        category=row["category"], score=float(row["score"]), x1=float(row["x1"]),
+        category=VehicleCategory(row["category"]), score=float(row["score"]), x1=float(row["x1"]),
         y1=float(row["y1"]), x2=float(row["x2"]), y2=float(row["y2"]),
         range_m=float(row["range_m"]), lateral_m=float(row["lateral_m"]),
         range_rate_mps=float(row["range_rate_mps"]), range_std_m=float(row["range_std_m"]),

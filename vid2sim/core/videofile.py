@@ -23,7 +23,8 @@ import numpy as np
 from PIL import Image, UnidentifiedImageError
 
 from vid2sim.base.defaults import IMAGE_FOLDER_FPS
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import FormatError, InputError
+from vid2sim.core.container import UNKNOWN_CODEC, codec_of
 from vid2sim.core.records import VideoInfo
 
 #: Largest frame side [px]: 8K video is 7680 px wide; a larger "frame" is not a video's.
@@ -49,9 +50,24 @@ def open_capture(path: Path) -> cv2.VideoCapture:
     cap = cv2.VideoCapture(str(path))
     if not cap.isOpened():
         cap.release()
-        raise InputError(path, "OpenCV cannot open this video",
-                         "check the file is a complete video (mp4/avi/mov) or convert it with ffmpeg")
+        raise undecodable(path, "OpenCV cannot open this video")
     return cap
+
+
+def undecodable(path: Path, problem: str) -> InputError:
+    """The error for a video whose frames OpenCV cannot give, naming its codec where FFmpeg's
+    demuxer can read the container (an unknown or undecodable codec, e.g. HEVC on a build
+    without an HEVC decoder)."""
+    codec = codec_of(path)
+    if codec == UNKNOWN_CODEC:
+        return FormatError(path, f"{problem}: its video codec is unknown to FFmpeg",
+                           "convert it to H.264 with ffmpeg")
+    if codec is not None:
+        return FormatError(path, f"{problem}: the installed decoder cannot decode its {codec} "
+                           "video", f"install an OpenCV build whose FFmpeg decodes {codec}, or "
+                           "convert it to H.264 with ffmpeg")
+    return FormatError(path, problem, "check the file is a complete video (mp4/avi/mov) or "
+                       "convert it with ffmpeg")
 
 
 def video_info(path: Path, fps: float | None = None) -> VideoInfo:

@@ -31,15 +31,15 @@ import numpy as np
 
 from vid2sim.core.camera import Camera
 from vid2sim.core.records import (
-    RAIL_CATEGORIES,
     LaneTrack,
     MarkingKind,
     Note,
     RangingResult,
     TrackedBox,
+    VehicleCategory,
 )
 
-TRAM = RAIL_CATEGORIES[0]
+TRAM = VehicleCategory.TRAM
 
 
 @dataclass(frozen=True)

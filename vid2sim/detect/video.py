@@ -12,7 +12,13 @@ import numpy as np
 
 from vid2sim.base.errors import InputError
 from vid2sim.core.records import Frame
-from vid2sim.core.videofile import image_files, open_capture, resume_after, video_info
+from vid2sim.core.videofile import (
+    image_files,
+    open_capture,
+    resume_after,
+    undecodable,
+    video_info,
+)
 
 PREFETCH_FRAMES = 4
 """Frames decoded ahead by :func:`prefetch`: enough to cover a keyframe's detector time at
@@ -164,7 +170,7 @@ def _iter_video(path: Path, decode: Callable[[int], bool], fps: float, n_declare
             n_yielded += 1
             index += 1
         if n_yielded == 0:
-            raise InputError(path, "video has no decodable frames")
+            raise undecodable(path, "video has no decodable frames")
     finally:
         cap.release()
 

@@ -35,7 +35,7 @@ from typing import Any
 
 from vid2sim.base.errors import InputError
 from vid2sim.base.fileio import check_input_size, parse_json
-from vid2sim.core.records import AnnotatedBox, Keyframe
+from vid2sim.core.records import AnnotatedBox, Keyframe, VehicleCategory
 from vid2sim.evaluate.tracklet_keyframes import is_tracklet_xml, read_tracklet_keyframes
 
 log = logging.getLogger(__name__)
@@ -44,13 +44,15 @@ KITTI_FPS = 10.0
 """Frame rate of KITTI's cameras [frames/s], used for label_02 when no ``fps`` is given."""
 
 # Lower-cased source class -> (project category, ignore). Classes not listed are dropped.
-_CATEGORY_MAP: dict[str, tuple[str, bool]] = {
+_C = VehicleCategory
+_CATEGORY_MAP: dict[str, tuple[VehicleCategory | str, bool]] = {
     # KITTI
-    "car": ("car", False), "van": ("car", False), "truck": ("truck", False),
-    "tram": ("tram", True), "misc": ("misc", True), "dontcare": ("dontcare", True),
+    "car": (_C.CAR, False), "van": (_C.CAR, False), "truck": (_C.TRUCK, False),
+    "tram": (_C.TRAM, True), "misc": ("misc", True), "dontcare": ("dontcare", True),
     # BDD100K / Scalabel / COCO-style names
-    "bus": ("bus", False), "motorcycle": ("motorcycle", False), "motor": ("motorcycle", False),
-    "vehicle": ("car", False), "suv": ("car", False), "pickup": ("car", False),
+    "bus": (_C.BUS, False), "motorcycle": (_C.MOTORCYCLE, False),
+    "motor": (_C.MOTORCYCLE, False), "vehicle": (_C.CAR, False), "suv": (_C.CAR, False),
+    "pickup": (_C.CAR, False),
     "train": ("train", True), "trailer": ("trailer", True),
     "other vehicle": ("other vehicle", True), "crowd": ("crowd", True),
 }
@@ -62,7 +64,7 @@ _NOT_VEHICLES = {
 }
 
 
-def normalise_category(name: str) -> tuple[str, bool] | None:
+def normalise_category(name: str) -> tuple[VehicleCategory | str, bool] | None:
     """Map a source class name to ``(category, ignore)``; None for a non-vehicle class."""
     key = " ".join(str(name).strip().lower().replace("-", " ").split())
     if key in _CATEGORY_MAP:

@@ -104,7 +104,7 @@ def _actor_active(actor: Actor, t_s: float) -> bool:
     return bool(t[0] - TIME_TOLERANCE_S <= t_s <= t[-1] + TIME_TOLERANCE_S)
 
 
-def _poses_from_trajectories(scenario: Scenario, t_s: float
+def poses_at(scenario: Scenario, t_s: float
                              ) -> tuple[tuple[float, float, float], dict[str, tuple[float, float, float]]]:
     """Ego and active actors' (x, y, heading) in ENU [m, m, rad] at ``t_s``, interpolated."""
     e = scenario.ego.trajectory.state_at(t_s)
@@ -241,7 +241,7 @@ def replay_boxes(scenario: Scenario, times_s: list[float], *, use_env: bool = Tr
     else:
         if use_env:
             log.warning("%s is not available: poses interpolated from the trajectories", ENV_ID)
-        poses = {t: _poses_from_trajectories(scenario, t) for t in times}
+        poses = {t: poses_at(scenario, t) for t in times}
     return {t: boxes_at(scenario, cam, *poses[t], outlines) for t in times}
 
 

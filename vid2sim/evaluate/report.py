@@ -25,7 +25,7 @@ from vid2sim.base.defaults import LANE_WIDTH_M
 from vid2sim.base.errors import InputError
 from vid2sim.base.fileio import write_text_atomic
 from vid2sim.base.htmlpage import BASE_CSS, figure_png
-from vid2sim.core.lead import in_ego_corridor
+from vid2sim.core.lead import lead_of
 from vid2sim.core.scenario import Scenario
 
 LEAD_SAMPLE_HZ = 10.0
@@ -102,26 +102,29 @@ def lead_series(scenario: Scenario, rate_hz: float = LEAD_SAMPLE_HZ) -> dict[str
     t = np.linspace(ego.t[0], ego.t[-1], n)
     e = ego.state_at(t)
     lane_width_m = _lane_width_m(scenario)
-    rng = np.full(n, np.nan)
-    lead_v = np.full(n, np.nan)
-    lead_id = np.full(n, "", dtype=object)
     c, s = np.cos(e["heading"]), np.sin(e["heading"])
-    for a in scenario.actors:
+    rear = np.full((len(scenario.actors), n), np.nan)  # ego origin to each actor's rear [m]
+    lat = np.full((len(scenario.actors), n), np.nan)
+    speed = np.full((len(scenario.actors), n), np.nan)
+    for k, a in enumerate(scenario.actors):
         tr = a.trajectory
         active = (t >= tr.t[0] - 1e-6) & (t <= tr.t[-1] + 1e-6)
         if not active.any():
             continue
         st = tr.state_at(t)
         dx, dy = st["x"] - e["x"], st["y"] - e["y"]
-        fwd = c * dx + s * dy
-        lat = -s * dx + c * dy
-        rear = fwd - a.length_m / 2.0
-        # the lead's geometry (vid2sim.core.lead), vectorised over time: ahead, in the corridor,
-        # and nearer than the lead found among the actors so far
-        is_lead = active & (rear > 0) & in_ego_corridor(lat, lane_width_m) & ~(rng <= rear)
-        rng[is_lead] = rear[is_lead]
-        lead_v[is_lead] = st["speed"][is_lead]
-        lead_id[is_lead] = a.id
+        rear[k] = np.where(active, c * dx + s * dy - a.length_m / 2.0, np.nan)
+        lat[k] = -s * dx + c * dy
+        speed[k] = st["speed"]
+    lead = lead_of(rear, lat, lane_width_m) if len(scenario.actors) else np.full(n, -1)
+    has = lead >= 0
+    cols = np.flatnonzero(has)
+    rng = np.full(n, np.nan)
+    lead_v = np.full(n, np.nan)
+    lead_id = np.full(n, "", dtype=object)
+    rng[has] = rear[lead[has], cols]
+    lead_v[has] = speed[lead[has], cols]
+    lead_id[has] = [scenario.actors[k].id for k in lead[has]]
     return {"t_s": t, "range_m": rng, "lead_speed_mps": lead_v,
             "ego_speed_mps": np.asarray(e["speed"], dtype=float), "lead_id": lead_id}
 
@@ -274,6 +277,11 @@ def _inputs_html(scenario: Scenario, inputs: Any) -> str:
         parts.append("<p class='small'>options</p><pre>"
                      + _e(json.dumps(src.options, indent=1, sort_keys=True, default=str))
                      + "</pre>")
+    if src.settings:
+        parts.append("<details><summary class='small'>every setting the scenario was made with "
+                     "(<code>source.settings</code>; <code>vid2sim settings</code> prints the "
+                     "defaults, <code>--config</code> changes them)</summary><pre>"
+                     + _e(json.dumps(src.settings, indent=1, default=str)) + "</pre></details>")
     if src.assumptions:
         parts.append("<p><b>Assumptions</b></p><ul>"
                      + "".join(f"<li>{_e(a)}</li>" for a in src.assumptions) + "</ul>")
@@ -340,6 +348,61 @@ def _metrics_html(m: dict) -> str:
     return "".join(out)
 
 
+# --------------------------------------------------------------------------- replay video
+
+#: Where the replay video's section sits in a report: between these markers, so that
+#: ``vid2sim render`` can put one into the report of a finished build (or replace it).
+REPLAY_START, REPLAY_END = "<!--vid2sim:replay-->", "<!--/vid2sim:replay-->"
+
+
+def replay_section(href: str, moments: Sequence[tuple[str, float, int | None]], *,
+                   t_from_s: float = 0.0, caption: str = "", playable: bool = True) -> str:
+    """The report's replay section: a ``<video controls>`` element playing ``href``
+    (relative to the report) and a table of the moments to look at, each linked to its time
+    in the video (a media fragment, ``href#t=seconds``: the browser opens the video there).
+
+    Parameters
+    ----------
+    href : the video's address relative to the report
+    moments : (what happens, scenario time [s], video frame or None) of each row
+    t_from_s : the scenario time of the video's first frame [s]
+    caption : a line about the video (frames, size, codec)
+    playable : False for a codec browsers do not play (the section then says so)
+    """
+    rows = []
+    for what, t_s, frame in moments:
+        at = max(t_s - t_from_s, 0.0)
+        rows.append(f"<tr><td class='l'>{_e(what)}</td><td>{t_s:.2f}</td>"
+                    f"<td>{'' if frame is None else frame}</td><td class='l'><a href="
+                    f"'{_e(href)}#t={at:.2f}' target='_blank'>play from {at:.1f} s</a></td></tr>")
+    note = ("" if playable else "<p class='small'><b>This video is MPEG-4 part 2, which "
+            "browsers do not play</b>: open it with a video player (VLC, mpv), or install a PyAV "
+            "whose FFmpeg has libx264 and render again for H.264.</p>")
+    table = ("<table><tr><th class='l'>moment</th><th>t [s]</th><th>frame</th><th class='l'>"
+             "</th></tr>" + "".join(rows) + "</table>") if rows else ""
+    return (f"{REPLAY_START}<section id='replay'><h2>Replay: the video with the tracked boxes "
+            "and the scenario's vehicles projected back (outline colour: IoU with the "
+            "detection), the scenario from above (right), time, speeds, lead and TTC "
+            f"(bottom)</h2><video controls preload='metadata' src='{_e(href)}' "
+            f"style='width:100%;height:auto;background:#000'>"
+            f"<a href='{_e(href)}'>{_e(href)}</a></video>"
+            f"<p class='small'>{_e(caption)} <a href='{_e(href)}'>{_e(href)}</a></p>{note}"
+            f"{table}</section>{REPLAY_END}")
+
+
+def with_replay(report_html: str, section: str) -> str:
+    """The report's text with its replay section replaced by ``section`` (put after the
+    header where a report of an older version has none)."""
+    start, end = report_html.find(REPLAY_START), report_html.find(REPLAY_END)
+    if start >= 0 and end > start:
+        return report_html[:start] + section + report_html[end + len(REPLAY_END):]
+    at = report_html.find("<main>")
+    if at < 0:
+        raise InputError(None, "not a vid2sim report (no <main> element)")
+    at += len("<main>")
+    return report_html[:at] + section + report_html[at:]
+
+
 # --------------------------------------------------------------------------- the report
 
 
@@ -348,8 +411,10 @@ def render_report(*, scenario: Scenario, metrics: dict | None,
                   extra_figures: Sequence[tuple[str, ImageLike]] = (),
                   warnings: Sequence[str] = (), inputs: Any = None,
                   title: str = "vid2sim scenario report",
-                  frame_images: Sequence[tuple[str, Path, str]] = ()) -> str:
-    """The report's HTML text (see :func:`write_report`)."""
+                  frame_images: Sequence[tuple[str, Path, str]] = (),
+                  replay: str | None = None) -> str:
+    """The report's HTML text (see :func:`write_report`; ``replay``: the replay section,
+    :func:`replay_section`)."""
     parts = ["<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>",
              "<meta name='viewport' content='width=device-width, initial-scale=1'>",
              f"<title>{_e(title)}</title><style>{_CSS}</style></head><body>",
@@ -360,6 +425,8 @@ def render_report(*, scenario: Scenario, metrics: dict | None,
     if warnings:
         parts.append("<section class='warn'><h2>Warnings</h2><ul>"
                      + "".join(f"<li>{_e(w)}</li>" for w in warnings) + "</ul></section>")
+    # the replay video's place (vid2sim render fills it)
+    parts.append(replay or REPLAY_START + REPLAY_END)
     parts.append(_inputs_html(scenario, inputs))
     if metrics:
         parts.append(_metrics_html(metrics))

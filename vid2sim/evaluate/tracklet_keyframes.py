@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from vid2sim.base.errors import ImpossibleValueError, InconsistentInputError
-from vid2sim.core.records import AnnotatedBox, Keyframe
+from vid2sim.core.records import AnnotatedBox, Keyframe, VehicleCategory
 from vid2sim.evaluate.ranging.tracklets import (
     box_corners_velo,
     calibration_beside,
@@ -55,9 +55,10 @@ class TrackletKeyframeConfig:
 
 
 #: Tracklet classes -> (project category, ignore); classes not listed are dropped.
-TRACKLET_CLASSES: dict[str, tuple[str, bool]] = {
-    "Car": ("car", False), "Van": ("car", False), "Truck": ("truck", False),
-    "Tram": ("tram", True), "Misc": ("misc", True),
+TRACKLET_CLASSES: dict[str, tuple[VehicleCategory | str, bool]] = {
+    "Car": (VehicleCategory.CAR, False), "Van": (VehicleCategory.CAR, False),
+    "Truck": (VehicleCategory.TRUCK, False), "Tram": (VehicleCategory.TRAM, True),
+    "Misc": ("misc", True),
 }
 
 

@@ -43,7 +43,7 @@ import numpy as np
 
 from vid2sim.base.defaults import EGO_HEIGHT_M, EGO_LENGTH_M, EGO_WIDTH_M, LANE_WIDTH_M
 from vid2sim.base.errors import InputError
-from vid2sim.core.records import EgoTrack, RangedBox
+from vid2sim.core.records import EgoTrack, RangedBox, VehicleCategory
 from vid2sim.core.scenario import Actor, Ego, Road, Scenario, Source, Trajectory
 
 if TYPE_CHECKING:
@@ -52,12 +52,12 @@ if TYPE_CHECKING:
 # Typical dimensions [m] (length, width, height): EU/US passenger-car fleet medians, a rigid
 # delivery truck, a 12 m city bus, a motorcycle with rider, a low-floor tram (ranging's
 # prior, vid2sim.detect.ranging.config: 2.30-2.65 m wide, 3.4-3.6 m high, 20-45 m long).
-CLASS_PRIORS_M: dict[str, tuple[float, float, float]] = {
-    "car": (4.5, 1.8, 1.5),
-    "truck": (8.0, 2.5, 3.2),
-    "bus": (12.0, 2.55, 3.1),
-    "motorcycle": (2.2, 0.8, 1.5),
-    "tram": (30.0, 2.55, 3.5),
+CLASS_PRIORS_M: dict[VehicleCategory, tuple[float, float, float]] = {
+    VehicleCategory.CAR: (4.5, 1.8, 1.5),
+    VehicleCategory.TRUCK: (8.0, 2.5, 3.2),
+    VehicleCategory.BUS: (12.0, 2.55, 3.1),
+    VehicleCategory.MOTORCYCLE: (2.2, 0.8, 1.5),
+    VehicleCategory.TRAM: (30.0, 2.55, 3.5),
 }
 
 
@@ -84,7 +84,7 @@ class AssembleConfig:
     """A track whose median speed along the road axis is below minus this is oncoming."""
     width_ratio_bounds: tuple[float, float] = (0.6, 1.4)
     """Measured widths are clipped to these fractions of the class prior width."""
-    class_priors_m: dict[str, tuple[float, float, float]] = field(
+    class_priors_m: dict[VehicleCategory, tuple[float, float, float]] = field(
         default_factory=lambda: dict(CLASS_PRIORS_M))
     straight_road_lanes: int = 3
     straight_road_lane_width_m: float = LANE_WIDTH_M
@@ -308,7 +308,7 @@ def _dimensions(rows: list[RangedBox], cfg: AssembleConfig, warnings: list[str],
     prior = cfg.class_priors_m.get(category)
     if prior is None:
         warnings.append(f"track {label}: unknown category {category!r}, car dimensions used")
-        prior = cfg.class_priors_m["car"]
+        prior = cfg.class_priors_m[VehicleCategory.CAR]
     length, width, height = prior
     widths = np.array([r.width_m for r in rows], float)
     widths = widths[np.isfinite(widths) & (widths > 0)]
@@ -481,7 +481,7 @@ def assemble_scenario(ego: EgoTrack, roads: list[Road], tracks: list[RangedBox] 
                                                     standing_tracks, ground_m_by_track)
         warnings.extend(track_warnings)
         assumptions.append(
-            f"actor dimensions from class priors {sorted(cfg.class_priors_m)} (length, height) "
+            f"actor dimensions from class priors {sorted(str(c) for c in cfg.class_priors_m)} (length, height) "
             f"and the measured width; camera {cfg.camera_ahead_m:g} m ahead and "
             f"{cfg.camera_left_m:g} m left of the ego reference point")
     scenario = Scenario(origin=ego.origin, roads=roads, ego=ego_from_track(ego, cfg),

@@ -36,8 +36,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from vid2sim.core.lead import ego_lane_at
-from vid2sim.core.records import LaneChange, LaneTrack, RangedBox
-from vid2sim.core.scenario import EGO_ID, Actor, Event, Trajectory
+from vid2sim.core.records import EGO_ID, LaneChange, LaneTrack, RangedBox
+from vid2sim.core.scenario import Actor, Event, Trajectory
 
 
 @dataclass(frozen=True, slots=True)

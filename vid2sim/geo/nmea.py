@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
+from collections.abc import Iterable
+from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -24,6 +25,19 @@ class _NmeaEpoch:
     speed_mps: float | None = None
     course_deg: float | None = None
     accuracy_m: float | None = None
+    line: int = 0
+
+
+@dataclass(slots=True)
+class NmeaFixes:
+    """The fixes of some NMEA text before the trace checks: ``lines[i]`` is the 0-based line
+    of the first sentence of ``fixes[i]`` (embedded readers time a fix by its packet)."""
+
+    fixes: list[GpsFix] = field(default_factory=list)
+    lines: list[int] = field(default_factory=list)
+    n_bad: int = 0
+    n_void: int = 0
+    warnings: list[str] = field(default_factory=list)
 
 
 def nmea_checksum_ok(sentence: str) -> bool:
@@ -75,6 +89,17 @@ def read_nmea(path: Path) -> GpsTrace:
     (quality 0) and malformed fields are counted in ``n_skipped`` and skipped. GGA altitude is
     MSL + geoid separation, i.e. ellipsoidal, when the separation is given.
     """
+    parsed = parse_nmea_lines(read_text(path).splitlines())
+    if not parsed.fixes and parsed.n_bad:
+        raise InputError(path, f"no valid NMEA sentence ({parsed.n_bad} with a bad checksum or "
+                         "fields)", "is the log corrupted?")
+    return finish_trace(parsed.fixes, "nmea", path, n_skipped=parsed.n_bad + parsed.n_void,
+                        warnings=parsed.warnings)
+
+
+def parse_nmea_lines(lines: Iterable[str]) -> NmeaFixes:
+    """The fixes of NMEA 0183 lines (see :func:`read_nmea`); text before a ``$`` on a line
+    (a logger's time stamp) is ignored."""
     epochs: list[_NmeaEpoch] = []
     by_key: dict[tuple[int, float], _NmeaEpoch] = {}
     n_bad = 0
@@ -82,7 +107,7 @@ def read_nmea(path: Path) -> GpsTrace:
     # Epochs are keyed by (day counter, time of day): GGA and RMC of one epoch share the time.
     day = 0
     last_tod: float | None = None
-    for raw in read_text(path).splitlines():
+    for line_no, raw in enumerate(lines):
         line = raw.strip()
         start = line.find("$")
         if start < 0:
@@ -131,7 +156,7 @@ def read_nmea(path: Path) -> GpsTrace:
         key = (day, round(tod, 3))
         ep = by_key.get(key)
         if ep is None:
-            ep = _NmeaEpoch(tod_s=tod)
+            ep = _NmeaEpoch(tod_s=tod, line=line_no)
             by_key[key] = ep
             epochs.append(ep)
         if m.group(1) == "RMC":
@@ -147,9 +172,16 @@ def read_nmea(path: Path) -> GpsTrace:
         warnings.append(f"skipped {n_bad} NMEA sentences with a bad checksum or malformed fields")
     if n_void:
         warnings.append(f"skipped {n_void} NMEA sentences without a valid fix")
-    # Dates come only from RMC: carry the last known date forward (advancing at midnight) and
-    # give leading GGA-only epochs the first date seen.
-    keys = list(by_key.keys())
+    return _fixes_of_epochs(list(by_key.keys()), epochs,
+                            NmeaFixes(n_bad=n_bad, n_void=n_void, warnings=warnings))
+
+
+def _fixes_of_epochs(keys: list[tuple[int, float]], epochs: list[_NmeaEpoch],
+                     out: NmeaFixes) -> NmeaFixes:
+    """Date each epoch and append its fix to ``out``: dates come only from RMC, so the last
+    known date is carried forward (advancing at midnight) and leading GGA-only epochs get
+    the first date seen."""
+    warnings = out.warnings
     dates: list[datetime | None] = []
     current: datetime | None = None
     current_day = 0
@@ -167,15 +199,12 @@ def read_nmea(path: Path) -> GpsTrace:
     else:
         first_day = keys[dates.index(first)][0]
         base0 = first.timestamp() - 86400 * first_day
-    fixes = []
     for (d, _), ep, date in zip(keys, epochs, dates, strict=True):
         base = date.timestamp() if date is not None else base0 + 86400 * d
         if ep.lat is None:
             continue
-        fixes.append(GpsFix(t_utc_s=base + ep.tod_s, lat_deg=ep.lat, lon_deg=ep.lon,
-                            alt_m=ep.alt_m, speed_mps=ep.speed_mps, course_deg=ep.course_deg,
-                            accuracy_m=ep.accuracy_m))
-    if not fixes and n_bad:
-        raise InputError(path, f"no valid NMEA sentence ({n_bad} with a bad checksum or fields)",
-                         "is the log corrupted?")
-    return finish_trace(fixes, "nmea", path, n_skipped=n_bad + n_void, warnings=warnings)
+        out.fixes.append(GpsFix(t_utc_s=base + ep.tod_s, lat_deg=ep.lat, lon_deg=ep.lon,
+                                alt_m=ep.alt_m, speed_mps=ep.speed_mps,
+                                course_deg=ep.course_deg, accuracy_m=ep.accuracy_m))
+        out.lines.append(ep.line)
+    return out

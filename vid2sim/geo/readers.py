@@ -23,7 +23,9 @@ import numpy as np
 
 from vid2sim.base.errors import InputError
 from vid2sim.base.fileio import parse_json
+from vid2sim.core.container import looks_like_container
 from vid2sim.core.records import GpsFix, GpsTrace
+from vid2sim.geo.embedded import read_cue_file, read_embedded
 from vid2sim.geo.gpsfile import KNOTS_TO_MPS, UERE_M, finish_trace, optional_value, read_text
 from vid2sim.geo.nmea import nmea_checksum_ok, read_nmea
 from vid2sim.geo.oxts import (
@@ -108,6 +110,8 @@ def read_gps(path: str | Path) -> GpsTrace:
         raise InputError(path, f"cannot read: {exc.strerror or exc}") from exc
     if not head.strip():
         raise InputError(path, "empty file", "expected a GPS log (GPX, NMEA, BDD JSON, CSV)")
+    if looks_like_container(head):
+        return read_embedded(path)  # the GPS inside a video (GoPro, dash-cams)
     text = head.decode("utf-8", errors="replace").lstrip("\ufeff \t\r\n")
     reader = _detect(text, path)
     if reader is None:
@@ -126,6 +130,8 @@ def _detect(text: str, path: Path) -> Callable[[Path], GpsTrace] | None:
         return read_bdd_json
     if _NMEA_LINE.search(text[:8192]):
         return read_nmea
+    if _SRT_CUE.match(text):
+        return read_cue_file  # subtitle telemetry beside a video (DJI, dash-cams)
     first = text.splitlines()[0] if text else ""
     if _csv_header_columns(first) is not None:
         return read_csv
@@ -136,6 +142,7 @@ def _detect(text: str, path: Path) -> Callable[[Path], GpsTrace] | None:
 
 
 _NMEA_LINE = re.compile(r"\$[A-Z]{2}(RMC|GGA|GSA|GSV|VTG|GLL|ZDA),")  # also after logger prefixes
+_SRT_CUE = re.compile(r"\d+\s*\r?\n\s*\d{1,2}:\d{2}:\d{2}[,.]\d{1,3}\s*-->")
 _OXTS_LINE = re.compile(r"^\s*-?\d+\.\d+(\s+-?\d+(\.\d+)?([eE][-+]?\d+)?){20,}\s*$")
 
 

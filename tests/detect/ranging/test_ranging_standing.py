@@ -237,7 +237,7 @@ def test_parked_row_below_the_road_ranged_from_the_ego_motion():
     rates = np.array([b.range_rate_mps for b in moving.boxes])
     assert np.nanmedian(np.abs(rates + 10.0)) < 0.15
     for tid in range(1, 5):
-        height, std, source = moving.ground_m_by_track[tid]
+        height, _, source = moving.ground_m_by_track[tid]
         assert source == "standing fit" and height == pytest.approx(-0.35, abs=0.06)
 
 

@@ -25,18 +25,18 @@ from vid2sim.detect.ranging import EgoPath
 from vid2sim.detect.vehicles.detector import load_detector
 from vid2sim.detect.video import video_info
 from vid2sim.evaluate.ranging.static import ego_motion
+from vid2sim.evaluate.ranging.tracklets import calibration_beside, read_tracklets, tracklet_truth
 from vid2sim.evaluate.ranging.trackletscore import (
     SIDES_IN_VIEW_PX,
     TrackletRows,
     match_tracklets,
     rate_figures,
 )
-from vid2sim.evaluate.ranging.tracklets import calibration_beside, read_tracklets, tracklet_truth
 from vid2sim.geo.readers import read_gps
 from vid2sim.geo.trace import smooth_ego
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[3] / "benchmarks"))
-from bench_tracklets import crop_clip  # noqa: E402
+from bench_tracklets import crop_clip
 
 CROP_ROWS = 250
 

@@ -49,7 +49,7 @@ if TYPE_CHECKING:
     from vid2sim.app.build import BuildResult
 
 #: Closing speeds below this give no time to collision [m/s]: twice the lead range-rate
-#: RMSE measured on KITTI and on the composites (0.5-0.6 m/s, README "Measured figures"),
+#: RMSE measured on KITTI and on the composites (0.5-0.6 m/s, docs/measurements.md),
 #: so that a TTC is not made of range-rate noise alone.
 TTC_MIN_CLOSING_MPS = 1.0
 #: Where each attempt at a row leaves a marker (host, pid, start), under ``DIR``.
@@ -158,7 +158,11 @@ def _build_row(inputs, out_dir: Where, name: str, settings: Settings, tmp: Path,
     """
     # The whole pipeline (onnxruntime, highway-env, matplotlib: 0.8 s of imports) is loaded
     # by the first row a process builds, not by a driver resuming a finished manifest.
-    from vid2sim.app.build import build
+    from vid2sim.app.segments import build_drive
+
+    def build(inputs, out, settings):
+        # a row's video may be a folder of one drive's segments: joined as `build DIR` does
+        return build_drive([inputs.video], inputs, out, settings)
 
     if not isinstance(out_dir, Path):
         result = build(inputs, tmp / "out" / name, settings)

@@ -6,6 +6,7 @@ from dataclasses import dataclass, field, replace
 
 from vid2sim.core.camera import Camera, PitchSource
 from vid2sim.core.outline import CLASS_SHAPES, CUBOID, OutlineShape
+from vid2sim.core.records import VehicleCategory
 
 
 @dataclass(frozen=True)
@@ -31,17 +32,16 @@ class VehiclePrior:
 # vehicle that shows in its box; they are unknowns of the fit with the class spread (cars
 # 3.6 m city cars to 5.0 m saloons, vans 4.5-6 m, rigid trucks 6-12 m, buses 12-18 m), so
 # a car far to the side, whose box is mostly its flank, does not read as a near one.
-DEFAULT_PRIORS: dict[str, VehiclePrior] = {
-    "car": VehiclePrior(1.75, 0.12, 4.4, 1.50, 0.12, 0.45),
-    "van": VehiclePrior(2.00, 0.12, 5.2, 2.10, 0.30, 0.6),
-    "truck": VehiclePrior(2.70, 0.20, 8.0, 3.20, 0.60, 2.0),
-    "bus": VehiclePrior(2.75, 0.15, 12.0, 3.10, 0.30, 2.0),
-    "motorcycle": VehiclePrior(0.80, 0.15, 2.1, 1.40, 0.20, 0.2),
+DEFAULT_PRIORS: dict[VehicleCategory, VehiclePrior] = {
+    VehicleCategory.CAR: VehiclePrior(1.75, 0.12, 4.4, 1.50, 0.12, 0.45),
+    VehicleCategory.TRUCK: VehiclePrior(2.70, 0.20, 8.0, 3.20, 0.60, 2.0),
+    VehicleCategory.BUS: VehiclePrior(2.75, 0.15, 12.0, 3.10, 0.30, 2.0),
+    VehicleCategory.MOTORCYCLE: VehiclePrior(0.80, 0.15, 2.1, 1.40, 0.20, 0.2),
     # Trams: 2.30-2.65 m wide (2.65 m is the German BOStrab section 34 limit, which most
     # new low-floor trams use: Siemens Avenio 2.65 m, Alstom Citadis 2.40-2.65 m, Bombardier
     # Flexity 2.30-2.65 m), 3.4-3.6 m high over the rail head without the pantograph,
     # 20-45 m long (Karlsruhe's NET 2012: 37 m).
-    "tram": VehiclePrior(2.55, 0.12, 30.0, 3.50, 0.10, 8.0),
+    VehicleCategory.TRAM: VehiclePrior(2.55, 0.12, 30.0, 3.50, 0.10, 8.0),
 }
 
 
@@ -57,7 +57,7 @@ class RangingConfig:
     Parameters
     ----------
     priors : dict
-        Per-class :class:`VehiclePrior`; unknown classes use ``priors["car"]``.
+        Per-class :class:`VehiclePrior`; unknown classes use the car's.
     edge_noise_px, edge_noise_frac : float
         One-sigma error of a box edge from a detector: a constant plus a fraction of the box
         size (edges of big boxes wander more in absolute pixels).
@@ -358,8 +358,8 @@ class RangingConfig:
     surface_lateral_window_m: float = 2.0
     surface_floor_std_m: float = 0.03
 
-    def prior_for(self, category: str) -> VehiclePrior:
-        return self.priors.get(category, self.priors["car"])
+    def prior_for(self, category: VehicleCategory) -> VehiclePrior:
+        return self.priors.get(category, self.priors[VehicleCategory.CAR])
 
     def pitch_std_for(self, camera: Camera) -> float:
         """One-sigma error of ``camera.pitch_deg`` [deg] (see ``camera_pitch_std_deg``)."""

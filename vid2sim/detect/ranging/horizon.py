@@ -10,7 +10,7 @@ import numpy as np
 
 from vid2sim.base.defaults import IMAGE_FOLDER_FPS, MAD_TO_SIGMA
 from vid2sim.core.camera import Camera
-from vid2sim.core.records import Note, TrackedBox
+from vid2sim.core.records import Note, TrackedBox, VehicleCategory
 from vid2sim.detect.ranging.boxfit import BoxArrays, BoxFit, fit_boxes, predict_edges
 from vid2sim.detect.ranging.config import RangingConfig
 from vid2sim.detect.ranging.smoother import _kf_rts_cv
@@ -54,13 +54,13 @@ def horizon_from_vehicles(boxes: list[TrackedBox], camera: Camera, config: Rangi
     ba = ba or BoxArrays.from_boxes(boxes, camera, config)
     cat = np.array([b.category for b in boxes])
     min_h_px, min_w_px = config.horizon_vehicle_min_box_px
-    sel = ((cat == "car") & ~(ba.cut_left | ba.cut_right | ba.cut_top | ba.cut_bottom)
+    sel = ((cat == VehicleCategory.CAR) & ~(ba.cut_left | ba.cut_right | ba.cut_top | ba.cut_bottom)
            & (ba.y2 - ba.y1 >= min_h_px) & (ba.x2 - ba.x1 >= min_w_px))
     if sel.sum() == 0:
         return None, math.inf, 0
     idx = np.flatnonzero(sel)
     sub = ba.subset(idx)
-    p = config.prior_for("car")
+    p = config.prior_for(VehicleCategory.CAR)
     ones = np.ones(len(idx))
     fit = fit_boxes(camera, sub, p.width_m * ones, p.width_std_m * ones, p.height_m * ones,
                     p.height_std_m * ones, p.length_m * ones, config, use_ground=False,

@@ -34,7 +34,7 @@ import numpy as np
 
 from vid2sim.base.errors import InputError
 from vid2sim.core.boxes import cut_by_window, iou_matrix, nms, suppress_fragments
-from vid2sim.core.records import Detection
+from vid2sim.core.records import Detection, VehicleCategory
 from vid2sim.detect.vehicles import models
 from vid2sim.detect.vehicles._dynamic import dynamic_copy
 from vid2sim.detect.vehicles.windows import (
@@ -53,7 +53,9 @@ CENTRE_MIN_SCORE = 0.5
 start a track: a car 30-45 m ahead scores about 0.65 there against 0.37 in the full frame, a
 road shadow or a fragment of a partly hidden car 0.3-0.47."""
 
-COCO_VEHICLES: dict[int, str] = {2: "car", 3: "motorcycle", 5: "bus", 6: "tram", 7: "truck"}
+COCO_VEHICLES: dict[int, VehicleCategory] = {
+    2: VehicleCategory.CAR, 3: VehicleCategory.MOTORCYCLE, 5: VehicleCategory.BUS,
+    6: VehicleCategory.TRAM, 7: VehicleCategory.TRUCK}
 """COCO class id (0-based) -> vehicle category. COCO's ``train`` (6) holds trains and trams,
 and the only rail vehicle a road camera meets beside or on the street is a tram: it is its
 own category, replayed on its own track (:mod:`vid2sim.detect.rail`)."""

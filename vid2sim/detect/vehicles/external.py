@@ -20,23 +20,24 @@ import numpy as np
 from vid2sim.base.errors import InputError
 from vid2sim.base.fileio import parse_json, read_input_text
 from vid2sim.core.boxes import iou_matrix, match
-from vid2sim.core.records import Detection
+from vid2sim.core.records import Detection, VehicleCategory
 
 # Category names other tools use -> ours. Anything absent (pedestrian, bicycle...) is not a
 # vehicle we track and is dropped. Trains and trams (COCO "train", KITTI "Tram", BDD100K
 # "train") are rail vehicles: our "tram".
-CATEGORY_ALIASES: dict[str, str] = {
-    "car": "car", "van": "car", "suv": "car", "vehicle": "car", "pickup": "truck",
-    "truck": "truck", "lorry": "truck", "trailer": "truck", "bus": "bus",
-    "motorcycle": "motorcycle", "motorbike": "motorcycle", "motor": "motorcycle",
-    "tram": "tram", "train": "tram", "streetcar": "tram", "light_rail": "tram",
+_C = VehicleCategory
+CATEGORY_ALIASES: dict[str, VehicleCategory] = {
+    "car": _C.CAR, "van": _C.CAR, "suv": _C.CAR, "vehicle": _C.CAR, "pickup": _C.TRUCK,
+    "truck": _C.TRUCK, "lorry": _C.TRUCK, "trailer": _C.TRUCK, "bus": _C.BUS,
+    "motorcycle": _C.MOTORCYCLE, "motorbike": _C.MOTORCYCLE, "motor": _C.MOTORCYCLE,
+    "tram": _C.TRAM, "train": _C.TRAM, "streetcar": _C.TRAM, "light_rail": _C.TRAM,
 }
 # MOT16/17 ground-truth class ids (Milan et al. 2016, table of classes): 3 car,
 # 5 motorbike; the other classes are not vehicles we track.
-MOT_CLASS_IDS: dict[int, str] = {3: "car", 5: "motorcycle"}
+MOT_CLASS_IDS: dict[int, VehicleCategory] = {3: _C.CAR, 5: _C.MOTORCYCLE}
 
 
-def _category(name: str) -> str | None:
+def _category(name: str) -> VehicleCategory | None:
     return CATEGORY_ALIASES.get(name.strip().lower())
 
 
@@ -177,7 +178,7 @@ def _read_mot_text(text: str, path: Path) -> dict[int, list[Detection]]:
         if frame < 1:
             raise InputError(path, f"line {n}: frame {frame} < 1",
                              "MOT-challenge frames count from 1")
-        category: str | None = "car"
+        category: VehicleCategory | None = _C.CAR
         if klass and not _is_number(klass):
             category = _category(klass)
         elif class_id is not None and len(row) <= 9:

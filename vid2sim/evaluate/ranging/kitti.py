@@ -16,11 +16,12 @@ from pathlib import Path
 import numpy as np
 from scipy.signal import savgol_filter
 
-from vid2sim.core.records import RangedBox, TrackedBox
+from vid2sim.core.records import RangedBox, TrackedBox, VehicleCategory
 from vid2sim.detect.vehicles.external import KittiLabel, read_kitti_tracking_labels
 
 # What a detector would call each labelled class (COCO has no van: a van is a "car").
-KITTI_CATEGORY = {"Car": "car", "Van": "car", "Truck": "truck"}
+KITTI_CATEGORY = {"Car": VehicleCategory.CAR, "Van": VehicleCategory.CAR,
+                  "Truck": VehicleCategory.TRUCK}
 KITTI_DT_S = 0.1  # the tracking benchmark's frame interval (10 Hz)
 # Truth rate: a quadratic fitted over 11 frames (1.1 s) of the labelled rear distance. Raw
 # frame differences of the lidar labels carry ~0.45 m/s of noise; the fit's derivative has

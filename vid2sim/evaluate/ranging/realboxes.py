@@ -19,15 +19,17 @@ import numpy as np
 
 from vid2sim.base.fileio import read_input_text
 from vid2sim.core.camera import Camera
-from vid2sim.core.records import RangedBox
+from vid2sim.core.records import RangedBox, VehicleCategory
 from vid2sim.detect.vehicles.external import KittiLabel
 from vid2sim.evaluate.metrics import match_boxes
 from vid2sim.evaluate.ranging.dgp import DgpFrame, cuboid_range_m
 
 #: DGP classes scored as vehicles and what a COCO detector calls them.
-DGP_VEHICLES = {"Car": "car", "Truck": "truck", "Bus/RV/Caravan": "bus"}
+DGP_VEHICLES = {"Car": VehicleCategory.CAR, "Truck": VehicleCategory.TRUCK,
+                "Bus/RV/Caravan": VehicleCategory.BUS}
 #: KITTI tracking classes scored as vehicles (COCO has no van: a van is a "car").
-KITTI_VEHICLES = {"Car": "car", "Van": "car", "Truck": "truck"}
+KITTI_VEHICLES = {"Car": VehicleCategory.CAR, "Van": VehicleCategory.CAR,
+                  "Truck": VehicleCategory.TRUCK}
 #: A ranged box is the annotated vehicle whose 2D box it overlaps by at least this.
 MATCH_IOU = 0.5
 

@@ -14,8 +14,10 @@ from highway_env.road.road import Road as HwRoad
 
 from vid2sim.base.errors import InputError
 from vid2sim.core import scenario as scenario_io
-from vid2sim.core.scenario import EGO_ID, Scenario
+from vid2sim.core.records import EGO_ID
+from vid2sim.core.scenario import Scenario
 from vid2sim.export.assemble import straight_road_for
+from vid2sim.export.highway.info import StepInfo
 from vid2sim.export.highway.network import hw_to_enu, network_for, path_lane
 from vid2sim.export.highway.observation import FastKinematics
 from vid2sim.export.highway.traffic import Traffic, measure
@@ -411,45 +413,35 @@ class ReplayEnv(AbstractEnv):
             self._info_cache, self._info_key = self._compute_info(), key
         return dict(self._info_cache)
 
-    def _compute_info(self) -> dict:
+    def _compute_info(self) -> dict[str, Any]:
         traffic = self.traffic()
         ego = traffic.ego
-        info: dict[str, Any] = {
-            "t_s": float(self.t_s),
-            "ego_mode": self.ego_mode,
-            "ego_speed_mps": float(self.vehicle.speed),
-            "ego_accel_mps2": float(self.ego_accel_mps2),
-            "ego_lane": int(ego.lane),
-            "lane_offset_m": float(ego.lane_offset_m),
-            "lane_width_m": float(ego.lane_width_m),
-            "crashed": bool(self.vehicle.crashed),
-            "collision_with": self.collision_with,
-            "offroad": bool(self.offroad()),
-            "has_lead": False, "lead_id": "", "gap_m": math.inf, "lead_speed_mps": 0.0,
-            "closing_speed_mps": 0.0, "ttc_s": math.inf, "time_headway_s": math.inf,
-            "handovers": len(self.handovers),
-        }
+        lead_state = {}
         lead = traffic.lead
         if lead is not None:
             # speeds projected on the path direction, so a crossing car does not count fully
             v_ego = ego.speed_along_mps
             closing = v_ego - lead.speed_along_mps
             gap = lead.gap_m
-            info.update({
+            lead_state = {
                 "has_lead": True, "lead_id": lead.id, "gap_m": float(gap),
                 "lead_speed_mps": float(lead.speed_along_mps),
                 "closing_speed_mps": float(closing),
                 "ttc_s": float(max(gap, 0.0) / closing) if closing > 1e-6 else math.inf,
-                "time_headway_s": float(max(gap, 0.0) / v_ego) if v_ego > 1e-6 else math.inf,
-            })
-        return info
+                "time_headway_s": float(max(gap, 0.0) / v_ego) if v_ego > 1e-6 else math.inf}
+        return StepInfo(
+            t_s=float(self.t_s), ego_mode=self.ego_mode, ego_speed_mps=float(self.vehicle.speed),
+            ego_accel_mps2=float(self.ego_accel_mps2), ego_lane=int(ego.lane),
+            lane_offset_m=float(ego.lane_offset_m), lane_width_m=float(ego.lane_width_m),
+            crashed=bool(self.vehicle.crashed), collision_with=self.collision_with,
+            offroad=bool(self.offroad()), handovers=len(self.handovers), **lead_state).to_dict()
 
     def _reward(self, action) -> float:
-        info = self._info(None)
+        info = StepInfo.of(self._info(None))
         r = float(np.clip(self.vehicle.speed / self._v_ref, 0.0, 1.0))
-        if info["crashed"]:
+        if info.crashed:
             r -= 1.0
-        if info["time_headway_s"] < self.config["headway_penalty_s"]:
+        if info.time_headway_s < self.config["headway_penalty_s"]:
             r -= 0.5
         return r
 

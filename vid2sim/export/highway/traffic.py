@@ -15,9 +15,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
 from highway_env import utils
 
-from vid2sim.core.lead import in_ego_corridor
+from vid2sim.core.lead import in_ego_corridor, lead_of
 from vid2sim.export.highway.network import project_lane
 
 CURVATURE_LOOKAHEAD_M = 10.0
@@ -142,7 +143,9 @@ def measure(ego, others, reference, network) -> Traffic:
             length_m=float(v.LENGTH), width_m=float(v.WIDTH),
             in_path=bool(in_ego_corridor(lat, 2.0 * half_width))))
     objects.sort(key=lambda o: abs(o.along_m))
-    # the lead (vid2sim.core.lead): the nearest vehicle ahead in the ego's corridor
-    ahead = [o for o in objects if o.in_path and o.along_m > 0.0]
-    lead = min(ahead, key=lambda o: o.gap_m) if ahead else None
-    return Traffic(ego_state, tuple(objects), lead)
+    # the lead (vid2sim.core.lead): the nearest vehicle ahead in the ego's corridor, nearest
+    # by the bumper-to-bumper gap
+    k = lead_of(np.array([o.along_m for o in objects]),
+                np.array([o.lateral_m for o in objects]), 2.0 * half_width,
+                nearness_m=np.array([o.gap_m for o in objects])) if objects else -1
+    return Traffic(ego_state, tuple(objects), objects[k] if k >= 0 else None)
