@@ -25,8 +25,8 @@ from vid2sim.base.defaults import LANE_WIDTH_M
 from vid2sim.base.errors import InputError
 from vid2sim.base.fileio import write_text_atomic
 from vid2sim.base.htmlpage import BASE_CSS, figure_png
-from vid2sim.core.lead import lead_of
 from vid2sim.core.scenario import Scenario
+from vid2sim.evaluate.scenetime import SceneClock
 
 LEAD_SAMPLE_HZ = 10.0
 """Rate at which the lead vehicle is looked up for the plots [Hz]."""
@@ -88,8 +88,9 @@ def _lane_width_m(scenario: Scenario) -> float:
 
 
 def lead_series(scenario: Scenario, rate_hz: float = LEAD_SAMPLE_HZ) -> dict[str, np.ndarray]:
-    """Lead vehicle over time (:mod:`vid2sim.core.lead`): the nearest actor ahead whose centre lies
-    within half a lane width of the ego's longitudinal axis.
+    """Lead vehicle over time (:func:`vid2sim.core.lead.lead_of`): the nearest actor ahead whose
+    centre lies within half a lane width of the path the ego drove, measured along that path
+    (:class:`vid2sim.evaluate.scenetime.SceneClock`, as the environment measures it).
 
     Returns
     -------
@@ -100,33 +101,21 @@ def lead_series(scenario: Scenario, rate_hz: float = LEAD_SAMPLE_HZ) -> dict[str
     ego = scenario.ego.trajectory
     n = max(2, math.floor(ego.duration_s * rate_hz) + 1)
     t = np.linspace(ego.t[0], ego.t[-1], n)
-    e = ego.state_at(t)
-    lane_width_m = _lane_width_m(scenario)
-    c, s = np.cos(e["heading"]), np.sin(e["heading"])
-    rear = np.full((len(scenario.actors), n), np.nan)  # ego origin to each actor's rear [m]
-    lat = np.full((len(scenario.actors), n), np.nan)
-    speed = np.full((len(scenario.actors), n), np.nan)
-    for k, a in enumerate(scenario.actors):
-        tr = a.trajectory
-        active = (t >= tr.t[0] - 1e-6) & (t <= tr.t[-1] + 1e-6)
-        if not active.any():
-            continue
-        st = tr.state_at(t)
-        dx, dy = st["x"] - e["x"], st["y"] - e["y"]
-        rear[k] = np.where(active, c * dx + s * dy - a.length_m / 2.0, np.nan)
-        lat[k] = -s * dx + c * dy
-        speed[k] = st["speed"]
-    lead = lead_of(rear, lat, lane_width_m) if len(scenario.actors) else np.full(n, -1)
-    has = lead >= 0
-    cols = np.flatnonzero(has)
     rng = np.full(n, np.nan)
     lead_v = np.full(n, np.nan)
+    ego_v = np.full(n, np.nan)
     lead_id = np.full(n, "", dtype=object)
-    rng[has] = rear[lead[has], cols]
-    lead_v[has] = speed[lead[has], cols]
-    lead_id[has] = [scenario.actors[k].id for k in lead[has]]
-    return {"t_s": t, "range_m": rng, "lead_speed_mps": lead_v,
-            "ego_speed_mps": np.asarray(e["speed"], dtype=float), "lead_id": lead_id}
+    # the lead along the ego's driven path (THE lead rule, as the environment and the replay
+    # video measure it): in a bend the ego's straight axis leaves the lane
+    clock = SceneClock(scenario)
+    for k, tk in enumerate(t):
+        pose, actors = clock.at(float(tk))
+        ego_v[k] = pose.speed_mps
+        lead = clock.lead(pose, actors)
+        if lead is not None:
+            rng[k], lead_v[k], lead_id[k] = lead.range_m, lead.speed_mps, lead.id
+    return {"t_s": t, "range_m": rng, "lead_speed_mps": lead_v, "ego_speed_mps": ego_v,
+            "lead_id": lead_id}
 
 
 def lead_figure(scenario: Scenario) -> bytes:

@@ -13,9 +13,9 @@ path, as the replay environment measures it for the policies (``info["lead_id"]`
 nearest vehicle ahead whose centre lies within half a lane width of the path the ego drove
 (its logged positions, prolonged straight beyond the end), the range counted along that
 path from the ego's reference point to the vehicle's rear (what ``tracks.csv``'s
-``range_m`` measures). On a straight road this is the report's lead plot's rule
-(:func:`vid2sim.evaluate.report.lead_series`, the ego's axis); in a bend the axis leaves the
-lane within a few tens of metres, the path does not.
+``range_m`` measures). The report's lead plot (:func:`vid2sim.evaluate.report.lead_series`)
+uses it too: along the ego's straight axis, a bend takes the lead out of the corridor within a
+few tens of metres; along the path it does not.
 """
 
 from __future__ import annotations

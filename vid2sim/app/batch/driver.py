@@ -12,6 +12,7 @@ outcome records, which the driver writes into ``index.parquet``, ``index.csv`` a
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import logging
 import os
@@ -26,6 +27,7 @@ from vid2sim.app.batch import storage
 from vid2sim.app.batch.fleet import write_fleet_report
 from vid2sim.app.batch.hashing import HashCache
 from vid2sim.app.batch.index import (
+    SETTINGS_ROLE,
     RowOutcome,
     index_record,
     read_index,
@@ -50,6 +52,7 @@ from vid2sim.app.batch.worker import (
     attempts_dir,
     clean_stale,
     done_outcome,
+    settings_key,
     staging_owner,
 )
 from vid2sim.app.settings import Settings
@@ -157,7 +160,7 @@ def run_batch(manifest: str | os.PathLike, out_dir: str | os.PathLike, settings:
     outcomes = [RowOutcome(name=r.name, status="pending", line=r.line) for r in rows]
     todo: list[int] = []
     for i, row in enumerate(rows):
-        planned = plan_row(row, out, previous.get(row.name), cache, retry_failed)
+        planned = plan_row(row, out, previous.get(row.name), cache, retry_failed, settings)
         if planned is None:
             todo.append(i)
         else:
@@ -215,9 +218,10 @@ def run_batch(manifest: str | os.PathLike, out_dir: str | os.PathLike, settings:
 
 
 def plan_row(row: BatchRow, out: Where, before: RowOutcome | None, cache: HashCache,
-             retry_failed: bool) -> RowOutcome | None:
+             retry_failed: bool, settings: Settings | None = None) -> RowOutcome | None:
     """What to do with ``row`` without reading its inputs: a "skipped" or kept "failed"
-    outcome, or None when a worker must look at it (build it, or hash and compare)."""
+    outcome, or None when a worker must look at it (build it, or hash and compare). With
+    ``settings``, a row recorded with another settings tree counts as changed."""
     cached: dict[str, str] = {}
     for role, where in row.sources().items():
         try:
@@ -227,6 +231,11 @@ def plan_row(row: BatchRow, out: Where, before: RowOutcome | None, cache: HashCa
         if sha is not None:
             cached[role] = sha
     known = len(cached) == len(row.sources())
+    if settings is not None:
+        cached[SETTINGS_ROLE] = settings_key(settings)
+    elif before is not None:  # settings not asked about: compare the inputs alone
+        before = copy.copy(before)
+        before.sha256 = {k: v for k, v in before.sha256.items() if k != SETTINGS_ROLE}
     if before is not None and before.is_done() and known and before.sha256 == cached \
             and _built(out, row.name):
         outcome = RowOutcome(name=row.name, status="skipped", line=row.line)
@@ -244,7 +253,7 @@ def plan_row(row: BatchRow, out: Where, before: RowOutcome | None, cache: HashCa
     if known and (before is None or not before.sha256):
         # No usable record (a lost index, an index of an older version): the row folder's
         # own scenario.json says what it was built from; reading it reads no video.
-        return done_outcome(row, out, hashes=cached)
+        return done_outcome(row, out, hashes=cached, settings=settings)
     return None
 
 
