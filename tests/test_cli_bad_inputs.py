@@ -201,6 +201,23 @@ CASES = [
         "eval", str(w["scenario"]), "--keyframes",
         str(_write(t, "k.json", keyframes_json([5000, 99_999]))), "--video", str(w["video"]),
         "--out", str(o)]),
+    # tracklet keyframes: broken XML, calibration missing, a NaN pose
+    ("keyframes-tracklets-broken-xml", lambda w, t, o, f: [
+        "eval", str(w["scenario"]), "--keyframes",
+        str(_write(t, "tracklet_labels.xml", "<boost_serialization><tracklets><count>1")),
+        "--out", str(o)]),
+    ("keyframes-tracklets-no-calibration", lambda w, t, o, f: [
+        "build", str(w["video"]), "--detections", str(w["det"]), "--keyframes",
+        str(_write(t, "tracklet_labels.xml", _tracklets_xml("10.0"))), "--offline",
+        "--out", str(o)]),
+    ("keyframes-tracklets-nan-pose", lambda w, t, o, f: [
+        "eval", str(w["scenario"]), "--keyframes",
+        str(_write(t, "tracklet_labels.xml", _tracklets_xml("nan"))),
+        "--keyframe-calib", str(_kitti_calib(t)), "--out", str(o)]),
+    ("keyframes-tracklets-calib-folder-missing", lambda w, t, o, f: [
+        "eval", str(w["scenario"]), "--keyframes",
+        str(_write(t, "tracklet_labels.xml", _tracklets_xml("10.0"))),
+        "--keyframe-calib", str(t / "nowhere"), "--out", str(o)]),
     # frames: a folder of images of different sizes
     ("frames-mixed-sizes", InconsistentInputError, lambda w, t, o, f: [
         "detect", str(_mixed_folder(t)), "--detections", str(w["det"]), "--out", str(f)]),
@@ -231,6 +248,25 @@ CASES = [
         "eval", str(w["scenario"]), "--keyframes",
         str(_write(t, "k.json", "[" * 100_000 + "]" * 100_000)), "--out", str(o)]),
 ]
+
+
+def _tracklets_xml(tx: str) -> str:
+    """A KITTI tracklet file with one car and one pose at ``tx`` metres ahead."""
+    pose = (f"<item><tx>{tx}</tx><ty>0</ty><tz>-1.7</tz><rx>0</rx><ry>0</ry><rz>0</rz>"
+            "<state>1</state><occlusion>0</occlusion><truncation>0</truncation></item>")
+    return ("<?xml version='1.0'?><boost_serialization><tracklets><count>1</count><item>"
+            "<objectType>Car</objectType><h>1.5</h><w>1.8</w><l>4.0</l>"
+            f"<first_frame>0</first_frame><poses><count>1</count>{pose}</poses></item>"
+            "</tracklets></boost_serialization>")
+
+
+def _kitti_calib(tmp: Path) -> Path:
+    folder = tmp / "calib"
+    folder.mkdir(exist_ok=True)
+    _write(folder, "calib_velo_to_cam.txt", "R: 0 -1 0 0 0 -1 1 0 0\nT: 0 0 0\n")
+    _write(folder, "calib_cam_to_cam.txt", "R_rect_00: 1 0 0 0 1 0 0 0 1\n"
+           "P_rect_00: 200 0 160 0 0 200 90 0 0 0 1 0\n")
+    return folder
 
 
 def _sparse(path: Path, size: int) -> Path:

@@ -52,6 +52,7 @@ from vid2sim.core.scenario import Event, Source, dumps_canonical
 from vid2sim.core.tables import write_tracks_csv
 from vid2sim.detect.assign import relane
 from vid2sim.detect.lanes.track import lane_track
+from vid2sim.detect.ranging import EgoPath
 from vid2sim.evaluate.frames import sample_frame_figures
 from vid2sim.evaluate.replay import run_eval
 from vid2sim.evaluate.report import write_report
@@ -243,7 +244,8 @@ def build(inputs: Inputs, out_dir: Path, settings: Settings | None = None,
     inputs, gps_notes = with_embedded_gps(inputs)
     notes.extend([*(extra_notes or []), *gps_notes])
     if inputs.keyframes is not None:
-        load_keyframes_for(inputs.keyframes, video, info, inputs.fps)
+        load_keyframes_for(inputs.keyframes, video, info, inputs.fps,
+                           inputs.keyframe_calib, inputs.keyframe_rate_hz)
     # The detector (or imported boxes) before any long work: missing weights fail fast.
     detector, imported, boxes_label = load_boxes(inputs, settings)
     # The output folder last of the checks, first of the work: a read-only or full disk
@@ -314,7 +316,10 @@ def _write_outputs(staging: Path, out_dir: Path, inputs: Inputs, settings: Setti
                                 # differ between identical builds
                                 scenario_label=str(out_dir / "scenario.json"),
                                 # actors drawn with the outlines the ranging read
-                                outlines=settings.ranging.outlines)
+                                # (as cuboids against tracklet keyframes)
+                                outlines=settings.ranging.outlines,
+                                keyframe_calib=inputs.keyframe_calib,
+                                keyframe_rate_hz=inputs.keyframe_rate_hz)
         files["metrics"] = Path("metrics.json")
     else:
         # Nothing scores the scene: show sampled frames with what the build saw beside the
@@ -330,7 +335,8 @@ def _write_outputs(staging: Path, out_dir: Path, inputs: Inputs, settings: Setti
     files["report"] = Path("report.html")
     if settings.render_replay:
         # the replay of the whole clip, put into the report written above
-        keyframes = (load_keyframes_for(inputs.keyframes, video, info, inputs.fps)
+        keyframes = (load_keyframes_for(inputs.keyframes, video, info, inputs.fps,
+                                        inputs.keyframe_calib, inputs.keyframe_rate_hz)
                      if inputs.keyframes is not None else [])
         stages.run("replay video", render_into_build, staging, scenario, camera_used,
                    ranging.boxes, ranging.lanes, video, info, keyframes, inputs.fps,
@@ -352,10 +358,11 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
     ego, roads, road_result, trace, ego_noise_m = _ego_and_road(inputs, settings,
                                                                 video_duration_s, notes, stages)
 
-    # ---- detect, track, range
+    # ---- detect, track, range (with GPS the ego's own motion ranges the standing vehicles)
+    ego_path = EgoPath.from_track(ego, ego_noise_m) if inputs.gps is not None else None
     ranging, camera, ranging_notes = stages.run(
         "detect, track and range", detect_and_range_with, settings, inputs, video, camera,
-        detector, imported, assign_lanes=inputs.gps is None)
+        detector, imported, assign_lanes=inputs.gps is None, ego_path=ego_path)
     notes.extend(ranging_notes)
     notes.extend(ranging.warnings)
     notes.append(Note.estimate(
@@ -389,7 +396,11 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
     scenario, assemble_warnings = stages.run("assemble scenario", assemble_scenario, ego, roads,
                                              ranging.boxes, camera_used, source=source,
                                              config=settings.assemble,
-                                             ego_noise_m=ego_noise_m)
+                                             ego_noise_m=ego_noise_m,
+                                             standing_tracks=ranging.standing_tracks,
+                                             ground_m_by_track={
+                                                 t: g[0] for t, g in
+                                                 ranging.ground_m_by_track.items()})
     warnings.extend(assemble_warnings)
     # ---- the street: the road's lanes from the video (and map), parked cars on their strip
     scene = stages.run("road cross-section", lay_out_scene, _road_under_the_actors(

@@ -123,19 +123,25 @@ def _highway_preview_png(sc) -> bytes:
 
 def run_eval_command(scenario_path: Path, keyframes_path: Path, out_dir: Path, *,
                      video: Path | None = None, fps: float | None = None,
-                     use_env: bool = True) -> str:
+                     use_env: bool = True, keyframe_calib: Path | None = None,
+                     keyframe_rate_hz: float | None = None) -> str:
     """``vid2sim eval``: replay a scenario at annotated keyframes, score it, write
     ``metrics.json``, ``keyframes/`` and ``report.html`` into ``out_dir`` (staged); the summary.
 
     With a video, keyframes beyond its frames are an input error before any replay.
+    ``keyframe_calib`` / ``keyframe_rate_hz``: for KITTI tracklet keyframes, the drive's
+    calibration folder and the keyframes a second.
     """
     out_dir = Path(out_dir)
     check_output_folder(out_dir)
     scenario_io.load(scenario_path)  # the scenario's own errors before the keyframes'
     if video is not None:
         info = video_info(Path(video), fps=fps)
-        load_keyframes_for(Path(keyframes_path), Path(video), info, fps)
+        load_keyframes_for(Path(keyframes_path), Path(video), info, fps, keyframe_calib,
+                           keyframe_rate_hz)
     with staged_folder(out_dir, EVAL_OUTPUTS) as staging:
         _, summary = run_eval(scenario_path, keyframes_path, video=video, out_dir=staging,
-                              fps=fps, use_env=use_env, scenario_label=str(scenario_path))
+                              fps=fps, use_env=use_env, scenario_label=str(scenario_path),
+                              keyframe_calib=keyframe_calib,
+                              keyframe_rate_hz=keyframe_rate_hz)
     return summary.replace(str(staging), str(out_dir))

@@ -79,7 +79,8 @@ def load_boxes(inputs: Inputs, settings: Settings
 
 
 def load_keyframes_for(keyframes: Path, video: Path, info: VideoInfo,
-                       fps: float | None = None) -> list[Keyframe]:
+                       fps: float | None = None, calib_dir: Path | None = None,
+                       rate_hz: float | None = None) -> list[Keyframe]:
     """The annotated keyframes on the video's frames, checked against the video.
 
     Frame numbers and times are read as the evaluation reads them (an image folder's frames
@@ -94,7 +95,8 @@ def load_keyframes_for(keyframes: Path, video: Path, info: VideoInfo,
     """
     rate = float(fps or info.fps)
     names = [p.name for p in image_files(video)] if Path(video).is_dir() else None
-    frames = read_keyframes(keyframes, fps=rate, frame_names=names)
+    frames = read_keyframes(keyframes, fps=rate, frame_names=names, calib_dir=calib_dir,
+                            rate_hz=rate_hz, image_size_px=(info.width, info.height))
     if not frames:
         raise InconsistentInputError(
             keyframes, "no annotated keyframe matches a frame of the video "
