@@ -226,6 +226,114 @@ def ego_speed_check(raw: Path) -> str:
     return "\n".join(lines)
 
 
+def _oxts_csv(raw: Path, skip: int, out: Path) -> float:
+    """The OXTS fixes from the ``skip``-th on as a CSV with no video clock (times on an
+    arbitrary UTC base), speed and course from the INS; the true video time [s, container
+    clock] of its first fix."""
+    from vid2sim.geo.oxts import OXTS_LAT, OXTS_LON, OXTS_VE, OXTS_VN, OXTS_YAW
+    from vid2sim.geo.readers import kitti_time_s, read_kitti_oxts_table
+
+    table = read_kitti_oxts_table(raw / "oxts")
+    ox_t = np.array([kitti_time_s(s) for s in (raw / "oxts" / "timestamps.txt")
+                     .read_text().split("\n") if s.strip()])
+    cam_t = np.array([kitti_time_s(s) for s in (raw / "image_00_timestamps.txt")
+                      .read_text().split("\n") if s.strip()])
+    rows = ["t,lat,lon,speed,heading"]
+    for i in range(skip, len(table)):
+        course = (90.0 - math.degrees(table[i, OXTS_YAW])) % 360.0
+        rows.append(f"{1.3e9 + ox_t[i]:.3f},{table[i, OXTS_LAT]:.8f},{table[i, OXTS_LON]:.8f},"
+                    f"{math.hypot(table[i, OXTS_VN], table[i, OXTS_VE]):.3f},{course:.3f}")
+    out.write_text("\n".join(rows) + "\n")
+    cap = cv2.VideoCapture(str(raw / "video.mp4"))
+    fps = cap.get(cv2.CAP_PROP_FPS)
+    cap.release()
+    # the fix's time as a (fractional) frame index of the camera's own timestamps, on the
+    # container's clock (frame / fps): what the tool's video time is
+    return float(np.interp(ox_t[skip], cam_t, np.arange(len(cam_t)))) / fps
+
+
+def sync_check(raw: Path, cache: Path) -> list[dict]:
+    """(f) GPS-video time sync on KITTI raw 0001: the OXTS as a CSV without a video clock,
+    whole and with its first 1.5 s removed (the GPS starts late); ``calibrate`` without a
+    camera file or ``--gps-offset``: the estimated video time of the first fix against the
+    truth from the camera's and the OXTS's timestamps."""
+    rows = []
+    for skip in (0, 15):
+        gps = cache / f"oxts_skip{skip}.csv"
+        truth_s = _oxts_csv(raw, skip, gps)
+        out = cache / f"sync_skip{skip}.camera.yaml"
+        t0 = time.process_time()
+        text = run_calibrate(Inputs(video=raw / "video.mp4", gps=gps), out,
+                             Settings(progress=False, camera_cache=False))
+        cpu = time.process_time() - t0
+        import yaml
+
+        rec = yaml.safe_load(out.read_text())
+        off = rec.get("gps_offset_s") or {}
+        est = load_camera(out)
+        cam = load_camera(raw / "camera.yaml")
+        rows.append({"clip": f"kitti 0001 gps -{skip / 10:.1f} s", "truth_s": truth_s,
+                     "offset_s": off.get("value"), "std_s": off.get("std"),
+                     "observable": off.get("observable"),
+                     "fx_pct": 100 * (est.fx / cam.fx - 1),
+                     "h_pct": 100 * (est.height_m / cam.height_m - 1), "cpu_s": cpu,
+                     "note": next((ln for ln in text.splitlines() if "time offset" in ln), "")})
+    for r in rows:
+        err = (r["offset_s"] - r["truth_s"]) if r["offset_s"] is not None else float("nan")
+        print(f"time sync {r['clip']}: first fix at {r['offset_s']} s (std {r['std_s']}, "
+              f"observable {r['observable']}), truth {r['truth_s']:+.3f} s, error "
+              f"{err:+.3f} s; fx {r['fx_pct']:+.1f} %, height {r['h_pct']:+.1f} %, "
+              f"{r['cpu_s']:.1f} s CPU\n  {r['note']}")
+    return rows
+
+
+def cost_check(raw: Path, shared: Path, cache: Path) -> dict:
+    """(g) What the self-calibration costs a build: the 60 s 720p clip of the speed
+    benchmark (KITTI raw 0001 forward and backward at 30 fps), ``build`` without GPS with
+    the true camera file (scaled) and without any: wall and CPU of each, and the
+    calibration stages' seconds within the second."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import resource
+
+    from bench_speed import make_720p_clip
+
+    from vid2sim.app.build import build
+    from vid2sim.app.settings import DetectorSettings
+
+    clip = cache / "clip60_720p.mp4"
+    if not clip.exists():
+        make_720p_clip(raw, clip)
+    src = load_camera(raw / "camera.yaml")
+    k = 1280 / src.image_width
+    pad = (720 - round(src.image_height * k)) // 2
+    cam = replace(src, image_width=1280, image_height=720, fx=src.fx * k, fy=src.fy * k,
+                  cx=src.cx * k, cy=src.cy * k + pad)
+    cam_file = cache / "clip60_720p.camera.yaml"
+    cam_file.write_text("\n".join(f"{key}: {getattr(cam, key)}" for key in (
+        "image_width", "image_height", "fx", "fy", "cx", "cy", "height_m", "pitch_deg",
+        "yaw_deg", "roll_deg")) + "\n")
+    settings = Settings(detector=DetectorSettings(model_dir=shared.parent / "models"),
+                        allow_download=False, progress=False, camera_cache=False)
+    out = {}
+    for label, camera in (("camera file", cam_file), ("self-calibrated", None)):
+        w0, c0 = time.perf_counter(), resource.getrusage(resource.RUSAGE_SELF)
+        res = build(Inputs(video=clip, camera=camera), cache / f"build60_{camera is None}",
+                    settings)
+        c1 = resource.getrusage(resource.RUSAGE_SELF)
+        out[label] = {"wall_s": time.perf_counter() - w0,
+                      "cpu_s": c1.ru_utime + c1.ru_stime - c0.ru_utime - c0.ru_stime,
+                      "stages": dict(res.stage_seconds)}
+    a, b = out["camera file"], out["self-calibrated"]
+    calib = sum(v for k_, v in b["stages"].items() if k_ in ("calibration cues",
+                                                              "calibrate camera"))
+    print(f"cost on the 60 s 720p clip (no GPS): build with the camera file {a['wall_s']:.1f} s "
+          f"wall / {a['cpu_s']:.1f} s CPU, self-calibrated {b['wall_s']:.1f} s / "
+          f"{b['cpu_s']:.1f} s CPU: +{100 * (b['wall_s'] / a['wall_s'] - 1):.1f} % wall, "
+          f"+{100 * (b['cpu_s'] / a['cpu_s'] - 1):.1f} % CPU; calibration stages {calib:.1f} s "
+          f"= {100 * calib / a['wall_s']:.1f} % of the build with the file")
+    return out
+
+
 def print_composite(rows: list[dict]) -> None:
     print(f"\n{'clip':<22}{'range m':>12}{'|err| med %':>12}{'bias %':>8}{'present':>8}"
           f"{'IoU':>6}{'(n)':>5}{'fx %':>7}{'h %':>7}{'k1':>7}{'(true)':>7}{'calib s':>8}")
@@ -267,6 +375,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--only-composite", action="store_true")
     parser.add_argument("--ego-speed", action="store_true",
                         help="also the camera-only ego speed on KITTI raw 0001 against OXTS")
+    parser.add_argument("--sync", action="store_true",
+                        help="also the GPS-video time sync on KITTI raw 0001 (whole OXTS, and "
+                             "its first 1.5 s removed)")
+    parser.add_argument("--cost", action="store_true",
+                        help="also build the 60 s 720p clip with and without a camera file")
     parser.add_argument("--json", type=Path, default=None, help="also write the rows here")
     args = parser.parse_args(argv)
     raw = args.shared / "kitti_raw_0001"
@@ -285,12 +398,17 @@ def main(argv: list[str] | None = None) -> int:
         print_table(rows)
     if args.ego_speed:
         print(ego_speed_check(raw))
+    extra = {}
+    if args.sync:
+        extra["sync"] = sync_check(raw, args.cache)
+    if args.cost:
+        extra["cost"] = cost_check(raw, args.shared, args.cache)
     comp = [composite_build(raw, args.shared, args.cache, s, 10 + s) for s in args.composite]
     if comp:
         print_composite(comp)
     rows += comp
     if args.json:
-        args.json.write_text(json.dumps(rows, indent=1, default=float))
+        args.json.write_text(json.dumps({"rows": rows, **extra}, indent=1, default=float))
     return 0 if all(math.isfinite(r["fx_pct"]) for r in rows) else 1
 
 

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 import yaml
 
+from vid2sim.base.errors import FormatError, ImpossibleValueError, MissingInputError
 from vid2sim.cli import main
 from vid2sim.core.camera import load_camera
 
@@ -33,29 +34,32 @@ def _run(capsys, *args) -> tuple[int, str]:
     return code, capsys.readouterr().err
 
 
-def test_too_dark_is_an_error_and_nothing_is_written(tmp_path, capsys):
+def test_too_dark_is_an_error_and_nothing_is_written(tmp_path, capsys, raised):
     out = tmp_path / "camera.yaml"
     code, err = _run(capsys, _video(tmp_path / "dark.mp4", 40, dark=True), "--out", out)
-    assert code == 2
+    assert code == 2 and raised == [MissingInputError]
     assert err.startswith("error:") and "dark" in err and "Traceback" not in err
     assert not out.exists()
 
 
-def test_too_short_is_an_error_and_nothing_is_written(tmp_path, capsys):
+def test_too_short_is_an_error_and_nothing_is_written(tmp_path, capsys, raised):
     out = tmp_path / "camera.yaml"
     code, err = _run(capsys, _video(tmp_path / "short.mp4", 3), "--out", out)
-    assert code == 2 and err.startswith("error:")
+    assert code == 2 and err.startswith("error:") and raised == [MissingInputError]
     assert not out.exists()
 
 
-@pytest.mark.parametrize("prior", ["fx: -3\n", "height_m: 40\n", "pitch_deg: 1e6\n",
-                                   "fx: .nan\n", "dist: [3.0, 0.0]\n", "fx: wide\n"])
-def test_impossible_prior_is_an_error(tmp_path, capsys, prior):
+@pytest.mark.parametrize(("prior", "kind"), [
+    ("fx: -3\n", ImpossibleValueError), ("height_m: 40\n", ImpossibleValueError),
+    ("pitch_deg: 1e6\n", ImpossibleValueError), ("fx: .nan\n", ImpossibleValueError),
+    ("dist: [3.0, 0.0]\n", ImpossibleValueError), ("fx: wide\n", FormatError)])
+def test_impossible_prior_is_an_error(tmp_path, capsys, raised, prior, kind):
     path = tmp_path / "prior.yaml"
     path.write_text(prior)
     out = tmp_path / "camera.yaml"
     code, err = _run(capsys, _video(tmp_path / "v.mp4", 40), "--camera", path, "--out", out)
     assert code == 2 and err.startswith("error:") and "Traceback" not in err
+    assert raised == [kind]
     assert not out.exists()
 
 

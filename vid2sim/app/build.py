@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -40,17 +40,21 @@ from vid2sim.app.loaders import (
     need_video,
 )
 from vid2sim.app.recording import video_clock, video_span_s, with_embedded_gps
+from vid2sim.app.rendering import REPLAY_NAME, render_into_build
 from vid2sim.app.selfcal import CameraChoice, camera_line, start_camera
 from vid2sim.app.settings import Settings
-from vid2sim.app.tracking import lead_summary
+from vid2sim.app.settings_file import changed_settings, settings_tree
+from vid2sim.app.tracking import detect_and_range_with, lead_summary
+from vid2sim.base.defaults import EGO_LENGTH_M
 from vid2sim.base.fileio import staged_folder, write_text_atomic
 from vid2sim.core import scenario as scenario_io
+from vid2sim.core.camera import Camera
 from vid2sim.core.records import EgoLateral, EgoTrack, Note, NoteKind, VideoInfo, notes_of
 from vid2sim.core.scenario import Event, Source, dumps_canonical
 from vid2sim.core.tables import write_tracks_csv
 from vid2sim.detect.assign import relane
 from vid2sim.detect.lanes.track import lane_track
-from vid2sim.detect.pipeline import detect_and_range
+from vid2sim.detect.ranging import EgoPath
 from vid2sim.evaluate.frames import sample_frame_figures
 from vid2sim.evaluate.replay import run_eval
 from vid2sim.evaluate.report import write_report
@@ -86,8 +90,6 @@ class BuildResult:
     scene: SceneLayout | None = None
     #: the scenario's lane-change events (cut-ins, cut-outs, lane changes)
     events: list[Event] = field(default_factory=list)
-    #: the camera used: a file, or the self-calibration with its spread
-    camera: str = ""
 
     def summary(self) -> str:
         lines = [(f"scenario: {self.duration_s:.1f} s, ego distance {self.distance_m:.0f} m, "
@@ -108,8 +110,6 @@ class BuildResult:
             m = self.metrics
             lines.append(f"keyframes {m['keyframes']}: precision {m['precision']:.3f}, recall "
                          f"{m['recall']:.3f}, F1 {m['f1']:.3f}, mean IoU {m['mean_iou']:.3f}")
-        if self.camera:
-            lines.append(self.camera)
         lines.append("stages: " + ", ".join(f"{k} {v:.1f} s" for k, v in self.stage_seconds.items()))
         for w in self.warnings:
             lines.append(f"warning: {w}")
@@ -119,6 +119,19 @@ class BuildResult:
 
 
 # --------------------------------------------------------------------------- pure helpers
+
+
+def _road_under_the_actors(scenario, road_result):
+    """The scenario with its map road run on along the matched route under the vehicles the
+    camera saw ahead of the first or beyond the last fix (the road stage cuts the road a car
+    length beyond the fixes; a replay needs road under every vehicle it replays)."""
+    if road_result is None or not scenario.actors:
+        return scenario
+    xy = np.vstack([np.column_stack((a.trajectory.x, a.trajectory.y))
+                    for a in scenario.actors])
+    reach = max(a.length_m for a in scenario.actors) / 2.0 + EGO_LENGTH_M
+    return replace(scenario, roads=geo_roads.cover_points(road_result, list(scenario.roads), xy,
+                                                          reach))
 
 
 def path_length_m(ego: EgoTrack) -> float:
@@ -164,7 +177,8 @@ def _write_tables(staging: Path, scenario, ranging, road_result) -> dict[str, Pa
 #: (replay.py, preview.png), which would otherwise describe a scenario no longer there.
 BUILD_OUTPUTS: tuple[str, ...] = (
     "scenario.json", "scenario.xosc", "road.xodr", "tracks.csv", "road.json", "report.html",
-    "figures", "metrics.json", "keyframes", "replay.py", "preview.png", "camera.yaml")
+    "figures", "metrics.json", "keyframes", "replay.py", "preview.png", REPLAY_NAME,
+    "camera.yaml")
 
 
 def build(inputs: Inputs, out_dir: Path, settings: Settings | None = None,
@@ -200,7 +214,8 @@ def build(inputs: Inputs, out_dir: Path, settings: Settings | None = None,
     inputs, gps_notes = with_embedded_gps(inputs)
     notes.extend([*(extra_notes or []), *gps_notes])
     if inputs.keyframes is not None:
-        load_keyframes_for(inputs.keyframes, video, info, inputs.fps)
+        load_keyframes_for(inputs.keyframes, video, info, inputs.fps,
+                           inputs.keyframe_calib, inputs.keyframe_rate_hz)
     # The detector (or imported boxes) before any long work: missing weights fail fast.
     detector, imported, boxes_label = load_boxes(inputs, settings)
     # The output folder last of the checks, first of the work: a read-only or full disk
@@ -209,6 +224,70 @@ def build(inputs: Inputs, out_dir: Path, settings: Settings | None = None,
     with staged_folder(out_dir, BUILD_OUTPUTS) as staging:
         return _build_into(staging, out_dir, inputs, settings, info, choice, notes, detector,
                            imported, boxes_label, _Stages(report))
+
+
+def _write_outputs(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings,
+                   info: VideoInfo, camera_used: Camera, ranging, scenario, road_result, trace,
+                   ego, warnings: list[str], stages: _Stages, choice: CameraChoice
+                   ) -> tuple[dict[str, Path], dict | None]:
+    """Write the build's outputs into ``staging`` (moved into place by the caller): tables,
+    OpenSCENARIO/OpenDRIVE, figures, the evaluation or the sampled frames, the report, and
+    with ``settings.render_replay`` the replay video; ``(files, metrics)``."""
+    video = need_video(inputs)
+    files = stages.run("write scenario and tables", _write_tables, staging, scenario, ranging,
+                       road_result)
+    xosc, xodr = stages.run("export OpenSCENARIO/OpenDRIVE", write_openscenario, scenario,
+                            staging)
+    files["openscenario"] = Path(xosc.name)
+    files["opendrive"] = Path(xodr.name)
+    figures = stages.run("figures", stage_figures, staging / "figures", road_result, trace, ego,
+                         ranging.boxes)
+    changed = changed_settings(settings)
+    report_inputs = {**inputs.labelled_paths(), "output folder": str(out_dir),
+                     "settings changed from the defaults": ", ".join(
+                         f"{k} = {v}" for k, v in changed.items()) or "none",
+                     "camera used": camera_line(choice)}
+    metrics = None
+    if inputs.keyframes is not None:
+        # run_eval writes metrics.json, the keyframe overlays and the one report.html,
+        # with this build's figures, warnings and inputs added.
+        metrics, _ = stages.run("replay evaluation", run_eval, staging / "scenario.json",
+                                inputs.keyframes, video=video, out_dir=staging,
+                                fps=inputs.fps, extra_figures=figures,
+                                extra_warnings=warnings, report_inputs=report_inputs,
+                                # the staging folder's random name would make metrics.json
+                                # differ between identical builds
+                                scenario_label=str(out_dir / "scenario.json"),
+                                # actors drawn with the outlines the ranging read
+                                # (as cuboids against tracklet keyframes)
+                                outlines=settings.ranging.outlines,
+                                keyframe_calib=inputs.keyframe_calib,
+                                keyframe_rate_hz=inputs.keyframe_rate_hz)
+        files["metrics"] = Path("metrics.json")
+    else:
+        # Nothing scores the scene: show sampled frames with what the build saw beside the
+        # simulator's view of the same moment, for a person to judge.
+        frames = stages.run("sampled frames", sample_frame_figures,
+                            staging / "figures" / "frames", video, camera_used, ranging.boxes,
+                            ranging.lanes, scenario, info.fps, info.n_frames,
+                            video_fps=inputs.fps, config=settings.frames,
+                            progress=settings.progress, frame_times_s=ranging.frame_times_s)
+        stages.run("report", write_report, staging / "report.html", scenario=scenario,
+                   metrics=None, extra_figures=figures, warnings=warnings, inputs=report_inputs,
+                   frame_images=[(c, p, p.relative_to(staging).as_posix()) for c, p in frames])
+    files["report"] = Path("report.html")
+    if choice.estimate is not None:
+        files["camera"] = Path("camera.yaml")
+    if settings.render_replay:
+        # the replay of the whole clip, put into the report written above
+        keyframes = (load_keyframes_for(inputs.keyframes, video, info, inputs.fps,
+                                        inputs.keyframe_calib, inputs.keyframe_rate_hz)
+                     if inputs.keyframes is not None else [])
+        stages.run("replay video", render_into_build, staging, scenario, camera_used,
+                   ranging.boxes, ranging.lanes, video, info, keyframes, inputs.fps,
+                   settings.replay, settings.progress)
+        files["replay"] = Path(REPLAY_NAME)
+    return files, metrics
 
 
 def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings,
@@ -225,13 +304,11 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
     inputs, ego, camera, trace = geo.inputs, geo.ego, geo.camera, geo.trace
     road_result, roads, ego_noise_m = geo.road_result, geo.roads, geo.ego_noise_m
 
-    # ---- detect, track, range
+    # ---- detect, track, range (with GPS the ego's own motion ranges the standing vehicles)
+    ego_path = EgoPath.from_track(ego, ego_noise_m) if inputs.gps is not None else None
     ranging, camera, ranging_notes = stages.run(
-        "detect, track and range", detect_and_range, video, camera, detector=detector,
-        detections=imported, detect_every=settings.detector.detect_every, fps=inputs.fps,
-        progress=settings.progress, config=settings.ranging,
-        tracker_config=settings.tracker_config(), schedule=settings.detector.schedule(),
-        assign_lanes=inputs.gps is None)
+        "detect, track and range", detect_and_range_with, settings, inputs, video, camera,
+        detector, imported, assign_lanes=inputs.gps is None, ego_path=ego_path)
     notes.extend(ranging_notes)
     notes.extend(ranging.warnings)
     notes.append(Note.estimate(
@@ -240,7 +317,7 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
     camera_used = camera.with_pitch(ranging.pitch_deg_estimated)
     # ---- the ego's lateral position from the lane markings (GPS keeps the along-track one)
     lateral = stages.run("ego lateral position", fuse_lateral, ego, ranging.lanes, road_result,
-                         speed_known=inputs.gps is not None,
+                         config=settings.lateral, speed_known=inputs.gps is not None,
                          refilter=lambda track, speed: lane_track(
                              track.observations, settings.lanes, speed_mps=speed))
     ego = lateral.ego
@@ -258,13 +335,18 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
     # ---- assemble
     options = {**inputs.recorded(), **settings.recorded(detector_used=detector is not None),
                "detector_used": boxes_label,
-               "fps": info.fps, "video_clock": clock}
+               "fps": info.fps, "n_frames": info.n_frames, "video_clock": clock}
     source = Source(inputs=inputs.fingerprints(), tool_version=__version__, options=options,
-                    assumptions=[str(a) for a in assumptions])
+                    assumptions=[str(a) for a in assumptions],
+                    settings=settings_tree(settings))
     scenario, assemble_warnings = stages.run("assemble scenario", assemble_scenario, ego, roads,
                                              ranging.boxes, camera_used, source=source,
                                              config=settings.assemble,
-                                             ego_noise_m=ego_noise_m)
+                                             ego_noise_m=ego_noise_m,
+                                             standing_tracks=ranging.standing_tracks,
+                                             ground_m_by_track={
+                                                 t: g[0] for t, g in
+                                                 ranging.ground_m_by_track.items()})
     warnings.extend(assemble_warnings)
     if choice.estimate is not None:
         # the camera the ranging used, with the calibration's spread and sources
@@ -272,7 +354,8 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
                            **scenario.camera}
         write_camera_file(choice.estimate, staging / "camera.yaml", video.name)
     # ---- the street: the road's lanes from the video (and map), parked cars on their strip
-    scene = stages.run("road cross-section", lay_out_scene, scenario, lateral)
+    scene = stages.run("road cross-section", lay_out_scene, _road_under_the_actors(
+        scenario, road_result), lateral, settings.layout_config())
     scenario = scene.scenario
     warnings.extend(notes_of(scene.notes, NoteKind.WARNING))
     scenario.source.assumptions.extend(str(n) for n in scene.notes
@@ -282,47 +365,13 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
     # used) and the ego's own
     scenario.events = stages.run("lane-change events", scenario_events, ranging.boxes,
                                  ranging.lanes, scenario.actors, lateral.lane_changes,
-                                 settings.ranging.lane_width_m, scenario.ego.trajectory)
+                                 settings.ranging.lane_width_m, scenario.ego.trajectory,
+                                 settings.events)
 
     # ---- write into the staging folder (moved into place by the caller)
-    files = stages.run("write scenario and tables", _write_tables, staging, scenario, ranging,
-                       road_result)
-    xosc, xodr = stages.run("export OpenSCENARIO/OpenDRIVE", write_openscenario, scenario,
-                            staging)
-    files["openscenario"] = Path(xosc.name)
-    files["opendrive"] = Path(xodr.name)
-    figures = stages.run("figures", stage_figures, staging / "figures", road_result, trace, ego,
-                         ranging.boxes)
-    report_inputs = {**inputs.labelled_paths(), "output folder": str(out_dir),
-                     "camera used": camera_line(choice)}
-    metrics = None
-    if inputs.keyframes is not None:
-        # run_eval writes metrics.json, the keyframe overlays and the one report.html,
-        # with this build's figures, warnings and inputs added.
-        metrics, _ = stages.run("replay evaluation", run_eval, staging / "scenario.json",
-                                inputs.keyframes, video=video, out_dir=staging,
-                                fps=inputs.fps, extra_figures=figures,
-                                extra_warnings=warnings, report_inputs=report_inputs,
-                                # the staging folder's random name would make metrics.json
-                                # differ between identical builds
-                                scenario_label=str(out_dir / "scenario.json"),
-                                # actors drawn with the outlines the ranging read
-                                outlines=settings.ranging.outlines)
-        files["metrics"] = Path("metrics.json")
-    else:
-        # Nothing scores the scene: show sampled frames with what the build saw beside the
-        # simulator's view of the same moment, for a person to judge.
-        frames = stages.run("sampled frames", sample_frame_figures,
-                            staging / "figures" / "frames", video, camera_used, ranging.boxes,
-                            ranging.lanes, scenario, info.fps, info.n_frames,
-                            video_fps=inputs.fps, progress=settings.progress,
-                            frame_times_s=ranging.frame_times_s)
-        stages.run("report", write_report, staging / "report.html", scenario=scenario,
-                   metrics=None, extra_figures=figures, warnings=warnings, inputs=report_inputs,
-                   frame_images=[(c, p, p.relative_to(staging).as_posix()) for c, p in frames])
-    files["report"] = Path("report.html")
-    if choice.estimate is not None:
-        files["camera"] = Path("camera.yaml")
+    files, metrics = _write_outputs(staging, out_dir, inputs, settings, info, camera_used,
+                                    ranging, scenario, road_result, trace, ego, warnings, stages,
+                                    choice)
 
     lead = lead_summary(ranging, info.n_frames)
     lead_range = (None if not np.isfinite(lead["lead_range_median_m"]) else
@@ -332,5 +381,5 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
         duration_s=scenario.duration_s, distance_m=path_length_m(ego),
         n_actors=len(scenario.actors), lead_share=lead["lead_share"], lead_range_m=lead_range,
         metrics=metrics, warnings=warnings, stage_seconds=stages.seconds, lateral=lateral,
-        scene=scene, events=list(scenario.events), camera=camera_line(choice))
+        scene=scene, events=list(scenario.events))
 

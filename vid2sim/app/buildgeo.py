@@ -16,11 +16,11 @@ import numpy as np
 
 from vid2sim.app import calibrate as cal
 from vid2sim.app import selfcal
-from vid2sim.app.commands import match_road
+from vid2sim.app.gpsroad import match_road
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.loaders import load_trace, smooth_trace
 from vid2sim.app.settings import Settings
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import InconsistentInputError
 from vid2sim.core.camera import Camera
 from vid2sim.core.records import EgoTrack, GpsTrace, Note, Origin, RoadResult, VideoInfo
 
@@ -92,9 +92,10 @@ def clip_ego_to_video(ego: EgoTrack, duration_s: float) -> tuple[EgoTrack, list[
     warnings: list[str] = []
     keep = (ego.t_s >= -1e-9) & (ego.t_s <= duration_s + 1e-9)
     if keep.sum() < 2:
-        raise InputError(None, f"the GPS trace does not overlap the video (GPS covers "
-                         f"{ego.t_s[0]:.1f}..{ego.t_s[-1]:.1f} s of video time, the video "
-                         f"0..{duration_s:.1f} s)", "check the clocks or pass --gps-offset")
+        raise InconsistentInputError(
+            None, f"the GPS trace does not overlap the video (GPS covers "
+            f"{ego.t_s[0]:.1f}..{ego.t_s[-1]:.1f} s of video time, the video "
+            f"0..{duration_s:.1f} s)", "check the clocks or pass --gps-offset")
     if ego.t_s[0] > 0.5:
         warnings.append(f"GPS starts {ego.t_s[0]:.1f} s after the first video frame")
     if ego.t_s[-1] < duration_s - 0.5:

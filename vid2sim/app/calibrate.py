@@ -20,7 +20,7 @@ import numpy as np
 
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.settings import Settings
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import InputError, MissingInputError
 from vid2sim.calib import (
     CalibrationConfig,
     CalibrationInput,
@@ -286,7 +286,7 @@ def default_prior_camera(info: VideoInfo, prior: CameraPrior, cfg: CalibrationCo
 
 def require_video(inputs: Inputs) -> Path:
     if inputs.video is None:
-        raise InputError(None, "no video given")
+        raise MissingInputError(None, "no video given")
     return Path(inputs.video)
 
 

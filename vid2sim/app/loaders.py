@@ -9,17 +9,15 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from vid2sim.app.gpsinputs import load_trace, smooth_trace  # noqa: F401 - the GPS inputs
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.settings import Settings
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import InconsistentInputError, MissingInputError
 from vid2sim.core.camera import Camera, fit_camera_to_frames, load_camera
 from vid2sim.core.records import (
     Detection,
-    EgoTrack,
-    GpsTrace,
     Keyframe,
     Note,
-    TraceStats,
     VideoInfo,
 )
 from vid2sim.core.videofile import image_files
@@ -27,14 +25,12 @@ from vid2sim.detect.vehicles.detector import OnnxDetector, load_detector
 from vid2sim.detect.vehicles.external import read_detections
 from vid2sim.detect.video import video_info
 from vid2sim.evaluate.annotations import read_keyframes
-from vid2sim.geo.readers import read_gps
-from vid2sim.geo.trace import smooth_ego
 
 
 def need_video(inputs: Inputs) -> Path:
     """The video path, or an input error for a command that needs one."""
     if inputs.video is None:
-        raise InputError(None, "no video given")
+        raise MissingInputError(None, "no video given")
     return Path(inputs.video)
 
 
@@ -82,22 +78,9 @@ def load_boxes(inputs: Inputs, settings: Settings
     return detector, None, label
 
 
-def load_trace(inputs: Inputs) -> GpsTrace:
-    """The GPS trace of ``inputs.gps`` (format detected from the content)."""
-    if inputs.gps is None:
-        raise InputError(None, "no GPS trace given")
-    return read_gps(Path(inputs.gps))
-
-
-def smooth_trace(trace: GpsTrace, inputs: Inputs, settings: Settings
-                 ) -> tuple[EgoTrack, TraceStats]:
-    """The ego trajectory of a trace on the run's GPS time base (``inputs.gps_offset_s``)."""
-    return smooth_ego(trace, rate_hz=settings.rate_hz, gps_offset_s=inputs.gps_offset_s,
-                      params=settings.trace)
-
-
 def load_keyframes_for(keyframes: Path, video: Path, info: VideoInfo,
-                       fps: float | None = None) -> list[Keyframe]:
+                       fps: float | None = None, calib_dir: Path | None = None,
+                       rate_hz: float | None = None) -> list[Keyframe]:
     """The annotated keyframes on the video's frames, checked against the video.
 
     Frame numbers and times are read as the evaluation reads them (an image folder's frames
@@ -112,16 +95,19 @@ def load_keyframes_for(keyframes: Path, video: Path, info: VideoInfo,
     """
     rate = float(fps or info.fps)
     names = [p.name for p in image_files(video)] if Path(video).is_dir() else None
-    frames = read_keyframes(keyframes, fps=rate, frame_names=names)
+    frames = read_keyframes(keyframes, fps=rate, frame_names=names, calib_dir=calib_dir,
+                            rate_hz=rate_hz, image_size_px=(info.width, info.height))
     if not frames:
-        raise InputError(keyframes, "no annotated keyframe matches a frame of the video "
-                         f"({info.n_frames} frames)", "are the annotations for this video?")
+        raise InconsistentInputError(
+            keyframes, "no annotated keyframe matches a frame of the video "
+            f"({info.n_frames} frames)", "are the annotations for this video?")
     index = [k.frame if k.frame is not None else round(k.t_s * rate) for k in frames]
     outside = [(k, f) for k, f in zip(frames, index, strict=True)
                if not 0 <= f < info.n_frames]
     if outside:
         k, f = outside[0]
-        raise InputError(keyframes, f"{len(outside)} of {len(frames)} keyframes lie outside the "
-                         f"video's {info.n_frames} frames (first: {k.name!r}, frame {f})",
-                         "are the annotations for this video, at this frame rate?")
+        raise InconsistentInputError(
+            keyframes, f"{len(outside)} of {len(frames)} keyframes lie outside the "
+            f"video's {info.n_frames} frames (first: {k.name!r}, frame {f})",
+            "are the annotations for this video, at this frame rate?")
     return frames

@@ -26,7 +26,7 @@ from vid2sim.app.camerafile import (
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.loaders import load_trace, load_video_info
 from vid2sim.app.settings import Settings
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import MissingInputError
 from vid2sim.base.fileio import check_output_file
 from vid2sim.calib import CameraPrior, LaneWidthPrior
 from vid2sim.core.calibration import CameraEstimate, TimeOffset
@@ -191,9 +191,12 @@ def run_calibrate(inputs: Inputs, out_path: Path, settings: Settings | None = No
 
     Raises
     ------
-    InputError
-        A bad prior, a video too dark or too short to calibrate (nothing is written), or
-        an unwritable output.
+    ImpossibleValueError, FormatError
+        A prior with impossible values, or one that is not a camera file.
+    MissingInputError
+        A video too dark or too short to calibrate (nothing is written).
+    OutputError
+        An unwritable output.
     """
     settings = settings or Settings()
     settings.check()
@@ -208,7 +211,8 @@ def run_calibrate(inputs: Inputs, out_path: Path, settings: Settings | None = No
     measure_cues_for(choice, inputs, info, settings)
     why = cal.check_cues(choice.cues, video)
     if why is not None:
-        raise InputError(video, why, "calibrate on a longer clip of driving in daylight")
+        raise MissingInputError(video, why,
+                                "calibrate on a longer clip of driving in daylight")
     trace = ego = None
     if inputs.gps is not None:
         trace = load_trace(inputs)

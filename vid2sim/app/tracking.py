@@ -86,8 +86,8 @@ def run_detect_command(inputs: Inputs, out_path: Path,
     boxes = run_detect(source, detector=detector, detections=imported,
                        detect_every=settings.detector.detect_every, progress=settings.progress,
                        tracker_config=settings.tracker_config(), fps=inputs.fps,
-                       schedule=settings.detector.schedule(), capture_clock=True,
-                       skipped_frames=skipped)
+                       schedule=settings.schedule_config(), capture_clock=True,
+                       skipped_frames=skipped, flow=settings.flow)
     elapsed = time.perf_counter() - start
     write_detections_csv(boxes, out_path)
     per_track = {b.track_id: b.category for b in boxes}
@@ -122,6 +122,20 @@ def _camera_without_gps(choice: CameraChoice, inputs: Inputs, info, settings: Se
     return finish_camera(choice, inputs, info, settings)
 
 
+def detect_and_range_with(settings: Settings, inputs: Inputs, video: Path, camera, detector,
+                          imported, assign_lanes: bool = True, ego_path=None):
+    """The detection stage (:func:`vid2sim.detect.pipeline.detect_and_range`) with every one
+    of its settings from the run's tree: what ``track`` and ``build`` run (``build`` with
+    GPS gives the ego's path: standing vehicles are ranged from its motion)."""
+    return detect_and_range(
+        video, camera, detector=detector, detections=imported,
+        detect_every=settings.detector.detect_every, fps=inputs.fps,
+        progress=settings.progress, config=settings.ranging,
+        tracker_config=settings.tracker_config(), schedule=settings.schedule_config(),
+        assign_lanes=assign_lanes, flow=settings.flow, markings=settings.markings,
+        lane_config=settings.lanes, rail=settings.rail, ego_path=ego_path)
+
+
 def run_track(inputs: Inputs, out_path: Path, settings: Settings | None = None,
               plot_dir: Path | None = None) -> str:
     """``vid2sim track``: detect and track vehicles, range them, write ``tracks.csv``.
@@ -141,11 +155,8 @@ def run_track(inputs: Inputs, out_path: Path, settings: Settings | None = None,
         check_output_folder(plot_dir)
     camera = _camera_without_gps(choice, inputs, info, settings)
     notes = list(choice.notes)
-    result, camera, stage_notes = detect_and_range(
-        video, camera, detector=detector, detections=imported,
-        detect_every=settings.detector.detect_every, fps=inputs.fps,
-        progress=settings.progress, config=settings.ranging,
-        tracker_config=settings.tracker_config(), schedule=settings.detector.schedule())
+    result, camera, stage_notes = detect_and_range_with(settings, inputs, video, camera,
+                                                        detector, imported)
     notes += stage_notes
     write_tracks_csv(result.boxes, out_path)
     lines = [f"{video}: {info.n_frames} frames, boxes from {source}", camera_line(choice)]

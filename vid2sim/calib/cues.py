@@ -55,9 +55,15 @@ class CameraPrior:
         for key in PRIOR_KEYS:
             if key in raw and raw[key] is not None:
                 v = raw[key]
-                if isinstance(v, bool) or not isinstance(v, (int, float)):
-                    raise FormatError(path, f"camera prior {key} is not a number: {v!r}")
-                vals[key] = float(v)
+                # text that spells a number is one, as in a camera file (PyYAML reads
+                # ``1e6``, without a sign in the exponent, as text)
+                try:
+                    if isinstance(v, bool) or not isinstance(v, (int, float, str)):
+                        raise ValueError(v)
+                    vals[key] = float(v)
+                except ValueError:
+                    raise FormatError(path, f"camera prior {key} is not a number: {v!r}"
+                                      ) from None
         return cls(values=vals, path=str(path) if path else None)
 
     def check(self, width_px: int, height_px: int) -> None:

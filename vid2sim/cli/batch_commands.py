@@ -10,6 +10,7 @@ import click
 from vid2sim.cli.group import cli
 from vid2sim.cli.options import (
     check_out_dir,
+    config_option,
     detector_options,
     echo,
     settings_from,
@@ -44,6 +45,7 @@ from vid2sim.cli.options import (
 @click.option("--retry-failed", is_flag=True,
               help="Rebuild rows the index records as failed (default: keep their error "
                    "unless their inputs changed).")
+@config_option
 @click.pass_context
 def batch(ctx: click.Context, manifest: str, out_dir: str, engine: str, address: str | None,
           jobs: int | None, cpus_per_job: int | None, max_retries: int, offline: bool,

@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import click
 
 from vid2sim.app.settings import DetectorSettings, Settings
+from vid2sim.app.settings_file import load_settings
 from vid2sim.base.defaults import IMAGE_FOLDER_FPS
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import OutputError
 from vid2sim.detect.vehicles.models import DEFAULT_DETECTOR
 from vid2sim.detect.vehicles.windows import REFINE_MAX_BOXES
 
@@ -46,14 +48,14 @@ def check_out_file(path: Path, example: str) -> None:
     mistake; without this check it surfaced only at the final rename, as an internal error.
     """
     if path.is_dir():
-        raise InputError(path, "is a folder", f"give the output file name, e.g. {example}")
+        raise OutputError(path, "is a folder", f"give the output file name, e.g. {example}")
     _check_parents(path)
 
 
 def check_out_dir(path: Path) -> None:
     """Refuse an output folder path that is an existing file, before any work is done."""
     if path.exists() and not path.is_dir():
-        raise InputError(path, "is a file, not a folder", "give an output folder")
+        raise OutputError(path, "is a file, not a folder", "give an output folder")
     _check_parents(path)
 
 
@@ -61,8 +63,8 @@ def _check_parents(path: Path) -> None:
     for parent in path.parents:
         if parent.exists():
             if not parent.is_dir():
-                raise InputError(path, f"{parent} is a file, not a folder",
-                                 "give a path inside a folder")
+                raise OutputError(path, f"{parent} is a file, not a folder",
+                                  "give a path inside a folder")
             return
 
 def detector_options(fn):
@@ -114,13 +116,69 @@ def frame_source_options(fn):
     return fn
 
 
-def settings_from(detector_name: str = DEFAULT_DETECTOR, model_dir: Path | None = None,
-                  detect_every: int = 1, score: float | None = None, no_tiles: bool = False,
-                  refine: int | None = None, keyframe_s: float = DetectorSettings().keyframe_s,
-                  **kwargs) -> Settings:
-    """The run's :class:`Settings` from the shared options (``kwargs``: other Settings
-    fields, e.g. ``allow_download``)."""
-    detector = DetectorSettings(name=detector_name, model_dir=model_dir, tiles=not no_tiles,
-                                refine=refine, score=score, detect_every=detect_every,
-                                keyframe_s=keyframe_s)
-    return Settings(detector=detector, progress=show_progress(), **kwargs)
+def tracklet_options(fn):
+    """How KITTI raw tracklets become keyframes (``--keyframes tracklet_labels.xml``)."""
+    options = [
+        click.option("--keyframe-calib", "keyframe_calib", type=EXISTING_PATH, default=None,
+                     help="KITTI tracklet keyframes: the folder of the drive's "
+                          "calib_velo_to_cam.txt and calib_cam_to_cam.txt (default: the "
+                          "XML's folder)."),
+        click.option("--keyframe-rate", "keyframe_rate_hz",
+                     type=click.FloatRange(min=0, min_open=True), default=None,
+                     help="KITTI tracklet keyframes a second, e.g. 1 (default: every frame)."),
+    ]
+    for option in reversed(options):
+        fn = option(fn)
+    return fn
+
+
+_CONFIG_KEY = "vid2sim.config"
+
+
+def _remember_config(ctx: click.Context, _param, value: Path | None) -> Path | None:
+    if value is not None:
+        ctx.meta[_CONFIG_KEY] = value
+    return value
+
+
+def config_option(fn):
+    """``--config FILE``: a settings file (any branch of the settings tree, see ``vid2sim
+    settings``); the command's own options given on the command line win over it."""
+    return click.option("--config", "config_path", type=EXISTING_PATH, default=None,
+                        expose_value=False, callback=_remember_config, is_eager=True,
+                        metavar="SETTINGS.yaml",
+                        help="Settings file: any part of the settings tree (`vid2sim settings` "
+                             "prints it); options on the command line win.")(fn)
+
+
+#: The detector options' CLI names -> the DetectorSettings fields they set.
+_DETECTOR_FIELDS = {"detector_name": "name", "model_dir": "model_dir", "detect_every":
+                    "detect_every", "score": "score", "refine": "refine",
+                    "keyframe_s": "keyframe_s", "no_tiles": "tiles"}
+
+
+def settings_from(**options) -> Settings:
+    """The run's :class:`Settings`: the defaults, then the ``--config`` file, then the
+    options given on the command line (detector options by their CLI names; other keywords
+    are Settings fields, e.g. ``allow_download``, set where they differ from the default)."""
+    ctx = click.get_current_context(silent=True)
+    config = ctx.meta.get(_CONFIG_KEY) if ctx is not None else None
+    settings = load_settings(config) if config is not None else Settings()
+    detector = {}
+    for name, value in options.items():
+        if name in _DETECTOR_FIELDS and _given(ctx, name, value):
+            detector[_DETECTOR_FIELDS[name]] = not value if name == "no_tiles" else value
+    fields = {k: v for k, v in options.items() if k not in _DETECTOR_FIELDS
+              and v != getattr(Settings(), k)}
+    return replace(settings, detector=replace(settings.detector, **detector),
+                   progress=show_progress(), **fields)
+
+
+def _given(ctx: click.Context | None, name: str, value) -> bool:
+    """Whether an option was set by the user (command line or environment), not defaulted;
+    outside a click command every value counts as given."""
+    if ctx is None or name not in ctx.params:
+        return value is not None
+    source = ctx.get_parameter_source(name)
+    return source not in (None, click.core.ParameterSource.DEFAULT,
+                          click.core.ParameterSource.DEFAULT_MAP)

@@ -7,14 +7,14 @@ from pathlib import Path
 import click
 
 from vid2sim.app.inputs import Inputs
-from vid2sim.app.settings import Settings
 from vid2sim.base.defaults import EGO_RATE_HZ
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import MissingInputError
 from vid2sim.cli.group import cli
 from vid2sim.cli.options import (
     EXISTING_PATH,
     check_out_dir,
     check_out_file,
+    config_option,
     detector_options,
     echo,
     frame_source_options,
@@ -33,14 +33,15 @@ from vid2sim.cli.options import (
               help="Video time of the first fix [s], overriding the file's own clock.")
 @click.option("--out", "out_path", type=EXISTING_PATH, required=True,
               help="Where to write ego.csv (t_s,lat,lon,x_m,y_m,heading_rad,speed_mps).")
+@config_option
 def trace(gps_file: Path, rate_hz: float, gps_offset_s: float | None, out_path: Path) -> None:
     """Read a GPS trace (GPX, NMEA, BDD100K JSON, KITTI OXTS, CSV) and write the smoothed
     ego trajectory."""
-    from vid2sim.app.commands import run_trace
+    from vid2sim.app.gpsroad import run_trace
 
     check_out_file(out_path, "ego.csv")
     echo(run_trace(Inputs(gps=gps_file, gps_offset_s=gps_offset_s), out_path,
-                   Settings(rate_hz=rate_hz, progress=show_progress())))
+                   settings_from(rate_hz=rate_hz)))
 
 
 # --------------------------------------------------------------------------- road
@@ -61,16 +62,16 @@ def trace(gps_file: Path, rate_hz: float, gps_offset_s: float | None, out_path: 
 @click.option("--cache-dir", type=EXISTING_PATH, default=None,
               help="Map cache: parsed map files and downloads [default: ~/.cache/vid2sim/osm, "
                    "or $VID2SIM_CACHE_DIR/osm].")
+@config_option
 def road(gps_file: Path, map_path: Path | None, out_path: Path, plot_path: Path | None,
          gps_offset_s: float | None, no_download: bool, cache_dir: Path | None) -> None:
     """Match a GPS trace to OpenStreetMap and write the driven road with its lanes."""
-    from vid2sim.app.commands import run_road
+    from vid2sim.app.gpsroad import run_road
 
     check_out_file(out_path, "road.json")
     if plot_path is not None:
         check_out_file(plot_path, "road.png")
-    settings = Settings(allow_download=not no_download, osm_cache_dir=cache_dir,
-                        progress=show_progress())
+    settings = settings_from(allow_download=not no_download, osm_cache_dir=cache_dir)
     echo(run_road(Inputs(gps=gps_file, map=map_path, gps_offset_s=gps_offset_s), out_path,
                   settings, plot_path=plot_path))
 
@@ -84,6 +85,7 @@ def road(gps_file: Path, map_path: Path | None, out_path: Path, plot_path: Path 
 @frame_source_options
 @click.option("--out", "out_path", type=EXISTING_PATH, required=True,
               help="Where to write detections.csv (frame,t_s,track_id,category,score,x1,y1,x2,y2).")
+@config_option
 def detect(source: Path, detections_path: Path | None, fps: float | None, out_path: Path,
            **detector) -> None:
     """Detect and track vehicles in a video or image folder."""
@@ -109,6 +111,7 @@ def detect(source: Path, detections_path: Path | None, fps: float | None, out_pa
 @click.option("--out", "out_path", type=EXISTING_PATH, required=True,
               help="Where to write tracks.csv (frame,t_s,track_id,category,score,x1,y1,x2,y2,"
                    "range_m,lateral_m,range_rate_mps,range_std_m,is_lead).")
+@config_option
 def track(video: Path, camera_path: Path | None, detections_path: Path | None,
           fps: float | None, plot_dir: Path | None, out_path: Path, **detector) -> None:
     """Track vehicles and measure their range, lateral offset and range rate (no GPS needed)."""
@@ -142,6 +145,7 @@ def track(video: Path, camera_path: Path | None, detections_path: Path | None,
 @click.option("--out", "out_path", type=EXISTING_PATH, required=True,
               help="Where to write camera.yaml (the --camera format, with std and source "
                    "per parameter).")
+@config_option
 def calibrate(video: Path, gps_path: Path | None, gps_offset_s: float | None,
               camera_path: Path | None, fps: float | None, out_path: Path) -> None:
     """Estimate the camera (focal length, distortion, mount angles and height) from the
@@ -151,7 +155,7 @@ def calibrate(video: Path, gps_path: Path | None, gps_offset_s: float | None,
     check_out_file(out_path, "camera.yaml")
     inputs = Inputs(video=video, gps=gps_path, camera=camera_path, fps=fps,
                     gps_offset_s=gps_offset_s)
-    echo(run_calibrate(inputs, out_path, Settings(progress=show_progress())))
+    echo(run_calibrate(inputs, out_path, settings_from()))
 
 
 @cli.group()
@@ -194,8 +198,28 @@ def probe(ctx: click.Context, videos: tuple[Path, ...]) -> None:
 
     for v in videos:
         if not v.is_file():
-            raise InputError(v, "no such video file", "give video files")
+            raise MissingInputError(v, "no such video file", "give video files")
     table, n_bad = probe_table(list(videos))
     echo(table)
     if n_bad:
         ctx.exit(2)
+
+
+# --------------------------------------------------------------------------- settings
+
+
+@cli.command("settings")
+@click.option("--changed", is_flag=True, help="Only the settings that differ from the defaults.")
+@config_option
+def settings_cmd(changed: bool) -> None:
+    """Print the settings tree as YAML: every stage's tuned numbers (with --config FILE, as
+    that file sets them). Save it, edit what you need, and give it to any command with
+    --config; scenario.json records the tree a build used (source.settings)."""
+    from vid2sim.app.settings_file import changed_settings, settings_yaml
+
+    settings = settings_from()
+    if changed:
+        for name, value in changed_settings(settings).items():
+            click.echo(f"{name}: {value}")
+    else:
+        click.echo(settings_yaml(settings), nl=False)

@@ -13,16 +13,17 @@ from pathlib import Path
 
 import numpy as np
 
-from vid2sim.base.errors import InputError
-from vid2sim.core.camera import Camera
+from vid2sim.base.errors import ImpossibleValueError, InconsistentInputError
+from vid2sim.core.camera import Camera, PitchSource
 from vid2sim.core.records import Detection, Frame, LaneTrack, Note, RangingResult, TrackedBox
 from vid2sim.core.videofile import skipped_frames_note
 from vid2sim.detect.assign import relane
-from vid2sim.detect.lanes.markings import LaneMarkingDetector
-from vid2sim.detect.lanes.track import track_lanes
+from vid2sim.detect.lanes.markings import LaneMarkingConfig, LaneMarkingDetector
+from vid2sim.detect.lanes.track import LaneTrackConfig, track_lanes
 from vid2sim.detect.lanes.vanishing import HorizonEstimator, yaw_for_vanishing_column
-from vid2sim.detect.rail import find_rail_tracks, keep_trams_from_lead, relabel
+from vid2sim.detect.rail import RailConfig, find_rail_tracks, keep_trams_from_lead, relabel
 from vid2sim.detect.ranging import (
+    EgoPath,
     RangingConfig,
     choose_horizon,
     pitch_for_horizon,
@@ -101,7 +102,7 @@ def run_detect(source: Path, *, detector: Detector | None,
     if detector is None and detections is None:
         raise ValueError("run_detect needs a detector or imported detections")
     if detect_every < 1:
-        raise InputError(None, f"--detect-every must be >= 1, got {detect_every}")
+        raise ImpossibleValueError(None, f"--detect-every must be >= 1, got {detect_every}")
     info = video_info(source, fps=fps)
     tracker = Tracker(tracker_config, image_size_px=(info.width, info.height))
     # An image folder of every N-th frame (names 000010, 000015, ...) is timed one frame per
@@ -160,7 +161,7 @@ def run_detect(source: Path, *, detector: Detector | None,
     box_frames = [f for f, dets in (detections or {}).items() if dets]
     if box_frames and min(box_frames) >= n_seen:
         # Boxes made for another (longer) video: an empty result would look like an empty road.
-        raise InputError(source, f"none of the imported boxes falls on the video's {n_seen} "
+        raise InconsistentInputError(source, f"none of the imported boxes falls on the video's {n_seen} "
                          f"frames (boxes on 0-based frames {min(box_frames)}.."
                          f"{max(box_frames)})", "is the detections file for this video?")
     return tracker.finalize(rows)
@@ -223,7 +224,10 @@ def detect_and_range(video: Path, camera: Camera, *, detector, detections=None,
                      config: RangingConfig | None = None,
                      tracker_config: TrackerConfig | None = None,
                      schedule: ScheduleConfig | None = None, stats: dict | None = None,
-                     lane_every: int | None = None, assign_lanes: bool = True
+                     lane_every: int | None = None, assign_lanes: bool = True,
+                     flow: FlowConfig | None = None, markings: LaneMarkingConfig | None = None,
+                     lane_config: LaneTrackConfig | None = None, rail: RailConfig | None = None,
+                     ego_path: EgoPath | None = None
                      ) -> tuple[RangingResult, Camera, list[Note]]:
     """Detect (or import), track and range every vehicle of a video: the shared core of
     ``vid2sim track`` and ``vid2sim build``.
@@ -256,6 +260,14 @@ def detect_and_range(video: Path, camera: Camera, *, detector, detections=None,
         Assign the vehicles' lanes and the lead (:func:`vid2sim.detect.assign.relane`) from
         the lane track; False when the caller will assign them once the road's course is
         known (``vid2sim build`` with GPS), so that they are assigned in one pass.
+    flow, markings, lane_config, rail : optional
+        The optical flow between keyframes, the lane-marking measurement, the lane track and
+        the tram search settings (their classes' defaults otherwise).
+    ego_path : EgoPath, optional
+        The ego's trajectory (``vid2sim build`` with GPS): standing vehicles are then ranged
+        from the ego's own motion (:mod:`vid2sim.detect.ranging.surface`). Its direction of
+        travel starts from the camera file's axis (the body's, when the lane markings turned
+        the camera towards their vanishing point) and is refined from the standing vehicles.
 
     Returns
     -------
@@ -271,19 +283,20 @@ def detect_and_range(video: Path, camera: Camera, *, detector, detections=None,
     horizon_est = HorizonEstimator(camera, every=lane_every)
     # The lane markings as a measurement (the ego lane per frame, ~3 ms at 1242x375): every
     # decoded frame, since the ego's lateral position is filtered from them.
-    markings = LaneMarkingDetector(camera)
+    marking_detector = LaneMarkingDetector(camera, markings)
     lane_obs = []
 
     def on_frame(frame: Frame) -> None:
         horizon_est.add_frame(frame.image_bgr, frame.index)
-        lane_obs.append(markings.measure(frame.image_bgr, frame.index, frame.t_s))
+        lane_obs.append(marking_detector.measure(frame.image_bgr, frame.index, frame.t_s))
 
     skipped: list[int] = []
     frame_times: dict[int, float] = {}
     boxes = run_detect(video, detector=detector, detections=detections,
                        detect_every=detect_every, progress=progress, fps=fps,
                        tracker_config=tracker_config, schedule=schedule, stats=stats,
-                       on_frame=on_frame, skipped_frames=skipped, frame_times=frame_times)
+                       on_frame=on_frame, skipped_frames=skipped, frame_times=frame_times,
+                       flow=flow)
     if skipped:
         notes.append(Note.warning(f"{Path(video).name}: {skipped_frames_note(skipped)}"))
     yaw_before = camera.yaw_deg
@@ -302,21 +315,24 @@ def detect_and_range(video: Path, camera: Camera, *, detector, detections=None,
                 f"lane markings point {yaw - camera.yaw_deg:+.1f} deg off the camera axis: "
                 "implausible for a mounting, yaw not changed"))
     # The ego lane first: vehicles' lanes (and so the lead) are counted from it.
-    lanes = track_lanes(lane_obs, math.radians(camera.yaw_deg - yaw_before))
+    lanes = track_lanes(lane_obs, math.radians(camera.yaw_deg - yaw_before), lane_config)
 
     config = config or RangingConfig()
     # Trams first (the detector's, and tall vehicles beyond the kerb), at the pitch the
     # ranging will estimate, so that each is ranged once with the tram's size.
     chosen = choose_horizon(boxes, camera, config, horizon_est.rows_px)
-    rail = find_rail_tracks(boxes, lanes, camera.with_pitch(pitch_for_horizon(camera,
-                                                                              chosen[0])))
-    if rail.relabelled:
+    rail_tracks = find_rail_tracks(boxes, lanes, camera.with_pitch(
+        pitch_for_horizon(camera, chosen[0])), rail)
+    if rail_tracks.relabelled:
         # the trams' sizes change the vehicles' horizon: ranging chooses it again
-        boxes, chosen = relabel(boxes, rail.relabelled), None
+        boxes, chosen = relabel(boxes, rail_tracks.relabelled), None
+    if ego_path is not None and camera.pitch_source is not PitchSource.DEFAULT:
+        # a camera file states the mounting: the body (and its travel) lies along its axis
+        ego_path = replace(ego_path, travel_yaw_rad=math.radians(camera.yaw_deg - yaw_before))
     result = range_tracks(boxes, camera, horizon_hints_px=horizon_est.rows_px,
                           horizon_hint_frames=horizon_est.frames, config=config, lanes=lanes,
-                          horizon=chosen)
-    result, rail_notes = keep_trams_from_lead(result, rail)
+                          horizon=chosen, ego_path=ego_path)
+    result, rail_notes = keep_trams_from_lead(result, rail_tracks)
     result.frame_times_s = frame_times
     notes.extend(rail_notes)
     if assign_lanes:

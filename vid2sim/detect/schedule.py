@@ -129,9 +129,3 @@ class KeyframeSchedule:
             return None
         best = refine_candidates(boxes[keep], self.image_width_px, 1)
         return None if len(best) == 0 else ids[keep[int(best[0])]]
-
-    @property
-    def keyframe_share(self) -> float:
-        """Share of the frames seen so far that were keyframes."""
-        return self.n_keyframes / self.n_frames if self.n_frames else float("nan")
-

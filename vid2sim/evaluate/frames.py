@@ -13,7 +13,6 @@ from __future__ import annotations
 
 from collections import defaultdict
 from collections.abc import Mapping
-from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
@@ -27,28 +26,8 @@ from vid2sim.core.records import LaneTrack, RangedBox
 from vid2sim.core.scenario import Event, Scenario
 from vid2sim.core.videofile import read_frames
 from vid2sim.detect.video import iter_frames
+from vid2sim.evaluate.frames_config import FrameSampleConfig
 from vid2sim.export.highway import ReplayEnv, enu_to_hw
-
-
-@dataclass(frozen=True, slots=True)
-class FrameSampleConfig:
-    """How many frames, and how they are drawn."""
-
-    #: frames spread evenly over the clip (plus one per event, up to ``max_event_frames``):
-    #: enough to see the scene change, few enough to look at each
-    n_even: int = 6
-    max_event_frames: int = 8
-    #: the lane boundaries are drawn over this range ahead [m]: from the bonnet to where the
-    #: lane model is trusted (vid2sim.core.lead.LANE_MODEL_REACH_M) and a little beyond
-    lane_near_m: float = 4.0
-    lane_far_m: float = 35.0
-    #: the highway-env render: a square [px] at a scale [px/m] showing 50 m ahead of the
-    #: ego (the lane model's reach and the events' 30 m, with the far lead), cut 12 m
-    #: behind it
-    render_size_px: int = 600
-    render_scale_px_per_m: float = 6.0
-    render_behind_m: float = 12.0
-
 
 # BGR colours by lane relative to the ego lane: the ego lane orange, left blue, right green,
 # further lanes and unknown grey.

