@@ -24,6 +24,7 @@ from vid2sim.base.errors import (
     ImpossibleValueError,
     InconsistentInputError,
     InputError,
+    MissingInputError,
     OutputError,
     ScenarioError,
 )
@@ -202,19 +203,19 @@ CASES = [
         str(_write(t, "k.json", keyframes_json([5000, 99_999]))), "--video", str(w["video"]),
         "--out", str(o)]),
     # tracklet keyframes: broken XML, calibration missing, a NaN pose
-    ("keyframes-tracklets-broken-xml", lambda w, t, o, f: [
+    ("keyframes-tracklets-broken-xml", MissingInputError, lambda w, t, o, f: [
         "eval", str(w["scenario"]), "--keyframes",
         str(_write(t, "tracklet_labels.xml", "<boost_serialization><tracklets><count>1")),
         "--out", str(o)]),
-    ("keyframes-tracklets-no-calibration", lambda w, t, o, f: [
+    ("keyframes-tracklets-no-calibration", MissingInputError, lambda w, t, o, f: [
         "build", str(w["video"]), "--detections", str(w["det"]), "--keyframes",
         str(_write(t, "tracklet_labels.xml", _tracklets_xml("10.0"))), "--offline",
         "--out", str(o)]),
-    ("keyframes-tracklets-nan-pose", lambda w, t, o, f: [
+    ("keyframes-tracklets-nan-pose", ImpossibleValueError, lambda w, t, o, f: [
         "eval", str(w["scenario"]), "--keyframes",
         str(_write(t, "tracklet_labels.xml", _tracklets_xml("nan"))),
         "--keyframe-calib", str(_kitti_calib(t)), "--out", str(o)]),
-    ("keyframes-tracklets-calib-folder-missing", lambda w, t, o, f: [
+    ("keyframes-tracklets-calib-folder-missing", MissingInputError, lambda w, t, o, f: [
         "eval", str(w["scenario"]), "--keyframes",
         str(_write(t, "tracklet_labels.xml", _tracklets_xml("10.0"))),
         "--keyframe-calib", str(t / "nowhere"), "--out", str(o)]),

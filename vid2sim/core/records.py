@@ -25,7 +25,6 @@ from vid2sim.core.vocabulary import (  # noqa: F401  part of the records' vocabu
 
 # --------------------------------------------------------------------------- notes
 
-
 class NoteKind(str, Enum):
     """What a line for the user is."""
 

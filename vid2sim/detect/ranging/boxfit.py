@@ -126,20 +126,12 @@ class BoxFit:
         return self.cov[:, 0, 0] * self.range_m ** 2
 
     @property
-    def lateral_var_m2(self) -> np.ndarray:
-        return self.cov[:, 1, 1]
-
-    @property
     def width_var_m2(self) -> np.ndarray:
         return self.cov[:, 2, 2]
 
     @property
     def height_var_m2(self) -> np.ndarray:
         return self.cov[:, 3, 3]
-
-    @property
-    def range_lateral_cov_m2(self) -> np.ndarray:
-        return self.cov[:, 0, 1] * self.range_m
 
     @property
     def range_white_var_m2(self) -> np.ndarray:
