@@ -226,10 +226,16 @@ def ego_speed_check(raw: Path) -> str:
     return "\n".join(lines)
 
 
-def _oxts_csv(raw: Path, skip: int, out: Path) -> float:
+def _oxts_csv(raw: Path, skip: int, out: Path, container_clock: bool = False) -> float:
     """The OXTS fixes from the ``skip``-th on as a CSV with no video clock (times on an
     arbitrary UTC base), speed and course from the INS; the true video time [s, container
-    clock] of its first fix."""
+    clock] of its first fix.
+
+    KITTI's ``video.mp4`` plays its frames at 10 fps while the camera captured them every
+    0.1032 s: video time runs 3.1 % slow against the OXTS's, which one offset cannot
+    absorb (the sync fits an offset, as a dash-cam's clocks differ by one). With
+    ``container_clock`` the fixes are re-timed onto the video's clock through the camera's
+    timestamps (the drive as a camera with a true frame clock would have recorded it)."""
     from vid2sim.geo.oxts import OXTS_LAT, OXTS_LON, OXTS_VE, OXTS_VN, OXTS_YAW
     from vid2sim.geo.readers import kitti_time_s, read_kitti_oxts_table
 
@@ -238,30 +244,38 @@ def _oxts_csv(raw: Path, skip: int, out: Path) -> float:
                      .read_text().split("\n") if s.strip()])
     cam_t = np.array([kitti_time_s(s) for s in (raw / "image_00_timestamps.txt")
                       .read_text().split("\n") if s.strip()])
-    rows = ["t,lat,lon,speed,heading"]
-    for i in range(skip, len(table)):
-        course = (90.0 - math.degrees(table[i, OXTS_YAW])) % 360.0
-        rows.append(f"{1.3e9 + ox_t[i]:.3f},{table[i, OXTS_LAT]:.8f},{table[i, OXTS_LON]:.8f},"
-                    f"{math.hypot(table[i, OXTS_VN], table[i, OXTS_VE]):.3f},{course:.3f}")
-    out.write_text("\n".join(rows) + "\n")
     cap = cv2.VideoCapture(str(raw / "video.mp4"))
     fps = cap.get(cv2.CAP_PROP_FPS)
     cap.release()
+    video_t = np.interp(ox_t, cam_t, np.arange(len(cam_t)),
+                        left=np.nan, right=np.nan) / fps
+    # beyond the camera's span: the camera's mean interval
+    dt = float(np.mean(np.diff(cam_t)))
+    video_t = np.where(np.isfinite(video_t), video_t, (ox_t - cam_t[0]) / dt / fps)
+    times = video_t if container_clock else ox_t - ox_t[0]
+    rows = ["t,lat,lon,speed,heading"]
+    for i in range(skip, len(table)):
+        course = (90.0 - math.degrees(table[i, OXTS_YAW])) % 360.0
+        rows.append(f"{1.3e9 + times[i]:.3f},{table[i, OXTS_LAT]:.8f},{table[i, OXTS_LON]:.8f},"
+                    f"{math.hypot(table[i, OXTS_VN], table[i, OXTS_VE]):.3f},{course:.3f}")
+    out.write_text("\n".join(rows) + "\n")
     # the fix's time as a (fractional) frame index of the camera's own timestamps, on the
     # container's clock (frame / fps): what the tool's video time is
-    return float(np.interp(ox_t[skip], cam_t, np.arange(len(cam_t)))) / fps
+    return float(video_t[skip])
 
 
 def sync_check(raw: Path, cache: Path) -> list[dict]:
     """(f) GPS-video time sync on KITTI raw 0001: the OXTS as a CSV without a video clock,
-    whole and with its first 1.5 s removed (the GPS starts late); ``calibrate`` without a
-    camera file or ``--gps-offset``: the estimated video time of the first fix against the
-    truth from the camera's and the OXTS's timestamps."""
+    whole and with its first 1.5 s removed (the GPS starts late), on the OXTS's clock and
+    re-timed onto the video's (:func:`_oxts_csv`); ``calibrate`` without a camera file or
+    ``--gps-offset``: the estimated video time of the first fix against the truth from the
+    camera's and the OXTS's timestamps."""
     rows = []
-    for skip in (0, 15):
-        gps = cache / f"oxts_skip{skip}.csv"
-        truth_s = _oxts_csv(raw, skip, gps)
-        out = cache / f"sync_skip{skip}.camera.yaml"
+    for skip, clock in ((0, False), (15, False), (0, True), (15, True)):
+        label = "video clock" if clock else "OXTS clock"
+        gps = cache / f"oxts_skip{skip}_{clock}.csv"
+        truth_s = _oxts_csv(raw, skip, gps, clock)
+        out = cache / f"sync_skip{skip}_{clock}.camera.yaml"
         t0 = time.process_time()
         text = run_calibrate(Inputs(video=raw / "video.mp4", gps=gps), out,
                              Settings(progress=False, camera_cache=False))
@@ -272,7 +286,7 @@ def sync_check(raw: Path, cache: Path) -> list[dict]:
         off = rec.get("gps_offset_s") or {}
         est = load_camera(out)
         cam = load_camera(raw / "camera.yaml")
-        rows.append({"clip": f"kitti 0001 gps -{skip / 10:.1f} s", "truth_s": truth_s,
+        rows.append({"clip": f"kitti 0001 gps -{skip / 10:.1f} s, {label}", "truth_s": truth_s,
                      "offset_s": off.get("value"), "std_s": off.get("std"),
                      "observable": off.get("observable"),
                      "fx_pct": 100 * (est.fx / cam.fx - 1),

@@ -57,13 +57,15 @@ class CameraPrior:
                 v = raw[key]
                 # text that spells a number is one, as in a camera file (PyYAML reads
                 # ``1e6``, without a sign in the exponent, as text)
-                try:
-                    if isinstance(v, bool) or not isinstance(v, (int, float, str)):
-                        raise ValueError(v)
-                    vals[key] = float(v)
-                except ValueError:
-                    raise FormatError(path, f"camera prior {key} is not a number: {v!r}"
-                                      ) from None
+                number = None
+                if not isinstance(v, bool) and isinstance(v, (int, float, str)):
+                    try:
+                        number = float(v)
+                    except ValueError:
+                        number = None
+                if number is None:
+                    raise FormatError(path, f"camera prior {key} is not a number: {v!r}")
+                vals[key] = number
         return cls(values=vals, path=str(path) if path else None)
 
     def check(self, width_px: int, height_px: int) -> None:
