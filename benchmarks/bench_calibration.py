@@ -338,6 +338,9 @@ def cost_check(raw: Path, shared: Path, cache: Path) -> dict:
                       "cpu_s": c1.ru_utime + c1.ru_stime - c0.ru_utime - c0.ru_stime,
                       "stages": dict(res.stage_seconds)}
     a, b = out["camera file"], out["self-calibrated"]
+    for key in dict.fromkeys([*a["stages"], *b["stages"]]):
+        print(f"  {key}: {a['stages'].get(key, 0.0):.1f} s with the file, "
+              f"{b['stages'].get(key, 0.0):.1f} s self-calibrated")
     calib = sum(v for k_, v in b["stages"].items() if k_ in ("calibration cues",
                                                               "calibrate camera"))
     print(f"cost on the 60 s 720p clip (no GPS): build with the camera file {a['wall_s']:.1f} s "

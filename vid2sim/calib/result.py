@@ -170,7 +170,25 @@ def _notes(params: dict[str, ParameterEstimate], sol: Solution, inp: Calibration
               "yaw_deg": "straight ahead"}
     for key, p in params.items():
         if p.source is ParameterSource.PRIOR and key in priors and key != "k2":
+            z = _prior_sigmas(key, p.value, inp, cfg)
+            kept = (f"prior {p.value:.4g} {_KEYS[key][2]} = {priors[key]}" if abs(z) <= 1.0
+                    else f"kept at {p.value:.4g} {_KEYS[key][2]}, {z:+.1f} sigma from the "
+                    f"prior ({priors[key]}): the fit moved it with the parameters it trades "
+                    "off against, the clip's cues do not fix it: a guess").replace("  ", " ")
             notes.append(Note.warning(
-                f"camera {key} not observable in this clip (needs {_NEEDS[key]}): prior "
-                f"{p.value:.4g} {_KEYS[key][2]} = {priors[key]}, +- {p.std:.2g}".rstrip()))
+                f"camera {key} not observable in this clip (needs {_NEEDS[key]}): {kept}, "
+                f"+- {p.std:.2g}".rstrip()))
     return notes
+
+
+def _prior_sigmas(key: str, value: float, inp: CalibrationInput, cfg: CalibrationConfig
+                  ) -> float:
+    """How many prior sigmas ``value`` lies from the named prior's value."""
+    if key == "fx":
+        f0 = (inp.width_px / 2.0) / math.tan(math.radians(cfg.hfov_prior_deg) / 2.0)
+        return math.log(max(value, 1e-9) / f0) / cfg.log_f_prior_std
+    if key == "height_m":
+        return math.log(max(value, 1e-9) / cfg.height_prior_m) / cfg.log_h_prior_std
+    if key == "k1":
+        return value / cfg.k1_prior_std
+    return value / (cfg.roll_prior_deg if key == "roll_deg" else cfg.mount_prior_deg)
