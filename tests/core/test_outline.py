@@ -116,18 +116,3 @@ def test_vectorised_boxes_match_single_ones():
         one = project_outline(KITTI, r[k], y[k], 2.0, 2.0, 6.0, CLASS_SHAPES[cats[k]],
                               clip=False)
         np.testing.assert_allclose(got[k], one)
-
-
-def test_skirts_hide_the_wheels_contact():
-    # A tram 60 m straight ahead: with bare wheels the box bottom is the first bogie's rail
-    # contact 3.5 m behind its end face (row cy + f H / 63.5); with skirts down to the end
-    # face's lower edge (0.35 m) it is that edge at the end face (cy + f (H - 0.35) / 60).
-    tram = CLASS_SHAPES["tram"]
-    bare = replace(tram, skirt_m=0.0)
-    f, cy, h = KITTI.fy, KITTI.cy, KITTI.height_m
-    got_bare = project_outline(KITTI, 60.0, 0.0, 2.55, 3.5, 30.0, bare, clip=False)
-    got_skirt = project_outline(KITTI, 60.0, 0.0, 2.55, 3.5, 30.0, tram, clip=False)
-    assert got_bare[3] == pytest.approx(cy + f * h / 63.5, abs=1e-6)
-    assert got_skirt[3] == pytest.approx(cy + f * (h - 0.35) / 60.0, abs=1e-6)
-    # a car's wheels show: no skirt, its contact unchanged
-    assert CAR_SHAPE.skirt_m == 0.0

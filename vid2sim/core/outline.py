@@ -69,10 +69,6 @@ class OutlineShape:
         width on each side, and their height above the road.
     front_contact_m : float
         Depth of the front tyres' contact behind the front end (front overhang).
-    skirt_m : float
-        Height of the body sides' lower edge where it covers the wheels (0: the wheels show
-        and meet the road): a skirted vehicle's lowest visible points over its wheels are
-        that edge on the body side, not the wheels' contact.
     """
 
     rear_clearance_m: float
@@ -89,7 +85,6 @@ class OutlineShape:
     mirror_out_m: float
     mirror_height_m: float
     front_contact_m: float
-    skirt_m: float = 0.0
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -145,7 +140,7 @@ TRAM_SHAPE = OutlineShape(rear_clearance_m=0.35, rear_inset_m=0.05, rear_top_fra
                           contact_m=3.5, tyre_inset_m=0.3, widest_m=0.0, belt_frac=0.85,
                           roof_rear_m=0.3, roof_front_m=0.3, roof_inset_m=0.15,
                           mirror_from_front_m=0.5, mirror_out_m=0.25, mirror_height_m=2.2,
-                          front_contact_m=3.5, skirt_m=0.35)
+                          front_contact_m=3.5)
 MOTORCYCLE_SHAPE = OutlineShape(rear_clearance_m=0.35, rear_inset_m=0.1, rear_top_frac=0.7,
                                 contact_m=0.25, tyre_inset_m=0.3, widest_m=0.6,
                                 belt_frac=0.6, roof_rear_m=0.5, roof_front_m=0.7,
@@ -206,18 +201,14 @@ def outline_points(width_m: np.ndarray, height_m: np.ndarray, length_m: np.ndarr
         return np.clip(x, 0.0, length)
 
     front_wide = lim(length - shape["widest_m"])
-    # The wheels' contact with the road, or where skirts cover them, the skirts' lower edge
-    # on the body side above them.
-    skirt = np.minimum(shape["skirt_m"], c)
-    wheel_half = np.where(skirt > 0, half, half - shape["tyre_inset_m"])
     rows = [
         # (x, half-width, z) of one side's points
         (np.zeros(n), half - shape["rear_inset_m"], c),
         (np.zeros(n), half - shape["rear_inset_m"], np.maximum(shape["rear_top_frac"] * h, c)),
         (lim(shape["widest_m"]), half, c),
         (lim(shape["widest_m"]), half, shape["belt_frac"] * h),
-        (lim(shape["contact_m"]), wheel_half, skirt),
-        (lim(length - shape["front_contact_m"]), wheel_half, skirt),
+        (lim(shape["contact_m"]), half - shape["tyre_inset_m"], np.zeros(n)),
+        (lim(length - shape["front_contact_m"]), half - shape["tyre_inset_m"], np.zeros(n)),
         (lim(shape["roof_rear_m"]), half - shape["roof_inset_m"], h),
         (lim(length - shape["roof_front_m"]), half - shape["roof_inset_m"], h),
         (lim(length - shape["mirror_from_front_m"]), half + shape["mirror_out_m"],
