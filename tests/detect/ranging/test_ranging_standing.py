@@ -264,3 +264,32 @@ def test_bottom_below_the_image_keeps_the_learnt_scale():
     rel = np.array([(b.range_m - x) / x for b, x in zip(result.boxes, truth, strict=True)])
     assert np.median(np.abs(rel[cut])) < 0.05 and abs(np.median(rel[cut])) < 0.04
     assert any("learnt while its bottom was visible" in str(n) for n in result.warnings)
+
+
+def test_a_car_parked_crosswise_beside_the_road_stands_at_its_nearest_face():
+    # A car in a car park's bay 20 m to the left, its long axis across the road (KITTI raw
+    # 0001's car park): its box is its flank and its nearest face, which no car parallel to
+    # the road explains; fitted crosswise it stands, its range the near face's depth.
+    path = straight_path(8.0)
+    centre = (45.0, 20.0)
+    shape = shape_matrix([CLASS_SHAPES["car"]])
+    rng = np.random.default_rng(3)
+    boxes, truth = [], []
+    for k, t in enumerate(path.t_s):
+        if t > 2.5 + 1e-9:
+            break
+        ex, eh = float(np.interp(t, path.t_s, path.x_m)), 0.0
+        cx, cy = centre[0] - ex, centre[1]
+        box = outline_boxes(CAM, np.array([cx - L / 2]), np.array([cy]), np.array([W]),
+                            np.array([H]), np.array([L]), shape, math.pi / 2 - eh)[0]
+        if box[0] < 10:
+            break
+        b = box + rng.normal(0, 0.5, 4)
+        boxes.append(TrackedBox(k, round(float(t), 6), 1, "car", 0.9, *b))
+        truth.append(cx - W / 2)
+    result = range_tracks(boxes, CAM, ego_path=path)
+    assert 1 in result.standing_tracks
+    rel = np.array([b.range_m for b in result.boxes]) / np.array(truth) - 1
+    assert np.median(np.abs(rel)) < 0.03
+    rates = np.array([b.range_rate_mps for b in result.boxes])
+    assert np.nanmedian(np.abs(rates + 8.0)) < 0.3

@@ -133,6 +133,9 @@ class StandingFit:
     range_m: np.ndarray
     lateral_m: np.ndarray
     converged: bool
+    #: the vehicle's heading relative to the ego's travel [rad]: 0 parallel (a kerbside row),
+    #: pi / 2 crosswise (a car park's bays)
+    body_yaw_rad: float = 0.0
 
     @property
     def ground_m(self) -> float:
@@ -169,7 +172,8 @@ def fit_standing_track(camera: Camera, obs: np.ndarray, sig: np.ndarray, use: np
                        outline: np.ndarray, poses: np.ndarray, start: np.ndarray,
                        prior_mean: np.ndarray, prior_std: np.ndarray,
                        robust_sigmas: float = 3.0, yaw_ref_rad: float = 0.0,
-                       max_iterations: int | None = None) -> StandingFit:
+                       max_iterations: int | None = None, body_yaw_rad: float = 0.0
+                       ) -> StandingFit:
     """Fit one track's boxes as ONE standing vehicle seen from the ego's poses.
 
     Parameters
@@ -192,12 +196,16 @@ def fit_standing_track(camera: Camera, obs: np.ndarray, sig: np.ndarray, use: np
         (:attr:`EgoPath.travel_yaw_rad`), as a parked or queued vehicle stands.
     max_iterations : int, optional
         Levenberg-Marquardt steps at most (default :data:`MAX_ITERATIONS`).
+    body_yaw_rad : float
+        The vehicle's heading relative to ``yaw_ref_rad`` (pi / 2: parked crosswise, as in a
+        car park's bays); its reported range is then its nearest face's.
 
     Returns
     -------
     StandingFit
     """
-    args = (camera, obs, sig, use, outline, poses, prior_mean, prior_std, yaw_ref_rad)
+    args = (camera, obs, sig, use, outline, poses, prior_mean, prior_std,
+            yaw_ref_rad + body_yaw_rad)
     theta = np.asarray(start, float).copy()
     n_edge = obs.size
     r0, jac = _residuals_and_jacobian(*args, theta=theta)
@@ -228,7 +236,8 @@ def fit_standing_track(camera: Camera, obs: np.ndarray, sig: np.ndarray, use: np
         if done:
             converged = True
             break
-    return _standing_fit(theta, r0, jac, use, poses, robust_sigmas, yaw_ref_rad, converged)
+    return _standing_fit(theta, r0, jac, use, poses, robust_sigmas, yaw_ref_rad, converged,
+                         body_yaw_rad)
 
 
 #: Levenberg-Marquardt: tries of a larger damping before a step is given up.
@@ -251,7 +260,7 @@ def _robust_cost(r: np.ndarray, n_edge: int, c: float) -> float:
 
 def _standing_fit(theta: np.ndarray, r0: np.ndarray, jac: np.ndarray, use: np.ndarray,
                   poses: np.ndarray, robust_sigmas: float, yaw_ref_rad: float,
-                  converged: bool) -> StandingFit:
+                  converged: bool, body_yaw_rad: float = 0.0) -> StandingFit:
     """The fit's covariance (robust weights at the solution), normalised residual and the
     vehicle's place at every box."""
     n_edge = use.size
@@ -263,7 +272,12 @@ def _standing_fit(theta: np.ndarray, r0: np.ndarray, jac: np.ndarray, use: np.nd
     chi2 = float(np.sum(robust_sigmas ** 2 * np.log1p((edge / robust_sigmas) ** 2)))
     chi2_per_dof = chi2 / max(int(use.sum()) - N_PARAMS, 1)
     rng, lat, _ = place_standing(theta, poses, yaw_ref_rad)
-    return StandingFit(theta, cov, chi2_per_dof, rng, lat, converged)
+    # the range is that of the face nearest the ego: a crosswise vehicle's footprint reaches
+    # half its width, not half its length, short of its centre
+    half_l, half_w = theta[4] / 2, theta[2] / 2
+    rng = rng + half_l - (half_l * abs(math.cos(body_yaw_rad))
+                          + half_w * abs(math.sin(body_yaw_rad)))
+    return StandingFit(theta, cov, chi2_per_dof, rng, lat, converged, body_yaw_rad)
 
 
 def _residuals(camera: Camera, obs: np.ndarray, sig: np.ndarray, use: np.ndarray,

@@ -166,6 +166,8 @@ def find_standing_tracks(camera: Camera, ba: BoxArrays, t_s: np.ndarray,
         if why:
             fit, why = _one_sided(camera, problems[tid], fit, why, out.travel_yaw_rad, config)
         if why:
+            fit, why = _crosswise(camera, problems[tid], fit, why, out.travel_yaw_rad, config)
+        if why:
             out.rejected[tid] = why
         else:
             out.fits[tid] = fit
@@ -191,6 +193,23 @@ def _one_sided(camera: Camera, problem: _StandingProblem, fit: StandingFit, why:
     return (best[1], None) if best is not None else (fit, why)
 
 
+def _crosswise(camera: Camera, problem: _StandingProblem, fit: StandingFit, why: str,
+               travel_yaw_rad: float, config: RangingConfig) -> tuple[StandingFit, str | None]:
+    """A track beside the road that fits no standing vehicle parallel to the ego's travel,
+    refitted as one parked crosswise (a car park's bays, perpendicular parking): its box is
+    then its flank (a car's length) and its nearest face, which the parallel model can only
+    explain by an implausible size or a common scale (a moving car). The crosswise fit if it
+    is a plausible standing vehicle, else the reason of the parallel one."""
+    if abs(float(problem.start[1])) <= config.standing_road_half_width_m:
+        return fit, why  # in the driving lanes a vehicle stands along the road
+    cross = replace(problem, body_yaw_rad=math.pi / 2)
+    start = problem.start.copy()
+    f = cross.fit(camera, travel_yaw_rad, config, start)
+    if cross.verdict(f, camera, travel_yaw_rad, config) is None:
+        return f, None
+    return fit, why
+
+
 #: Levenberg-Marquardt steps of each warm-started fit of the direction-of-travel search (a
 #: tenth of a degree moves the optimum a few centimetres: it converges in 3-6).
 YAW_SEARCH_ITERATIONS = 8
@@ -209,6 +228,8 @@ class _StandingProblem:
     prior_mean: np.ndarray
     prior_std: np.ndarray
     ground_std_m: float
+    #: the vehicle's heading relative to the ego's travel (0 parallel, pi / 2 crosswise)
+    body_yaw_rad: float = 0.0
 
     @classmethod
     def build(cls, camera: Camera, ba: BoxArrays, t_s: np.ndarray, idx: np.ndarray,
@@ -233,7 +254,7 @@ class _StandingProblem:
                                   self.poses_at(travel_yaw_rad),
                                   self.start if start is None else start, self.prior_mean,
                                   self.prior_std, config.standing_robust_sigmas,
-                                  travel_yaw_rad, max_iterations)
+                                  travel_yaw_rad, max_iterations, self.body_yaw_rad)
 
     def verdict(self, fit: StandingFit, camera: Camera, travel_yaw_rad: float,
                 config: RangingConfig, scale_test: bool = True) -> str | None:
