@@ -12,9 +12,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from vid2sim.core.records import Detection, Frame, TrackedBox
+from vid2sim.core.records import Detection, Frame, RangedBox
 from vid2sim.detect.ahead import DetectAhead, lookahead
-from vid2sim.detect.frameloop import BetweenFrames
+from vid2sim.detect.frameloop import fill_between
 from vid2sim.detect.pipeline import run_detect
 from vid2sim.detect.schedule import BAND, LOCAL, SWEEP, KeyframeGrid, KeyframeSchedule, ScheduleConfig
 from vid2sim.detect.tracking.tracker import LOST, TRACKED, Tracker
@@ -140,7 +140,7 @@ def test_the_grid_depends_on_time_only_and_sweeps_on_its_own_cadence():
     grid = KeyframeGrid(ScheduleConfig(keyframe_s=0.3, sweep_s=0.9))
     plans = [grid.plan(i / 10) for i in range(12)]
     assert plans == [SWEEP, None, None, BAND, None, None, BAND, None, None, SWEEP, None, None]
-    every = KeyframeGrid(ScheduleConfig(keyframe_s=0.3))  # sweep_s 0: every grid keyframe
+    every = KeyframeGrid(ScheduleConfig(keyframe_s=0.3, sweep_s=0))  # every grid keyframe
     assert [every.plan(i / 10) for i in range(7)] == [SWEEP, None, None, SWEEP, None, None,
                                                        SWEEP]
     sparse = KeyframeGrid(ScheduleConfig(keyframe_s=0.3, sweep_s=0.9))
@@ -244,19 +244,24 @@ def test_a_30_fps_video_is_analysed_at_10_hz_with_rows_on_every_frame(tmp_path):
     assert mid.t_s == pytest.approx(31 / 30, abs=2e-3)
 
 
-def test_between_frames_interpolates_tracks_seen_on_both_sides_only():
-    between = BetweenFrames()
+def test_fill_between_interpolates_tracks_seen_on_both_sides_only():
+    def box(frame, tid, x, rng=20.0):
+        return RangedBox(frame, frame / 30, tid, "car", 0.8, x, 10.0, x + 20.0, 30.0,
+                         range_m=rng, lateral_m=1.0, range_rate_mps=-3.0, range_std_m=1.0,
+                         is_lead=tid == 1, lane=0)
 
-    def box(frame, t, tid, x):
-        return TrackedBox(frame, t, tid, "car", 0.8, x, 10.0, x + 20.0, 30.0)
-
-    assert between.analysed([box(0, 0.0, 1, 0.0), box(0, 0.0, 2, 50.0)]) == [
-        box(0, 0.0, 1, 0.0), box(0, 0.0, 2, 50.0)]
-    between.hold(1, 0.1)
-    between.hold(2, 0.2)
-    out = between.analysed([box(3, 0.3, 1, 30.0), box(3, 0.3, 3, 90.0)])
-    assert [(r.frame, r.track_id, round(r.x1, 6)) for r in out] == [
-        (1, 1, 10.0), (2, 1, 20.0), (3, 1, 30.0), (3, 3, 90.0)]
+    times = {i: i / 30 for i in range(7)}
+    rows = [box(0, 1, 0.0), box(0, 2, 50.0), box(3, 1, 30.0, 17.0), box(3, 3, 90.0),
+            box(6, 3, 96.0)]
+    out = fill_between(rows, times, 3)
+    assert [(r.frame, r.track_id) for r in out] == [
+        (0, 1), (0, 2), (1, 1), (2, 1), (3, 1), (3, 3), (4, 3), (5, 3), (6, 3)]
+    one = {r.frame: r for r in out if r.track_id == 1}
+    assert one[1].x1 == pytest.approx(10.0) and one[2].range_m == pytest.approx(18.0)
+    assert one[1].t_s == pytest.approx(1 / 30) and one[2].is_lead and one[2].lane == 0
+    assert fill_between(rows, times, 1) is rows
+    del times[4]  # a frame that did not decode gets no row
+    assert [r.frame for r in fill_between(rows, times, 3) if r.track_id == 3] == [3, 5, 6]
 
 
 def test_analysis_step_names_the_rate():

@@ -3,13 +3,17 @@ the boxes by optical flow, then track; and the rows of the frames between analys
 
 :class:`ScheduledTracking` is the per-frame work of :func:`vid2sim.detect.pipeline.run_detect`
 with a detector and a keyframe schedule; :class:`Looks` says where each keyframe looks;
-:class:`BetweenFrames` interpolates the boxes of the frames a fast video skips (analysed at
-:attr:`~vid2sim.detect.schedule.ScheduleConfig.analysis_hz`).
+:func:`fill_between` interpolates the boxes of the frames a fast video skips (analysed at
+:attr:`~vid2sim.detect.schedule.ScheduleConfig.analysis_hz`), after the ranging, so that the
+ranging too costs what a 10 Hz video does.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
+from itertools import pairwise
+from typing import TypeVar
 
 import numpy as np
 
@@ -27,6 +31,8 @@ from vid2sim.detect.vehicles.windows import (
     seen_by,
     tracks_look,
 )
+
+B = TypeVar("B", bound=TrackedBox)
 
 
 class Looks:
@@ -162,35 +168,36 @@ class ScheduledTracking:
         return out
 
 
-class BetweenFrames:
-    """Rows of the frames between two analysed frames (a fast video analysed at a lower
-    rate): each track seen on both is interpolated linearly in time between its two boxes,
-    with the earlier frame's score; a track on one side only has no row between."""
-
-    def __init__(self) -> None:
-        self._last: dict[int, TrackedBox] = {}
-        self._waiting: list[tuple[int, float]] = []
-
-    def hold(self, index: int, t_s: float) -> None:
-        """A frame not analysed (0-based ``index``, time ``t_s`` [s]), in order."""
-        self._waiting.append((index, t_s))
-
-    def analysed(self, rows: list[TrackedBox]) -> list[TrackedBox]:
-        """The rows of the frames held since the last analysed frame, then ``rows`` (this
-        analysed frame's)."""
-        now = {r.track_id: r for r in rows}
-        both = sorted(self._last.keys() & now.keys())
-        out = []
-        for index, t_s in self._waiting:
-            for tid in both:
-                out.append(_between(self._last[tid], now[tid], index, t_s))
-        self._waiting.clear()
-        self._last = now
-        return out + rows
+INTERPOLATED_FIELDS = ("x1", "y1", "x2", "y2", "range_m", "lateral_m", "range_rate_mps",
+                       "range_std_m", "width_m", "lateral_rate_mps", "lane_offset_m")
+"""Fields of a tracked (or ranged) box interpolated between two analysed frames; the others
+(score, category, lead, lane) are the earlier frame's."""
 
 
-def _between(a: TrackedBox, b: TrackedBox, frame: int, t_s: float) -> TrackedBox:
+def fill_between(boxes: list[B], frame_times_s: dict[int, float], step: int) -> list[B]:
+    """The rows of a video analysed on every ``step``-th frame, with a row added on every
+    frame between two analysed frames for each track seen on both: its fields interpolated
+    linearly in time (the frame's time from ``frame_times_s``, 0-based index -> s; frames
+    absent from it get no row). Sorted by frame, then track; ``step`` 1 returns ``boxes``."""
+    if step <= 1 or not boxes:
+        return boxes
+    by_track: dict[int, list[B]] = {}
+    for b in sorted(boxes, key=lambda b: (b.track_id, b.frame)):
+        by_track.setdefault(b.track_id, []).append(b)
+    names = [f for f in INTERPOLATED_FIELDS if f in boxes[0].__dataclass_fields__]
+    out = list(boxes)
+    for rows in by_track.values():
+        for a, b in pairwise(rows):
+            if b.frame - a.frame != step:
+                continue
+            for frame in range(a.frame + 1, b.frame):
+                if frame in frame_times_s:
+                    out.append(_between(a, b, frame, frame_times_s[frame], names))
+    out.sort(key=lambda r: (r.frame, r.track_id))
+    return out
+
+
+def _between(a: B, b: B, frame: int, t_s: float, names: list[str]) -> B:
     w = (t_s - a.t_s) / (b.t_s - a.t_s) if b.t_s > a.t_s else 0.0
-    return TrackedBox(frame=frame, t_s=t_s, track_id=a.track_id, category=a.category,
-                      score=a.score, x1=a.x1 + w * (b.x1 - a.x1), y1=a.y1 + w * (b.y1 - a.y1),
-                      x2=a.x2 + w * (b.x2 - a.x2), y2=a.y2 + w * (b.y2 - a.y2))
+    values = {n: getattr(a, n) + w * (getattr(b, n) - getattr(a, n)) for n in names}
+    return replace(a, frame=frame, t_s=t_s, **values)

@@ -27,7 +27,7 @@ from vid2sim.core.records import (
 from vid2sim.core.videofile import skipped_frames_note
 from vid2sim.detect.ahead import AHEAD_FRAMES, DetectAhead, lookahead
 from vid2sim.detect.assign import relane
-from vid2sim.detect.frameloop import BetweenFrames, Looks, ScheduledTracking
+from vid2sim.detect.frameloop import Looks, ScheduledTracking, fill_between
 from vid2sim.detect.lanes.markings import LaneMarkingConfig, LaneMarkingDetector
 from vid2sim.detect.lanes.track import LaneTrackConfig, track_lanes
 from vid2sim.detect.lanes.vanishing import HorizonEstimator, yaw_for_vanishing_column
@@ -53,7 +53,8 @@ def run_detect(source: Path, *, detector: Detector | None,
                stats: dict | None = None, capture_clock: bool = False,
                skipped_frames: list[int] | None = None,
                frame_times: dict[int, float] | None = None,
-               horizon_row_px: float | None = None, ahead: bool = True) -> list[TrackedBox]:
+               horizon_row_px: float | None = None, ahead: bool = True,
+               fill: bool = True) -> list[TrackedBox]:
     """Detect and track vehicles through a video, one frame in memory at a time.
 
     Parameters
@@ -112,6 +113,10 @@ def run_detect(source: Path, *, detector: Detector | None,
     ahead : bool
         Run the grid keyframes' detector in a worker thread ahead of the tracker (the same
         boxes as without; off for detectors that are not thread-safe).
+    fill : bool
+        With the schedule on a video analysed on every N-th frame: add the rows of the
+        frames between, interpolated (:func:`~vid2sim.detect.frameloop.fill_between`);
+        False returns the analysed frames' rows only (the ranging fills them after).
 
     Returns
     -------
@@ -148,9 +153,12 @@ def run_detect(source: Path, *, detector: Detector | None,
     finally:
         run.close()
     if stats is not None:
-        stats.update(frames=n_seen, **run.stats())
+        stats.update(frames=n_seen, analysis_step=run.step_frames, **run.stats())
     _check_boxes_cover(source, detections, n_seen)
-    return tracker.finalize(rows)
+    rows = tracker.finalize(rows)
+    if fill and isinstance(run, _Scheduled):
+        rows = fill_between(rows, clock.all_times, run.step_frames)
+    return rows
 
 
 def _check_box_source(detector, detections, detect_every: int) -> None:
@@ -174,13 +182,14 @@ class _ClockSwap:
     image, as the annotations and the scenario expect; with the capture clock the tracker's
     association clock follows the numbering, so it sees the real spacing (sparse: motion
     model first, a single confident box kept), and the rows get the shown time back. Also
-    records every streamed frame's shown time in ``frame_times``."""
+    records every streamed frame's shown time in ``all_times`` (the caller's
+    ``frame_times``, if given)."""
 
     def __init__(self, source: Path | None, fps: float, frame_times: dict[int, float] | None):
         steps = folder_frame_steps(source) if source is not None else None
         self.clock = (None if steps is None or steps == list(range(len(steps)))
                       else np.asarray(steps, dtype=float) / fps)
-        self.frame_times = frame_times
+        self.all_times: dict[int, float] = frame_times if frame_times is not None else {}
         self._shown: dict[int, float] = {}
 
     @classmethod
@@ -189,8 +198,7 @@ class _ClockSwap:
 
     def frames(self, frames: Iterator[Frame]) -> Iterator[Frame]:
         for frame in frames:
-            if self.frame_times is not None:
-                self.frame_times[frame.index] = frame.t_s
+            self.all_times[frame.index] = frame.t_s
             if self.clock is not None:
                 self._shown[frame.index] = frame.t_s
                 frame = replace(frame, t_s=float(self.clock[frame.index]))
@@ -246,7 +254,6 @@ class _Scheduled:
         self.loop = ScheduledTracking(detector, tracker, self.keys, self.carrier, looks,
                                       self.worker)
         self.step_frames = schedule.analysis_step(info.fps)
-        self.between = BetweenFrames()
         self.n_analysed = 0
 
     def observers(self) -> list[Callable[[Frame], None]]:
@@ -257,11 +264,10 @@ class _Scheduled:
         return lookahead(frames, AHEAD_FRAMES * self.step_frames, self.loop.visit)
 
     def step(self, frame: Frame) -> list[TrackedBox]:
-        if frame.image_bgr is None:
-            self.between.hold(frame.index, frame.t_s)
+        if frame.image_bgr is None:  # a frame between two analysed ones
             return []
         self.n_analysed += 1
-        return self.between.analysed(self.loop.step(frame))
+        return self.loop.step(frame)
 
     def stats(self) -> dict:
         return {"keyframes": self.keys.n_keyframes, "keyframe_reasons": dict(self.keys.reasons),
@@ -360,15 +366,18 @@ def detect_and_range(video: Path, camera: Camera, *, detector, detections=None,
         What was estimated and why, for the summary.
     """
     notes: list[Note] = []
+    rate = video_info(video, fps=fps).fps
+    step = (schedule.analysis_step(rate) if (schedule is not None and detector is not None
+                                             and detect_every == 1) else 1)
     lanes_seen = _LaneObserver(camera, markings,
-                               lane_every or _lane_every(video, fps, detector, schedule))
+                               lane_every or max(1, round(LANE_INTERVAL_S * rate / step)))
     skipped: list[int] = []
     frame_times: dict[int, float] = {}
     boxes = run_detect(video, detector=detector, detections=detections,
                        detect_every=detect_every, progress=progress, fps=fps,
                        tracker_config=tracker_config, schedule=schedule, stats=stats,
                        on_frame=lanes_seen, skipped_frames=skipped, frame_times=frame_times,
-                       flow=flow, horizon_row_px=camera.horizon_y_px())
+                       flow=flow, horizon_row_px=camera.horizon_y_px(), fill=False)
     if skipped:
         notes.append(Note.warning(f"{Path(video).name}: {skipped_frames_note(skipped)}"))
     yaw_before = camera.yaw_deg
@@ -378,20 +387,13 @@ def detect_and_range(video: Path, camera: Camera, *, detector, detections=None,
                         lane_config)
     config = config or RangingConfig()
     result = _range_with_trams(boxes, camera, config, lanes, lanes_seen.horizon, rail, notes)
+    # A fast video is ranged on its analysed frames, its other frames filled after.
+    result.boxes = fill_between(result.boxes, frame_times, step)
     result.frame_times_s = frame_times
     if assign_lanes:
         result.boxes = relane(result.boxes, config, result.lanes,
                               never_lead_tracks=result.never_lead_tracks)
     return result, camera, notes
-
-
-def _lane_every(video: Path, fps: float | None, detector, schedule: ScheduleConfig | None
-                ) -> int:
-    """Decoded frames per lane-marking horizon: one per ``LANE_INTERVAL_S``, counted in the
-    frames the schedule analyses (every N-th of a fast video)."""
-    rate = video_info(video, fps=fps).fps
-    step = schedule.analysis_step(rate) if (schedule is not None and detector is not None) else 1
-    return max(1, round(LANE_INTERVAL_S * rate / step))
 
 
 class _LaneObserver:
