@@ -39,8 +39,8 @@ from pathlib import Path
 import cv2
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_compare import export  # noqa: E402 - a sibling benchmark script
-from bench_scale import looped_inputs, raw_detections  # noqa: E402
+from bench_compare import export
+from bench_scale import looped_inputs, raw_detections
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / "shared"
@@ -204,7 +204,7 @@ def main(argv: list[str] | None = None) -> int:
             return 2
     args.work.mkdir(parents=True, exist_ok=True)
     env = {**os.environ, "VID2SIM_MODEL_DIR": str(models)}
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=REPO,
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=REPO, check=False,
                             capture_output=True, text=True).stdout.strip()
     print(f"bench_throughput: {datetime.now(UTC):%Y-%m-%d %H:%M} UTC, commit {commit}"
           f"{' (+ working tree)' if _dirty() else ''}, {os.cpu_count()} CPUs, load average "
@@ -226,7 +226,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _dirty() -> bool:
-    return bool(subprocess.run(["git", "status", "--porcelain", "vid2sim"], cwd=REPO,
+    return bool(subprocess.run(["git", "status", "--porcelain", "vid2sim"], cwd=REPO, check=False,
                                capture_output=True, text=True).stdout.strip())
 
 

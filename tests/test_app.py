@@ -9,7 +9,7 @@ import pytest
 
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.settings import DetectorSettings, Settings, tracker_for_score
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import ImpossibleValueError, MissingInputError
 from vid2sim.cli import main
 from vid2sim.detect.tracking.tracker import TrackerConfig
 
@@ -73,20 +73,20 @@ def test_score_sets_the_tracker_thresholds_in_one_place():
     assert Settings(detector=DetectorSettings(score=0.6)).tracker_config() == t
 
 
-@pytest.mark.parametrize("inputs, words", [
-    (Inputs(video=Path("/nonexistent/v.mp4")), "no such file"),
-    (Inputs(fps=float("nan")), "finite"),
-    (Inputs(fps=-2.0), "fps"),
-    (Inputs(ego_speed_mps=500.0), "m/s"),
-    (Inputs(gps_offset_s=float("inf")), "finite"),
+@pytest.mark.parametrize("inputs, error, name", [
+    (Inputs(video=Path("/nonexistent/v.mp4")), MissingInputError, "v.mp4"),
+    (Inputs(fps=float("nan")), ImpossibleValueError, "fps"),
+    (Inputs(fps=-2.0), ImpossibleValueError, "fps"),
+    (Inputs(ego_speed_mps=500.0), ImpossibleValueError, "ego speed"),
+    (Inputs(gps_offset_s=float("inf")), ImpossibleValueError, "gps_offset_s"),
 ])
-def test_impossible_inputs_are_input_errors(inputs, words):
-    with pytest.raises(InputError, match=words):
+def test_impossible_inputs_are_input_errors(inputs, error, name):
+    with pytest.raises(error, match=name):
         inputs.check()
 
 
 def test_settings_refuse_impossible_values():
     for bad in (DetectorSettings(detect_every=0), DetectorSettings(score=1.5),
                 DetectorSettings(refine=-1)):
-        with pytest.raises(InputError):
+        with pytest.raises(ImpossibleValueError):
             Settings(detector=bad).check()

@@ -9,6 +9,7 @@ import sys
 import pytest
 
 from vid2sim import __version__
+from vid2sim.base.errors import FormatError, OutputError
 from vid2sim.cli import main
 from vid2sim.samples.sample_gps import write_sample_gpx
 
@@ -88,17 +89,19 @@ def test_failed_run_keeps_previous_output(tmp_path, capsys):
     assert out.read_text() == "previous\n"
 
 
-def test_output_folder_is_an_input_error(sample_gpx, tmp_path, capsys):
+def test_output_folder_is_an_input_error(sample_gpx, tmp_path, capsys, raised):
     assert main(["trace", str(sample_gpx), "--out", str(tmp_path)]) == 2
-    assert "is a folder" in capsys.readouterr().err
+    assert capsys.readouterr().err.startswith(f"error: {tmp_path}: ")
+    assert raised == [OutputError]  # a folder where the output file goes
 
 
-def test_verbose_error_shows_traceback(tmp_path, capsys):
+def test_verbose_error_shows_traceback(tmp_path, capsys, raised):
     empty = tmp_path / "empty.nmea"
     empty.write_text("")
     assert main(["-v", "trace", str(empty), "--out", str(tmp_path / "e.csv")]) == 2
     err = capsys.readouterr().err
-    assert err.startswith("error: ") and "empty file" in err and "Traceback" in err
+    assert err.startswith(f"error: {empty}: ") and "Traceback" in err
+    assert raised == [FormatError]  # an empty file
 
 
 @pytest.mark.parametrize("args", [
@@ -156,7 +159,8 @@ def test_unusable_output_path_is_one_line_error_before_any_work(command, sample_
 
 
 def test_readme_sections_name_only_options_their_command_has():
-    # Each README "### `vid2sim CMD ...`" section may only mention options CMD accepts
+    # Each "### `vid2sim CMD ...`" section of the README and docs/commands.md may only mention
+    # options CMD accepts
     # (the detect section once advertised a --fps that detect does not have).
     import re
     from pathlib import Path
@@ -165,7 +169,9 @@ def test_readme_sections_name_only_options_their_command_has():
 
     from vid2sim.cli import cli
 
-    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    root = Path(__file__).resolve().parents[1]
+    readme = "\n".join((root / name).read_text(encoding="utf-8")
+                       for name in ("README.md", "docs/commands.md"))
     other_programs = {"export": {"--log"}}  # DIR/replay.py's own option
     checked = 0
     for section in re.split(r"^### ", readme, flags=re.MULTILINE)[1:]:
@@ -181,3 +187,21 @@ def test_readme_sections_name_only_options_their_command_has():
         assert not unknown, f"README section of `vid2sim {cmd}` names {sorted(unknown)}"
         checked += 1
     assert checked >= 8
+
+
+def test_the_readme_is_short_and_the_docs_carry_the_rest():
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    readme = (root / "README.md").read_text(encoding="utf-8")
+    assert len(readme.splitlines()) <= 250
+    pages = sorted((root / "docs").glob("*.md"))
+    assert len(pages) >= 2
+    # user documentation names no issue numbers or work in progress
+    for page in [root / "README.md", *pages]:
+        text = page.read_text(encoding="utf-8")
+        assert not re.search(r"\bissue \d+|\(#\d+\)|this branch", text, re.IGNORECASE), page.name
+    # every page the README links to exists
+    for link in re.findall(r"\]\((docs/[^)#]+)", readme):
+        assert (root / link).exists(), link

@@ -19,6 +19,14 @@ import cv2
 import numpy as np
 import pytest
 
+from vid2sim.base.errors import (
+    FormatError,
+    ImpossibleValueError,
+    InconsistentInputError,
+    InputError,
+    OutputError,
+    ScenarioError,
+)
 from vid2sim.base.fileio import STAGING_PREFIX
 from vid2sim.cli import main
 
@@ -135,88 +143,89 @@ def _camera_with(tmp: Path, line: str) -> Path:
     return _write(tmp, "camera.yaml", text + "\n")
 
 
-# Each case: (id, command builder). A builder gets (world, tmp folder, out folder, out file)
-# and returns the argument list. Out folder and out file hold an earlier run's outputs.
+# Each case: (id, the error's class, command builder). A builder gets (world, tmp folder, out
+# folder, out file) and returns the argument list. Out folder and out file hold an earlier
+# run's outputs. A scenario over the size limit is a plain InputError: no named class fits.
 CASES = [
     # GPS: fixes that cannot be one drive, times that are not times
-    ("gps-alternating-1000km", lambda w, t, o, f: [
+    ("gps-alternating-1000km", InconsistentInputError, lambda w, t, o, f: [
         "trace", str(_write(t, "alt.csv", "t,lat,lon\n" + "".join(
             f"{T0 + i},{60.17 if i % 2 else 51.5},{24.94 if i % 2 else -0.12}\n"
             for i in range(40)))), "--out", str(f)]),
-    ("gps-alternating-build", lambda w, t, o, f: [
+    ("gps-alternating-build", InconsistentInputError, lambda w, t, o, f: [
         "build", str(w["video"]), "--gps", str(_write(t, "alt.csv", "t,lat,lon\n" + "".join(
             f"{T0 + i * 0.1},{60.17 if i % 2 else 51.5},{24.94 if i % 2 else -0.12}\n"
             for i in range(60)))), "--detections", str(w["det"]), "--offline", "--out", str(o)]),
-    ("gps-time-1e300", lambda w, t, o, f: [
+    ("gps-time-1e300", ImpossibleValueError, lambda w, t, o, f: [
         "trace", str(_write(t, "t.csv", "t,lat,lon\n0,60.17,24.94\n1e300,60.171,24.94\n")),
         "--out", str(f)]),
-    ("gps-nan-position", lambda w, t, o, f: [
+    ("gps-nan-position", ImpossibleValueError, lambda w, t, o, f: [
         "road", str(_write(t, "n.csv", "t,lat,lon\n0,60.17,24.94\n1,nan,24.94\n")),
         "--no-download", "--out", str(f)]),
-    ("gps-json-100000-deep", lambda w, t, o, f: [
+    ("gps-json-100000-deep", FormatError, lambda w, t, o, f: [
         "trace", str(_write(t, "deep.json", '{"locations": ' + "[" * 100_000 + "]" * 100_000
                             + "}")), "--out", str(f)]),
     # camera: every number finite and physical
-    ("camera-fx-nan", lambda w, t, o, f: [
+    ("camera-fx-nan", ImpossibleValueError, lambda w, t, o, f: [
         "track", str(w["video"]), "--camera", str(_camera_with(t, "fx: .nan")),
         "--detections", str(w["det"]), "--out", str(f)]),
-    ("camera-cx-inf", lambda w, t, o, f: [
+    ("camera-cx-inf", ImpossibleValueError, lambda w, t, o, f: [
         "build", str(w["video"]), "--camera", str(_camera_with(t, "cx: .inf")),
         "--detections", str(w["det"]), "--offline", "--out", str(o)]),
-    ("camera-pitch-1e6", lambda w, t, o, f: [
+    ("camera-pitch-1e6", ImpossibleValueError, lambda w, t, o, f: [
         "track", str(w["video"]), "--camera", str(_camera_with(t, "pitch_deg: 1e6")),
         "--detections", str(w["det"]), "--out", str(f)]),
     # detections: non-finite, degenerate, binary, deep
-    ("detections-nan-box", lambda w, t, o, f: [
+    ("detections-nan-box", ImpossibleValueError, lambda w, t, o, f: [
         "detect", str(w["video"]), "--detections",
         str(_write(t, "d.txt", mot_rows(box="nan,95,40,30"))), "--out", str(f)]),
-    ("detections-inf-box-build", lambda w, t, o, f: [
+    ("detections-inf-box-build", ImpossibleValueError, lambda w, t, o, f: [
         "build", str(w["video"]), "--detections",
         str(_write(t, "d.txt", mot_rows(box="10,95,inf,30"))), "--offline", "--out", str(o)]),
-    ("detections-zero-width", lambda w, t, o, f: [
+    ("detections-zero-width", ImpossibleValueError, lambda w, t, o, f: [
         "track", str(w["video"]), "--detections",
         str(_write(t, "d.txt", mot_rows(box="10,95,0,30"))), "--out", str(f)]),
-    ("detections-binary", lambda w, t, o, f: [
+    ("detections-binary", FormatError, lambda w, t, o, f: [
         "detect", str(w["video"]), "--detections",
         str(_write(t, "d.csv", bytes(range(256)) * 16)), "--out", str(f)]),
-    ("detections-json-100000-deep", lambda w, t, o, f: [
+    ("detections-json-100000-deep", FormatError, lambda w, t, o, f: [
         "detect", str(w["video"]), "--detections",
         str(_write(t, "d.json", "[" * 100_000 + "]" * 100_000)), "--out", str(f)]),
     # keyframes beyond the video: before any detection
-    ("keyframes-beyond-video", lambda w, t, o, f: [
+    ("keyframes-beyond-video", InconsistentInputError, lambda w, t, o, f: [
         "build", str(w["video"]), "--detections", str(w["det"]), "--keyframes",
         str(_write(t, "k.json", keyframes_json([5000, 99_999]))), "--offline", "--out", str(o)]),
-    ("keyframes-beyond-video-eval", lambda w, t, o, f: [
+    ("keyframes-beyond-video-eval", InconsistentInputError, lambda w, t, o, f: [
         "eval", str(w["scenario"]), "--keyframes",
         str(_write(t, "k.json", keyframes_json([5000, 99_999]))), "--video", str(w["video"]),
         "--out", str(o)]),
     # frames: a folder of images of different sizes
-    ("frames-mixed-sizes", lambda w, t, o, f: [
+    ("frames-mixed-sizes", InconsistentInputError, lambda w, t, o, f: [
         "detect", str(_mixed_folder(t)), "--detections", str(w["det"]), "--out", str(f)]),
-    ("frames-mixed-sizes-build", lambda w, t, o, f: [
+    ("frames-mixed-sizes-build", InconsistentInputError, lambda w, t, o, f: [
         "build", str(_mixed_folder(t)), "--detections", str(w["det"]), "--offline",
         "--out", str(o)]),
     # scenarios: degenerate roads, limits, damage
-    ("scenario-degenerate-road-highway-env", lambda w, t, o, f: [
+    ("scenario-degenerate-road-highway-env", ScenarioError, lambda w, t, o, f: [
         "export", str(_scenario_with(w, t, lambda d: d["roads"][0].update(
             centerline=[[3.0, 4.0], [3.0, 4.0]]))), "--format", "highway-env", "--out", str(o)]),
-    ("scenario-road-turns-back-openscenario", lambda w, t, o, f: [
+    ("scenario-road-turns-back-openscenario", ScenarioError, lambda w, t, o, f: [
         "export", str(_scenario_with(w, t, lambda d: d["roads"][0].update(
             centerline=[[0.0, 0.0], [80.0, 0.0], [0.0, 0.0]]))), "--format", "openscenario",
         "--out", str(o)]),
-    ("scenario-lanes-1e9", lambda w, t, o, f: [
+    ("scenario-lanes-1e9", ScenarioError, lambda w, t, o, f: [
         "export", str(_scenario_with(w, t, lambda d: d["roads"][0].update(lanes=10**9))),
         "--format", "highway-env", "--out", str(o)]),
-    ("scenario-speed-1e6", lambda w, t, o, f: [
+    ("scenario-speed-1e6", ScenarioError, lambda w, t, o, f: [
         "export", str(_scenario_with(w, t, lambda d: d["ego"]["trajectory"][0].update(
             speed=1e6))), "--format", "openscenario", "--out", str(o)]),
-    ("scenario-over-size-limit", lambda w, t, o, f: [
+    ("scenario-over-size-limit", InputError, lambda w, t, o, f: [
         "export", str(_sparse(t / "huge.json", 70 * 2**20)), "--format", "openscenario",
         "--out", str(o)]),
-    ("scenario-json-100000-deep", lambda w, t, o, f: [
+    ("scenario-json-100000-deep", FormatError, lambda w, t, o, f: [
         "eval", str(_write(t, "s.json", "[" * 100_000 + "]" * 100_000)), "--keyframes",
         str(w["keyframes"]), "--out", str(o)]),
-    ("keyframes-json-100000-deep", lambda w, t, o, f: [
+    ("keyframes-json-100000-deep", FormatError, lambda w, t, o, f: [
         "eval", str(w["scenario"]), "--keyframes",
         str(_write(t, "k.json", "[" * 100_000 + "]" * 100_000)), "--out", str(o)]),
 ]
@@ -253,8 +262,9 @@ def _assert_one_error_line(err: str) -> str:
     return errors[0]
 
 
-@pytest.mark.parametrize("case", [c[1] for c in CASES], ids=[c[0] for c in CASES])
-def test_bad_input_exit_2_one_line_output_untouched(case, world, tmp_path, capsys):
+@pytest.mark.parametrize("error, case", [c[1:] for c in CASES], ids=[c[0] for c in CASES])
+def test_bad_input_exit_2_one_line_output_untouched(error, case, world, tmp_path, capsys,
+                                                    raised):
     out_dir, out_file = _earlier_outputs(tmp_path)
     args = case(world, tmp_path, out_dir, out_file)
     before = _snapshot(tmp_path)
@@ -262,6 +272,7 @@ def test_bad_input_exit_2_one_line_output_untouched(case, world, tmp_path, capsy
     err = capsys.readouterr().err
     assert code == 2, err
     _assert_one_error_line(err)
+    assert raised == [error]
     assert _snapshot(tmp_path) == before  # nothing written, nothing staged left behind
 
 
@@ -289,7 +300,7 @@ def read_only(folder: Path):
 
 
 @pytest.mark.parametrize("command", ["trace", "build", "export", "eval"])
-def test_read_only_output_exit_2_before_any_work(command, world, tmp_path, capsys):
+def test_read_only_output_exit_2_before_any_work(command, world, tmp_path, capsys, raised):
     out_dir, _ = _earlier_outputs(tmp_path)
     args = {
         "trace": ["trace", str(world["gps"]), "--out", str(out_dir / "ego.csv")],
@@ -308,7 +319,7 @@ def test_read_only_output_exit_2_before_any_work(command, world, tmp_path, capsy
     err = capsys.readouterr().err
     assert code == 2, err
     line = _assert_one_error_line(err)
-    assert "cannot write" in line and str(out_dir) in line
+    assert raised == [OutputError] and line.startswith(f"error: {out_dir}")
     assert _snapshot(tmp_path) == before
     assert elapsed < 60  # a refusal, not a run (generous: a shared 2-core machine)
 

@@ -71,7 +71,7 @@ def test_two_segments_build_like_the_uncut_recording(kitti_raw_dir, model_dir, t
     assert not list(tmp_path.glob(".vid2sim-join.*"))  # the joined copy is removed
 
 
-def test_segments_of_two_drives_are_refused(kitti_raw_dir, tmp_path, capsys):
+def test_segments_of_two_drives_are_refused(kitti_raw_dir, tmp_path, capsys, raised):
     video = kitti_raw_dir / "video.mp4"
     seg1 = cut(video, tmp_path / "A.MP4", 0, 48, START)
     seg2 = cut(video, tmp_path / "B.MP4", 48, 108, START + 3600)  # an hour later
@@ -80,7 +80,8 @@ def test_segments_of_two_drives_are_refused(kitti_raw_dir, tmp_path, capsys):
     out = tmp_path / "out"
     assert main(["build", str(seg1), str(seg2), "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith(f"error: {seg2}") and "not the next" in err[0]
+    assert len(err) == 1 and err[0].startswith(f"error: {seg2}: ")
+    assert raised == [InconsistentInputError]  # not the segment after the first
     assert not out.exists()
 
 

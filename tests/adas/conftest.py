@@ -1,29 +1,11 @@
-"""Fixtures of the policy tests: the demo build (made in code) and the KITTI raw 0001 build."""
+"""Helpers of the policy tests (the demo and KITTI raw 0001 builds are session fixtures of
+tests/conftest.py)."""
 
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
-from vid2sim.app.build import build
-from vid2sim.app.demo import run_demo
-from vid2sim.app.inputs import Inputs
-from vid2sim.app.settings import DetectorSettings, Settings
-from vid2sim.core import scenario as scenario_io
 from vid2sim.core.scenario import Scenario
-
-
-@pytest.fixture(scope="session")
-def demo_scenario_path(tmp_path_factory):
-    """``vid2sim demo --use-detections``: the build's scenario.json (about 10 s to make)."""
-    out = tmp_path_factory.mktemp("demo")
-    run_demo(out, force_detections=True, settings=Settings(progress=False))
-    return out / "build" / "scenario.json"
-
-
-@pytest.fixture(scope="session")
-def demo_scenario(demo_scenario_path) -> Scenario:
-    return scenario_io.load(demo_scenario_path)
 
 
 def recorded_gaps(scenario: Scenario, half_width_m: float) -> np.ndarray:
@@ -57,15 +39,3 @@ def recorded_gaps(scenario: Scenario, half_width_m: float) -> np.ndarray:
                 continue
             gaps[k] = min(gaps[k], along - (scenario.ego.length_m + a.length_m) / 2)
     return gaps
-
-
-@pytest.fixture(scope="session")
-def kitti_scenario(tmp_path_factory, kitti_raw_dir, model_dir) -> Scenario:
-    """``vid2sim build`` of KITTI raw 0001 with its GPS and camera (real YOLOX-nano, every
-    second frame as tests/test_pipeline.py; about a minute)."""
-    out = tmp_path_factory.mktemp("kitti")
-    settings = Settings(detector=DetectorSettings(model_dir=model_dir, detect_every=2),
-                        allow_download=False, progress=False)
-    result = build(Inputs(video=kitti_raw_dir / "video.mp4", gps=kitti_raw_dir,
-                          camera=kitti_raw_dir / "camera.yaml"), out / "k", settings)
-    return scenario_io.load(result.files["scenario"])

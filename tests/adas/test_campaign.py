@@ -13,6 +13,7 @@ import cv2
 import numpy as np
 import pytest
 
+from vid2sim.base.errors import FormatError, ImpossibleValueError, InputError
 from vid2sim.cli import main
 from vid2sim.core.scenario import load, save
 from vid2sim.samples.scenarios import braking_lead_scenario
@@ -117,25 +118,28 @@ def test_variants_are_written_with_their_parameters(scenario_dir, tmp_path):
     root = ET.parse(folder / "scenario.xosc").getroot()
     params = {p.get("name"): float(p.get("value"))
               for p in root.iter("ParameterDeclaration")}
-    assert params == {"lead_decel": 2.0, "ego_speed": 1.0}
+    # every variation parameter is declared, the unvaried ones at their neutral values
+    assert params == {"lead_decel": 2.0, "ego_speed": 1.0, "gap": 1.0, "cut_in": 0.0}
     assert (folder / "road.xodr").exists()
 
 
-@pytest.mark.parametrize("args,problem", [
-    (["--policy", "cruise"], "unknown policy"),
-    (["--policy", "no_such_module_q:policy"], "does not import"),
-    (["--policy", "vid2sim:__version__"], "is not callable"),
-    (["--policy", "acc", "--vary", "lead_decel=0.5:1.5"], "no number of grid points"),
-    (["--policy", "acc", "--vary", "speed=1"], "unknown parameter"),
-    (["--policy", "acc", "--vary", "gap=1:0:3"], "runs backwards"),
-    (["--policy", "acc", "--sensor-noise", "-1"], "--sensor-noise"),
+@pytest.mark.parametrize("args,error,datum", [
+    (["--policy", "cruise"], FormatError, "cruise"),  # no such policy
+    # a module that does not import: no named class says why
+    (["--policy", "no_such_module_q:policy"], InputError, "no_such_module_q"),
+    (["--policy", "vid2sim:__version__"], FormatError, "__version__"),  # not callable
+    (["--policy", "acc", "--vary", "lead_decel=0.5:1.5"], FormatError, "lead_decel"),  # no N
+    (["--policy", "acc", "--vary", "speed=1"], FormatError, "speed"),  # no such parameter
+    (["--policy", "acc", "--vary", "gap=1:0:3"], ImpossibleValueError, "gap"),  # LO > HI
+    (["--policy", "acc", "--sensor-noise", "-1"], ImpossibleValueError, "--sensor-noise"),
 ])
 def test_bad_input_is_one_error_line_exit_2_and_nothing_written(scenario_dir, tmp_path, capsys,
-                                                                  args, problem):
+                                                                  raised, args, error, datum):
     out = tmp_path / "never"
     code = main(["test-policy", str(scenario_dir), *args, "--out", str(out)])
     err = capsys.readouterr().err.strip().splitlines()
-    assert code == 2 and len(err) == 1 and err[0].startswith("error: ") and problem in err[0]
+    assert code == 2 and len(err) == 1 and err[0].startswith("error: ") and datum in err[0]
+    assert raised == [error]
     assert not out.exists()
     assert not list(tmp_path.glob(".never.*"))
 

@@ -22,7 +22,7 @@ from vid2sim.adas.variations import (
     shift_cut_in,
     variations,
 )
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import FormatError, ImpossibleValueError, InputError
 from vid2sim.core.scenario import Trajectory
 from vid2sim.export.highway import ReplayEnv
 from vid2sim.samples.scenarios import BRAKING_LEAD, braking_lead_scenario, straight_scenario
@@ -57,11 +57,19 @@ def test_random_sampling_is_seeded_and_within_range():
 
 @pytest.mark.parametrize("text", [
     "", "lead_decel", "lead_decel=", "=1", "speed=1", "gap=1,gap=2", "gap=a:b:3", "gap=0.5:1",
-    "gap=1:0.5:3", "gap=0.5:1:x", "gap=0.5:1:1", "gap=0.5:1:0", "gap=1:2:3:4",
-    "noise=-0.5", "gap=nan", "gap=inf", f"gap=1:2:{MAX_GRID + 1}",
+    "gap=0.5:1:x", "gap=1:2:3:4",
 ])
-def test_malformed_specs_are_input_errors(text):
-    with pytest.raises(InputError):
+def test_malformed_specs_are_format_errors(text):
+    with pytest.raises(FormatError):
+        parse_vary(text)
+
+
+@pytest.mark.parametrize("text", [
+    "gap=1:0.5:3", "gap=0.5:1:1", "gap=0.5:1:0", "noise=-0.5", "gap=nan", "gap=inf",
+    f"gap=1:2:{MAX_GRID + 1}",
+])
+def test_impossible_ranges_counts_and_values_are_refused(text):
+    with pytest.raises(ImpossibleValueError):
         parse_vary(text)
 
 

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from vid2sim.base.errors import InputError, ScenarioError
+from vid2sim.base.errors import FormatError, InputError, ScenarioError
 from vid2sim.base.fileio import (
     STAGING_PREFIX,
     parse_json,
@@ -113,12 +113,12 @@ def test_errors_inside_staging_name_the_final_output(tmp_path):
 def test_read_input_text_refuses_binary_and_parse_json_deep_nesting(tmp_path):
     f = tmp_path / "x.csv"
     f.write_bytes(b"frame,x\n0,\x001\n")
-    with pytest.raises(InputError, match="NUL"):
+    with pytest.raises(FormatError, match="character 10"):  # where the NUL byte is
         read_input_text(f)
     f.write_bytes(b"\xff\xfe\x00")
-    with pytest.raises(InputError, match="UTF-8"):
+    with pytest.raises(FormatError, match="byte 0"):  # not UTF-8 from the first byte
         read_input_text(f)
-    with pytest.raises(InputError, match="limit"):
+    with pytest.raises(InputError, match="limit"):  # a size limit: no named class fits
         read_input_text(f, max_bytes=2)
-    with pytest.raises(InputError, match="nested too deeply"):
+    with pytest.raises(FormatError, match="deep.json"):  # nested too deeply to parse
         parse_json("[" * 100_000 + "]" * 100_000, "deep.json")

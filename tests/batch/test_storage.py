@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import uuid
 from pathlib import Path
@@ -150,13 +151,19 @@ def test_done_rows_need_no_hash_when_the_cache_knows_them(clip, tmp_path, monkey
     monkeypatch.setattr(storage, "sha256_of", lambda w: pytest.fail(f"hashed {w}"))
     monkeypatch.setattr("vid2sim.base.fileio.sha256_file", lambda p: pytest.fail(f"hashed {p}"))
     first.status = "ok"
-    planned = plan_row(row, tmp_path, first, cache, retry_failed=False)
+    planned = plan_row(row, tmp_path, first, cache, retry_failed=False, settings=offline())
     assert planned is not None and planned.status == "skipped"
     # Without an index record the row folder's scenario.json decides, still without hashing.
-    planned = plan_row(row, tmp_path, None, cache, retry_failed=False)
+    planned = plan_row(row, tmp_path, None, cache, retry_failed=False, settings=offline())
     assert planned is not None and planned.status == "skipped"
     # Without cache entries the driver cannot tell: a worker must look (None).
-    assert plan_row(row, tmp_path, first, HashCache(), retry_failed=False) is None
+    assert plan_row(row, tmp_path, first, HashCache(), retry_failed=False,
+                    settings=offline()) is None
+    # Other settings (any number of the tree): the row is built again, with or without record.
+    other = dataclasses.replace(offline(), tracker=dataclasses.replace(
+        offline().tracker, min_hits=offline().tracker.min_hits + 1))
+    assert plan_row(row, tmp_path, first, cache, retry_failed=False, settings=other) is None
+    assert plan_row(row, tmp_path, None, cache, retry_failed=False, settings=other) is None
 
 
 _paths = st.text(st.characters(codec="utf-8", exclude_characters="\r\n\x00"), min_size=1,

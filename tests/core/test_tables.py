@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import FormatError
 from vid2sim.core.lead import MAX_RELATIVE_LANE
 from vid2sim.core.records import RangedBox
 from vid2sim.core.tables import TRACKS_CSV_COLUMNS, read_tracks_csv, write_tracks_csv
@@ -46,7 +46,7 @@ def test_a_bad_lane_names_the_line(tmp_path, cell):
     text = path.read_text().splitlines()
     text[1] = text[1].rsplit(",", 1)[0] + "," + cell
     path.write_text("\n".join(text) + "\n")
-    with pytest.raises(InputError, match="line 2"):
+    with pytest.raises(FormatError, match="line 2"):
         read_tracks_csv(path)
 
 

@@ -16,7 +16,14 @@ from vid2sim.core.records import Detection, Frame, RangedBox
 from vid2sim.detect.ahead import DetectAhead, lookahead
 from vid2sim.detect.frameloop import fill_between
 from vid2sim.detect.pipeline import run_detect
-from vid2sim.detect.schedule import BAND, LOCAL, SWEEP, KeyframeGrid, KeyframeSchedule, ScheduleConfig
+from vid2sim.detect.schedule import (
+    BAND,
+    LOCAL,
+    SWEEP,
+    KeyframeGrid,
+    KeyframeSchedule,
+    ScheduleConfig,
+)
 from vid2sim.detect.tracking.tracker import LOST, TRACKED, Tracker
 from vid2sim.detect.vehicles.windows import (
     Look,

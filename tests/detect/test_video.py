@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import FormatError, ImpossibleValueError, MissingInputError
 from vid2sim.detect.video import iter_frames, video_info
 
 
@@ -71,17 +71,17 @@ def test_image_folder_sorted_by_name_at_given_fps(tmp_path):
 
 
 def test_bad_inputs_raise_input_error(tmp_path):
-    with pytest.raises(InputError, match="no such"):
+    with pytest.raises(MissingInputError):
         list(iter_frames(tmp_path / "missing.mp4"))
     junk = tmp_path / "junk.mp4"
     junk.write_bytes(b"this is not a video")
-    with pytest.raises(InputError):
+    with pytest.raises(FormatError):
         video_info(junk)
     empty = tmp_path / "empty"
     empty.mkdir()
-    with pytest.raises(InputError, match="no .png"):
+    with pytest.raises(MissingInputError):  # a folder without images
         list(iter_frames(empty))
-    with pytest.raises(InputError):
+    with pytest.raises(ImpossibleValueError, match="--detect-every"):
         list(iter_frames(_write_video(tmp_path / "v.mp4"), every=0))
 
 

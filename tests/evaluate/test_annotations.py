@@ -10,7 +10,13 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import (
+    FormatError,
+    ImpossibleValueError,
+    InconsistentInputError,
+    InputError,
+    MissingInputError,
+)
 from vid2sim.evaluate.annotations import read_keyframes
 
 KITTI_LINES = """\
@@ -60,19 +66,22 @@ def test_kitti_with_image_folder_names_maps_to_folder_position(tmp_path):
     # frames without an image are dropped, not shifted
     kfs = read_keyframes(p, fps=2.0, frame_names=["000015.png"])
     assert [(k.frame, k.name) for k in kfs] == [(0, "000015")]
-    with pytest.raises(InputError, match="none of the labelled frames"):
+    with pytest.raises(InconsistentInputError):  # labels of another video's frames
         read_keyframes(p, fps=2.0, frame_names=["000099.png"])
 
 
-@pytest.mark.parametrize("text, message", [
-    ("10 2 Car 0 0 -1.8 780 178 1016\n", "expected 17 fields"),
-    ("10 x Car 0 0 -1.8 780 178 1016 335 1.4 1.6 3.2 2.9 1.5 8.1 -1.5\n", "not a number"),
-    ("10 2 Car 0 0 -1.8 780 178 700 335 1.4 1.6 3.2 2.9 1.5 8.1 -1.5\n", "x2 < x1"),
-    ("10 2 Car 0 0 -1.8 780 178 nan 335 1.4 1.6 3.2 2.9 1.5 8.1 -1.5\n", "finite"),
-    ("10 7 Pedestrian 0 0 0.1 100 100 120 160 1.7 0.6 0.9 -2.0 1.5 9.0 0.2\n", "no labelled"),
+@pytest.mark.parametrize("text, error, where", [
+    ("10 2 Car 0 0 -1.8 780 178 1016\n", FormatError, "line 1"),  # 9 of 17 fields
+    ("10 x Car 0 0 -1.8 780 178 1016 335 1.4 1.6 3.2 2.9 1.5 8.1 -1.5\n", FormatError, "line 1"),
+    ("10 2 Car 0 0 -1.8 780 178 700 335 1.4 1.6 3.2 2.9 1.5 8.1 -1.5\n", ImpossibleValueError,
+     "line 1"),  # x2 < x1
+    ("10 2 Car 0 0 -1.8 780 178 nan 335 1.4 1.6 3.2 2.9 1.5 8.1 -1.5\n", ImpossibleValueError,
+     "line 1"),
+    ("10 7 Pedestrian 0 0 0.1 100 100 120 160 1.7 0.6 0.9 -2.0 1.5 9.0 0.2\n", FormatError,
+     ""),  # no vehicle labelled
 ])
-def test_kitti_malformed(tmp_path, text, message):
-    with pytest.raises(InputError, match=message):
+def test_kitti_malformed(tmp_path, text, error, where):
+    with pytest.raises(error, match=where):
         read_keyframes(write(tmp_path, "bad.txt", text))
 
 
@@ -108,30 +117,31 @@ def test_scalabel_index_timestamp_and_name(tmp_path):
     assert [(k.name, k.frame, k.t_s) for k in kfs] == [("img_b.png", 1, 0.5)]
 
 
-@pytest.mark.parametrize("text, message", [
-    ("[{\"index\": 1, \"labels\": []}", "not valid JSON"),
-    ("{\"images\": []}", "without 'frames'"),
-    ("[{\"index\": 1, \"labels\": []}]", "--fps"),
-    ("[{\"index\": -1, \"labels\": []}]", "non-negative"),
-    ("[{\"labels\": []}]", "no name, index or timestamp"),
-    ("[{\"name\": \"abc.jpg\", \"labels\": []}]", "no index, timestamp"),
+@pytest.mark.parametrize("text, error, where", [
+    ("[{\"index\": 1, \"labels\": []}", FormatError, "line 1"),  # JSON cut off
+    ("{\"images\": []}", FormatError, ""),  # no 'frames'
+    ("[{\"index\": 1, \"labels\": []}]", MissingInputError, "--fps"),  # indices need a rate
+    ("[{\"index\": -1, \"labels\": []}]", FormatError, r"frames\[0\]\.index"),
+    ("[{\"labels\": []}]", FormatError, r"frames\[0\]"),  # no name, index or timestamp
+    ("[{\"name\": \"abc.jpg\", \"labels\": []}]", FormatError, "abc.jpg"),
     ("[{\"index\": 1, \"labels\": [{\"category\": \"car\", \"box2d\": {\"x1\": 1}}]}]",
-     "box2d"),
+     FormatError, r"frames\[0\]\.labels\[0\]\.box2d"),
     (("[{\"index\": 1, \"labels\": [{\"category\": \"car\", \"box2d\": "
-     "{\"x1\": \"a\", \"y1\": 0, \"x2\": 1, \"y2\": 1}}]}]"), "numbers"),
-    ("[]", "no frames"),
-    ("hello", "unknown annotation format"),
+     "{\"x1\": \"a\", \"y1\": 0, \"x2\": 1, \"y2\": 1}}]}]"), FormatError,
+     r"frames\[0\]\.labels\[0\]\.box2d"),
+    ("[]", FormatError, ""),  # no frames
+    ("hello", FormatError, ""),  # no known annotation format
 ])
-def test_scalabel_malformed(tmp_path, text, message):
-    fps = None if message == "--fps" else 10.0
-    with pytest.raises(InputError, match=message):
+def test_scalabel_malformed(tmp_path, text, error, where):
+    fps = None if where == "--fps" else 10.0
+    with pytest.raises(error, match=where):
         read_keyframes(write(tmp_path, "bad.json", text), fps=fps)
 
 
 def test_missing_file_and_folder(tmp_path):
-    with pytest.raises(InputError, match="no such"):
+    with pytest.raises(MissingInputError):
         read_keyframes(tmp_path / "none.json")
-    with pytest.raises(InputError, match="folder"):
+    with pytest.raises(MissingInputError):  # a folder, not a file
         read_keyframes(tmp_path)
 
 
@@ -168,17 +178,17 @@ def test_cvat_video_keyframes(tmp_path):
     assert kfs[1].t_s == pytest.approx(0.5)
 
 
-@pytest.mark.parametrize("text, message", [
+@pytest.mark.parametrize("text, where", [
     (("<annotations><track label='car'><box frame='0' xtl='1' ytl='1' xbr='2'/></track>"
-     "</annotations>"), "lacks ybr"),
+     "</annotations>"), "ybr"),  # the attribute that is missing
     (("<annotations><track label='car'><box frame='a' xtl='1' ytl='1' xbr='2' ybr='3'/>"
-     "</track></annotations>"), "not an integer"),
-    ("<annotations><track label='car'>", "not well-formed"),
-    ("<root/>", "expected CVAT"),
-    ("<annotations><version>1.1</version></annotations>", "no <track>"),
+     "</track></annotations>"), "track 0 box 0"),  # frame='a'
+    ("<annotations><track label='car'>", "line 1"),  # XML cut off
+    ("<root/>", "<root>"),
+    ("<annotations><version>1.1</version></annotations>", ""),  # no <track> or <image>
 ])
-def test_cvat_malformed(tmp_path, text, message):
-    with pytest.raises(InputError, match=message):
+def test_cvat_malformed(tmp_path, text, where):
+    with pytest.raises(FormatError, match=where):
         read_keyframes(write(tmp_path, "bad.xml", text), fps=10.0)
 
 

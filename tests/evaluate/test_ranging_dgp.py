@@ -13,7 +13,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from tests.conftest import DATA
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import (
+    FormatError,
+    ImpossibleValueError,
+    InconsistentInputError,
+    MissingInputError,
+)
 from vid2sim.core.camera import Camera
 from vid2sim.evaluate.ranging.dgp import (
     DgpCuboid,
@@ -177,7 +182,7 @@ def test_cuboid_range_is_its_rear_face(rng_m, lat, length, pitch, height):
 
 
 def test_malformed_scenes_are_input_errors(tmp_path):
-    with pytest.raises(InputError, match="scene_"):
+    with pytest.raises(MissingInputError):  # no scene_*.json
         read_dgp_scene(tmp_path)
     good = [{"center": (1.0, 0.5, 10.0), "q": (1.0, 0, 0, 0), "length": 4.0, "width": 1.8,
              "height": 1.5, "class_id": 2, "instance_id": 7, "num_points": 5}]
@@ -186,22 +191,22 @@ def test_malformed_scenes_are_input_errors(tmp_path):
     doc = json.loads(box.read_text())
     doc["annotations"][0]["box"]["width"] = -1.0
     box.write_text(json.dumps(doc))
-    with pytest.raises(InputError, match="width"):
+    with pytest.raises(ImpossibleValueError, match="width"):
         read_dgp_scene(scene)
     doc["annotations"][0]["box"]["width"] = 1.8
     del doc["annotations"][0]["box"]["pose"]
     box.write_text(json.dumps(doc))
-    with pytest.raises(InputError, match="pose"):
+    with pytest.raises(FormatError, match="pose"):
         read_dgp_scene(scene)
     box.write_text("{not json")
-    with pytest.raises(InputError, match="not JSON"):
+    with pytest.raises(FormatError, match="line 1"):
         read_dgp_scene(scene)
     other = _write_scene(tmp_path / "b", [good])
     cal = other / "calibration" / "cal.json"
     cal.write_text(json.dumps({**json.loads(cal.read_text()), "names": ["LIDAR", "CAMERA_09"]}))
-    with pytest.raises(InputError, match="CAMERA_01"):
+    with pytest.raises(FormatError, match="CAMERA_01"):
         read_dgp_scene(other)
-    with pytest.raises(InputError, match="too few"):
+    with pytest.raises(InconsistentInputError):  # one car cannot give the ground
         ground_camera(read_dgp_scene(_write_scene(tmp_path / "c", [good]))[0])
 
 
@@ -238,7 +243,7 @@ def test_tri_scene_01_reads_and_has_a_ground(tri_dir):
 def test_tri_scene_02_far_cars_only(tri_dir):
     frames = read_dgp_scene(tri_dir / "scene_02")
     assert len(frames) == 3
-    with pytest.raises(InputError, match="too few"):
+    with pytest.raises(InconsistentInputError):  # no car within 50 m to fit the ground on
         ground_camera(frames[0])
     cam = calibration_camera(frames[0])
     ranges = sorted(cuboid_range_m(c, cam)[0] for c in frames[0].cuboids)

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from tests.evaluate.conftest import make_scenario
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import FormatError, MissingInputError
 from vid2sim.core.records import AnnotatedBox, Keyframe
 from vid2sim.evaluate.metrics import score_keyframes
 from vid2sim.evaluate.replay import replay_boxes
@@ -84,9 +84,9 @@ def test_report_without_metrics_and_bad_figure(tmp_path):
     sc, _ = _inputs()
     text = render_report(scenario=sc, metrics=None)
     assert "Keyframe metrics" not in text and "Map and lead vehicle" in text
-    with pytest.raises(InputError):
+    with pytest.raises(FormatError):
         render_report(scenario=sc, metrics=None, extra_figures=[("x", b"not an image")])
-    with pytest.raises(InputError):
+    with pytest.raises(MissingInputError):
         render_report(scenario=sc, metrics=None, extra_figures=[("x", tmp_path / "none.png")])
 
 

@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 
 import vid2sim  # noqa: F401  registers the environment
 from vid2sim.adas.policies import AccPolicy, AebPolicy, FollowLogPolicy, run_episode
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import MissingInputError
 from vid2sim.core.scenario import save
 from vid2sim.export.highway import ReplayEnv, enu_to_hw, hw_to_enu
 from vid2sim.export.highway.info import StepInfo
@@ -43,7 +43,7 @@ def test_make_by_id_with_path_and_render_headless(tmp_path):
 
 
 def test_bad_scenario_path_is_an_input_error(tmp_path):
-    with pytest.raises(InputError):
+    with pytest.raises(MissingInputError):
         gymnasium.make("vid2sim/Replay-v0", scenario=str(tmp_path / "missing.json"))
 
 

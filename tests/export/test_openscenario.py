@@ -214,3 +214,31 @@ def test_same_scenario_gives_byte_identical_files(tmp_path):
     for pa, pb in zip(a, b, strict=True):
         assert pa.read_bytes() == pb.read_bytes()
     _schema("OpenSCENARIO_1_2.xsd").validate(str(a[0]))  # the fixed date is a valid dateTime
+
+
+def test_declares_the_variation_parameters(tmp_path):
+    """Every scenario.xosc declares test-policy's --vary parameters (neutral values: the
+    recorded scenario), a variant's file its own values; the schema accepts both."""
+    from vid2sim.adas.variations import PARAMETERS
+    from vid2sim.export.openscenario import VARIATION_PARAMETERS
+
+    def declared(path):
+        root = ET.parse(path).getroot()
+        return {p.get("name"): (p.get("parameterType"), float(p.get("value")),
+                                [(c.get("rule"), float(c.get("value")))
+                                 for c in p.iter("ValueConstraint")])
+                for p in root.find("ParameterDeclarations")}
+
+    xosc, _ = write_openscenario(left_turn_scenario(), tmp_path / "base")
+    base = declared(xosc)
+    assert set(base) == {"lead_decel", "gap", "ego_speed", "cut_in"} == set(VARIATION_PARAMETERS)
+    for name, (kind, value, _) in base.items():
+        assert kind == "double" and value == PARAMETERS[name][1]
+    assert base["gap"][2] == [("greaterThan", 0.0)]
+    assert base["lead_decel"][2] == [("greaterOrEqual", 0.0)]
+    variant, _ = write_openscenario(left_turn_scenario(), tmp_path / "variant",
+                                    parameters={"gap": 0.8, "noise": 1.0})
+    values = {k: v[1] for k, v in declared(variant).items()}
+    assert values == {"lead_decel": 1.0, "gap": 0.8, "ego_speed": 0.0, "cut_in": 0.0,
+                      "noise": 1.0}
+    _schema("OpenSCENARIO_1_2.xsd").validate(str(variant))

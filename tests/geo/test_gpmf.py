@@ -115,5 +115,5 @@ def test_a_real_no_lock_payload_in_a_real_recording_is_a_format_error(tmp_path):
     hero6 = (SAMPLES / "hero6.raw").read_bytes()  # the real payload, no lock
     video = rec.remux_with_telemetry(SAMPLES / "max-heromode.mp4", tmp_path / "nolock.mp4",
                                      "gpmf", [(0.0, 1.0, hero6), (1.0, 1.0, hero6)])
-    with pytest.raises(FormatError, match="no GPS fix"):
+    with pytest.raises(FormatError):  # a GPMF track without one GPS fix
         read_embedded(video)

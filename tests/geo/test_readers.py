@@ -11,7 +11,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import (
+    FormatError,
+    ImpossibleValueError,
+    InconsistentInputError,
+    MissingInputError,
+)
 from vid2sim.geo.readers import (
     KNOTS_TO_MPS,
     UERE_M,
@@ -170,14 +175,14 @@ def test_gpx_round_trip_property(tmp_path_factory, pts):
 def test_gpx_without_times_is_an_input_error(tmp_path):
     f = tmp_path / "notime.gpx"
     f.write_text(gpx_text("1.1", '<trkpt lat="60.1" lon="24.9"></trkpt>' * 3))
-    with pytest.raises(InputError, match="no <time>"):
+    with pytest.raises(FormatError):  # points without <time>
         read_gps(f)
 
 
 def test_gpx_broken_xml(tmp_path):
     f = tmp_path / "broken.gpx"
     f.write_text(gpx_text("1.1", gpx_point(60.1, 24.9, T0))[:-20])
-    with pytest.raises(InputError) as e:
+    with pytest.raises(FormatError) as e:
         read_gps(f)
     assert "broken.gpx" in str(e.value)
 
@@ -185,7 +190,7 @@ def test_gpx_broken_xml(tmp_path):
 def test_gpx_latitude_out_of_range(tmp_path):
     f = tmp_path / "bad.gpx"
     f.write_text(gpx_text("1.1", gpx_point(95.0, 24.9, T0) + gpx_point(60.0, 24.9, T0 + 1)))
-    with pytest.raises(InputError, match="latitude"):
+    with pytest.raises(ImpossibleValueError, match="fix 1"):  # latitude 95
         read_gps(f)
 
 
@@ -277,7 +282,7 @@ def test_nmea_gga_only_has_no_date_but_consistent_times(tmp_path):
 def test_nmea_only_corrupt_is_an_input_error(tmp_path):
     f = tmp_path / "bad.nmea"
     f.write_text("\n".join(rmc("090000", 60, 24, 1, 1, "170524")[:-2] + "00" for _ in range(3)))
-    with pytest.raises(InputError, match="checksum"):
+    with pytest.raises(FormatError):  # every sentence fails its checksum
         read_gps(f)
 
 
@@ -322,16 +327,16 @@ def test_bdd_locations_and_start_time(tmp_path):
 def test_bdd_errors(tmp_path):
     f = tmp_path / "b.json"
     f.write_text(json.dumps({"foo": 1}))
-    with pytest.raises(InputError, match="locations"):
+    with pytest.raises(FormatError, match="locations"):  # names the missing key
         read_gps(f)
     f.write_text('{"locations": [{"timestamp": 1, "latitude": "north", "longitude": 2}]}')
-    with pytest.raises(InputError, match="unparsable"):
+    with pytest.raises(FormatError, match=r"locations\[0\]"):
         read_gps(f)
     f.write_text('{"locations": [}')
-    with pytest.raises(InputError, match="JSON"):
+    with pytest.raises(FormatError, match="line 1"):
         read_gps(f)
     f.write_text('{"locations": []}')
-    with pytest.raises(InputError, match="no usable"):
+    with pytest.raises(FormatError):  # no fix to read
         read_gps(f)
 
 
@@ -364,11 +369,11 @@ def test_kitti_camera_folder_timestamps(tmp_path):
 
 def test_kitti_errors(tmp_path):
     write_oxts(tmp_path, [oxts_row(49, 8.4, 1, 0)] * 2, ["2011-09-26 13:02:20.0"])
-    with pytest.raises(InputError, match="1 timestamps for 2 data files"):
+    with pytest.raises(InconsistentInputError, match="1 timestamps for 2 data files"):
         read_gps(tmp_path)
     other = tmp_path / "empty_dir"
     other.mkdir()
-    with pytest.raises(InputError, match="not a KITTI"):
+    with pytest.raises(MissingInputError):  # a folder without OXTS files
         read_gps(other)
 
 
@@ -428,17 +433,17 @@ def test_csv_duplicate_times_dropped(tmp_path):
     assert tr.n_skipped == 1
 
 
-@pytest.mark.parametrize("content,match", [
-    ("t,lat,lon\n0,60,24\n1,abc,24\n", "line 3"),
-    ("t,lat,lon\n0,60,24\n1,60,200\n", "longitude"),
-    ("t,lat,lon\n", "no rows"),
-    ("t,lat,lon\n0,60\n", "too few columns"),
-    ("t,lat,lon\n0,60,24\n2024-01-01T00:00:00,60,24\n", "mixes"),
+@pytest.mark.parametrize("content,error,where", [
+    ("t,lat,lon\n0,60,24\n1,abc,24\n", FormatError, "line 3"),
+    ("t,lat,lon\n0,60,24\n1,60,200\n", ImpossibleValueError, "fix 2"),  # longitude 200
+    ("t,lat,lon\n", FormatError, ""),  # a header, no rows
+    ("t,lat,lon\n0,60\n", FormatError, "line 2"),
+    ("t,lat,lon\n0,60,24\n2024-01-01T00:00:00,60,24\n", FormatError, ""),  # mixed times
 ])
-def test_csv_malformed(tmp_path, content, match):
+def test_csv_malformed(tmp_path, content, error, where):
     f = tmp_path / "bad.csv"
     f.write_text(content)
-    with pytest.raises(InputError, match=match) as e:
+    with pytest.raises(error, match=where) as e:
         read_gps(f)
     assert "bad.csv" in str(e.value)
 
@@ -458,12 +463,12 @@ def test_csv_round_trip_property(tmp_path_factory, pts):
 def test_unknown_empty_and_missing(tmp_path):
     f = tmp_path / "x.gpx"
     f.write_text("")
-    with pytest.raises(InputError, match="empty"):
+    with pytest.raises(FormatError):  # an empty file
         read_gps(f)
     f.write_text("hello world\nthis is not GPS\n")
-    with pytest.raises(InputError, match="unknown GPS format"):
+    with pytest.raises(FormatError):  # no GPS format
         read_gps(f)
-    with pytest.raises(InputError, match="no such file"):
+    with pytest.raises(MissingInputError):
         read_gps(tmp_path / "missing.gpx")
 
 
@@ -478,6 +483,6 @@ def test_detection_ignores_misleading_extension(tmp_path):
 
 def test_single_oxts_file_gets_a_hint(tmp_path):
     f = tmp_path / "0000000000.txt"
-    f.write_text(" ".join(repr(v) for v in oxts_row(49, 8.4, 1, 1)))
-    with pytest.raises(InputError, match="KITTI"):
+    f.write_text(" ".join(repr(v) for v in oxts_row(49.0, 8.4, 1.0, 1.0)))  # as OXTS writes
+    with pytest.raises(MissingInputError, match="drive folder"):  # a file, not the folder
         read_gps(f)

@@ -12,6 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from tests.geo.test_osm import NODES, ORIGIN, WAYS, osm_xml
+from vid2sim.base.errors import FormatError, InconsistentInputError
 from vid2sim.cli import main
 from vid2sim.core.enu import EnuFrame
 from vid2sim.core.records import EgoTrack, GpsFix, GpsTrace
@@ -261,12 +262,12 @@ def test_cli_trace_outside_map(town_map, tmp_path, capsys):
     assert not (tmp_path / "r.json").exists()
 
 
-@pytest.mark.parametrize(("content", "problem"), [
-    ("", "empty map file"),
-    ("<osm><way id='1'", "cannot read OSM XML"),
-    (osm_xml(NODES, {107: WAYS[107]}), "no drivable roads"),
+@pytest.mark.parametrize(("content", "error"), [
+    ("", FormatError),  # an empty file
+    ("<osm><way id='1'", FormatError),  # XML cut off
+    (osm_xml(NODES, {107: WAYS[107]}), InconsistentInputError),  # no drivable road
 ])
-def test_cli_bad_maps(tmp_path, capsys, content, problem):
+def test_cli_bad_maps(tmp_path, capsys, raised, content, error):
     trace, _ = _trace_and_ego([(-280, 0), (280, 0)])
     gps = tmp_path / "drive.csv"
     _write_csv(gps, trace)
@@ -274,7 +275,7 @@ def test_cli_bad_maps(tmp_path, capsys, content, problem):
     bad.write_text(content)
     err = _one_line_error(capsys, main(["road", str(gps), "--map", str(bad),
                                         "--out", str(tmp_path / "r.json")]))
-    assert problem in err and str(bad) in err
+    assert raised == [error] and str(bad) in err
 
 
 # --------------------------------------------------------------------------- GPS time base

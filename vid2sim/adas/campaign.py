@@ -24,7 +24,9 @@ import numpy as np
 
 from vid2sim.adas.episode import EpisodeResult, run_episode
 from vid2sim.adas.episode_metrics import COLUMNS as METRIC_COLUMNS
+from vid2sim.adas.episodevideo import parse_render, render_episodes
 from vid2sim.adas.registry import PolicySpec, describe, parse_policy
+from vid2sim.adas.score import SCORE_COLUMNS, ScoreConfig
 from vid2sim.adas.sensor import SensorConfig
 from vid2sim.adas.summary import write_summary
 from vid2sim.adas.variations import (
@@ -35,7 +37,7 @@ from vid2sim.adas.variations import (
     parse_vary,
     variations,
 )
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import ImpossibleValueError, MissingInputError
 from vid2sim.base.fileio import write_text_atomic
 from vid2sim.core import scenario as scenario_io
 from vid2sim.core.scenario import Scenario
@@ -44,7 +46,8 @@ from vid2sim.export.openscenario import write_openscenario
 
 RESULT_COLUMNS = ("scenario", "policy", "variation", *METRIC_COLUMNS)
 """The columns results.csv starts with (the contract); extra columns follow them."""
-EXTRA_COLUMNS = ("handovers", "handover_times_s", "aeb_events", "terminated_by", "skip_reason")
+EXTRA_COLUMNS = ("handovers", "handover_times_s", "aeb_events", "terminated_by", "skip_reason",
+                 *SCORE_COLUMNS)
 
 
 @dataclass(frozen=True)
@@ -63,6 +66,9 @@ class CampaignOptions:
     write_scenarios: bool = False
     #: the camera error model (its ``level`` is ``sensor_noise`` or the varied noise)
     sensor: SensorConfig = field(default_factory=SensorConfig)
+    render: str | None = None
+    """``worst``, ``all`` or N: episode videos of those episodes (episodes/*.mp4)."""
+    score: ScoreConfig = field(default_factory=ScoreConfig)
 
 
 @dataclass
@@ -100,13 +106,13 @@ def find_scenarios(inputs: tuple[Path, ...], out_dir: Path | None = None) -> lis
             hits = sorted(p for p in path.rglob("scenario.json")
                           if out_dir is None or out_dir not in p.resolve().parents)
             if not hits:
-                raise InputError(path, "holds no scenario.json", "give scenario files or "
-                                 "folders with build outputs")
+                raise MissingInputError(path, "holds no scenario.json", "give scenario files or "
+                                        "folders with build outputs")
             for p in hits:
                 rel = p.parent.relative_to(path)
                 found.append((str(path / rel) if str(rel) != "." else str(path), p))
         else:
-            raise InputError(path, "no such file or folder")
+            raise MissingInputError(path, "no such file or folder")
     names = [n for n, _ in found]
     if len(set(names)) != len(names):
         seen: dict[str, int] = {}
@@ -155,7 +161,8 @@ def _episode(entry: ScenarioEntry, spec: PolicySpec, opts: CampaignOptions,
         return EpisodeResult(None, skip_reason=reason), None
     level = values.get("noise", opts.sensor_noise)
     result = run_episode(varied, spec, reactive=opts.reactive,
-                         sensor=replace(opts.sensor, level=float(level)), seed=seed)
+                         sensor=replace(opts.sensor, level=float(level)), seed=seed,
+                         score_config=opts.score)
     return result, varied
 
 
@@ -166,11 +173,12 @@ def run_campaign(opts: CampaignOptions, *, progress: bool = False) -> str:
     """Run the campaign of ``opts`` and write its outputs; returns a summary for the CLI."""
     spec = parse_policy(opts.policy)
     if opts.sensor_noise < 0 or not math.isfinite(opts.sensor_noise):
-        raise InputError(None, f"--sensor-noise must be a finite level >= 0, got "
-                         f"{opts.sensor_noise}")
+        raise ImpossibleValueError(None, f"--sensor-noise must be a finite level >= 0, got "
+                                   f"{opts.sensor_noise}")
     if opts.samples is not None and opts.samples < 1:
-        raise InputError(None, f"--samples must be >= 1, got {opts.samples}")
+        raise ImpossibleValueError(None, f"--samples must be >= 1, got {opts.samples}")
     axes = parse_vary(opts.vary, random=opts.samples is not None) if opts.vary else ()
+    choice = parse_render(opts.render) if opts.render else None
     out_dir = Path(opts.out_dir)
     entries = [ScenarioEntry(name, path, scenario_io.load(path))
                for name, path in find_scenarios(opts.inputs, out_dir)]
@@ -179,7 +187,8 @@ def run_campaign(opts: CampaignOptions, *, progress: bool = False) -> str:
     for entry in entries:
         entry.roles = find_roles(entry.scenario) if axes else LogRoles(None, None, None, None,
                                                                        None)
-        entry.recorded = run_episode(entry.scenario, PolicySpec("log", ego_mode="log"))
+        entry.recorded = run_episode(entry.scenario, PolicySpec("log", ego_mode="log"),
+                                     score_config=opts.score)
     episodes = [Episode(si, dict(values), _episode_seed(opts.seed, k))
                 for k, (si, values) in enumerate((si, v) for si in range(len(entries))
                                                   for v in draws)]
@@ -189,8 +198,11 @@ def run_campaign(opts: CampaignOptions, *, progress: bool = False) -> str:
     staging = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", dir=out_dir.parent))
     try:
         write_text_atomic(staging / "results.csv", results_csv(entries, spec, episodes))
+        videos = (render_episodes(staging, entries, spec, opts, episodes, choice,
+                                  lambda entry: _ego_path(entry, {}))
+                  if choice is not None else {})
         write_summary(staging / "summary.html", entries=entries, spec=spec, episodes=episodes,
-                      axes=axes, options=opts)
+                      axes=axes, options=opts, videos=videos)
         if opts.write_scenarios:
             _write_variants(staging / "scenarios", entries, episodes, varied)
         out_dir.mkdir(parents=True, exist_ok=True)
@@ -201,7 +213,8 @@ def run_campaign(opts: CampaignOptions, *, progress: bool = False) -> str:
             child.replace(target)
     finally:
         shutil.rmtree(staging, ignore_errors=True)
-    return _summary(entries, spec, episodes, out_dir)
+    return _summary(entries, spec, episodes, out_dir) + (
+        f"\nwrote {len(videos)} episode video(s) into {out_dir / 'episodes'}" if videos else "")
 
 
 def _run_all(entries, spec, opts, episodes, progress) -> dict[int, Scenario]:
@@ -254,7 +267,9 @@ def _number(value: float) -> str:
 
 
 def results_csv(entries: list[ScenarioEntry], spec: PolicySpec, episodes: list[Episode]) -> str:
-    """results.csv: one row per episode, :data:`RESULT_COLUMNS` then :data:`EXTRA_COLUMNS`.
+    """results.csv: one row per episode, :data:`RESULT_COLUMNS` then :data:`EXTRA_COLUMNS`
+    (the last of them the episode's score and its terms, :mod:`vid2sim.adas.score`; a term
+    that does not apply, such as the speed limit where the map has none, is empty).
 
     Skipped variants have empty metric cells and their ``skip_reason``.
     """
@@ -266,6 +281,7 @@ def results_csv(entries: list[ScenarioEntry], spec: PolicySpec, episodes: list[E
         row = [entries[ep.scenario_index].name, spec.name, label(ep.values)]
         if r is None or r.metrics is None:
             row += [""] * len(METRIC_COLUMNS) + ["", "", "", "", r.skip_reason if r else ""]
+            row += [""] * len(SCORE_COLUMNS)
         else:
             m = r.metrics.as_dict()
             row += [_number(m[c]) for c in METRIC_COLUMNS]
@@ -273,6 +289,9 @@ def results_csv(entries: list[ScenarioEntry], spec: PolicySpec, episodes: list[E
                     ";".join(f"{h.actor_id}@{h.t_s:.2f}" for h in r.handovers),
                     ";".join(f"{name}@{t:.1f}" for t, name in r.events),
                     r.terminated_by, ""]
+            score = r.score.as_row() if r.score is not None else {}
+            row += [_number(score[c]) if c in score and not math.isnan(score[c]) else ""
+                    for c in SCORE_COLUMNS]
         writer.writerow(row)
     return buf.getvalue()
 
@@ -302,5 +321,9 @@ def _summary(entries, spec, episodes, out_dir: Path) -> str:
         gap = min(r.metrics.min_gap_m for r in run)
         lines.append(f"smallest TTC {ttc:.2f} s, smallest gap {gap:.2f} m, largest deceleration "
                      f"{max(r.metrics.max_decel_mps2 for r in run):.1f} m/s^2")
+        scores = [r.score.score for r in run if r.score is not None]
+        if scores:
+            lines.append(f"score (nuPlan-shaped, 0-1): mean {np.mean(scores):.2f}, lowest "
+                         f"{min(scores):.2f}")
     lines.append(f"wrote {out_dir / 'results.csv'} and {out_dir / 'summary.html'}")
     return "\n".join(lines)

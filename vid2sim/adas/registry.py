@@ -44,7 +44,7 @@ from vid2sim.adas.functions import (
     LaneKeeping,
     RecordedDriver,
 )
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import FormatError, InconsistentInputError, InputError, MissingInputError
 from vid2sim.core.scenario import Scenario
 
 BUILT_INS = ("log", "acc", "aeb", "lka")
@@ -101,20 +101,21 @@ def parse_policy(text: str) -> PolicySpec:
     that does not import or cannot act."""
     text = (text or "").strip()
     if not text:
-        raise InputError(None, "--policy is empty", _HINT)
+        raise FormatError(None, "--policy is empty", _HINT)
     if ":" in text:
         return _parse_user(text)
     parts = tuple(p.strip() for p in text.lower().split("+"))
     unknown = [p for p in parts if p not in BUILT_INS]
     if unknown or not parts:
-        raise InputError(None, f"unknown policy {text!r}", _HINT)
+        raise FormatError(None, f"unknown policy {text!r}", _HINT)
     if "log" in parts:
         if len(parts) > 1:
-            raise InputError(None, f"policy {text!r}: log replays the recording and combines "
-                             "with nothing", _HINT)
+            raise InconsistentInputError(
+                None, f"policy {text!r}: log replays the recording and combines "
+                "with nothing", _HINT)
         return PolicySpec("log", ego_mode="log")
     if len(set(parts)) != len(parts):
-        raise InputError(None, f"policy {text!r} names a function twice", _HINT)
+        raise FormatError(None, f"policy {text!r} names a function twice", _HINT)
     order = tuple(p for p in ("acc", "aeb", "lka") if p in parts)
     return PolicySpec("+".join(order), lateral="lka" in parts, components=order)
 
@@ -122,11 +123,11 @@ def parse_policy(text: str) -> PolicySpec:
 def _parse_user(text: str) -> PolicySpec:
     module_name, _, attr = text.rpartition(":")
     if not module_name or not attr:
-        raise InputError(None, f"policy {text!r}: expected module:callable", _HINT)
+        raise FormatError(None, f"policy {text!r}: expected module:callable", _HINT)
     target = getattr(_import(module_name, text), attr, None) if attr.isidentifier() else None
     if target is None:
-        raise InputError(None, f"policy {text!r}: {module_name} has no {attr!r}",
-                         "check the name after the colon")
+        raise MissingInputError(None, f"policy {text!r}: {module_name} has no {attr!r}",
+                                "check the name after the colon")
     if inspect.isclass(target):  # instantiated per episode: can its instances act?
         acts = (any(callable(getattr(target, m, None)) for m in ("predict", "act"))
                 or any("__call__" in vars(k) for k in target.__mro__ if k is not object))
@@ -134,13 +135,13 @@ def _parse_user(text: str) -> PolicySpec:
         acts = callable(target) or any(callable(getattr(target, m, None))
                                        for m in ("predict", "act"))
     if not acts:
-        raise InputError(None, f"policy {text!r} is not callable",
-                         "give a function (observation, info) -> action or an agent with "
-                         "predict(observation) or act(observation)")
+        raise FormatError(None, f"policy {text!r} is not callable",
+                          "give a function (observation, info) -> action or an agent with "
+                          "predict(observation) or act(observation)")
     observation = getattr(target, "observation", "camera")
     if observation not in ("camera", "kinematics"):
-        raise InputError(None, f"policy {text!r}: observation must be 'camera' or "
-                         f"'kinematics', not {observation!r}")
+        raise FormatError(None, f"policy {text!r}: observation must be 'camera' or "
+                          f"'kinematics', not {observation!r}")
     return PolicySpec(text, lateral=bool(getattr(target, "lateral", False)),
                       observation=observation, target=target)
 
@@ -150,8 +151,8 @@ def _import(module_name: str, text: str):
         if module_name.endswith(".py") or os.sep in module_name or "/" in module_name:
             path = Path(module_name)
             if not path.is_file():
-                raise InputError(path, "no such policy file", "give module:callable or "
-                                 "path/to/file.py:callable")
+                raise MissingInputError(path, "no such policy file", "give module:callable or "
+                                        "path/to/file.py:callable")
             spec = importlib.util.spec_from_file_location(f"vid2sim_user_{path.stem}", path)
             module = importlib.util.module_from_spec(spec)
             spec.loader.exec_module(module)

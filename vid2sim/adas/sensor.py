@@ -45,7 +45,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import gymnasium
 import numpy as np
@@ -257,10 +257,6 @@ class CameraSensor(gymnasium.Wrapper):
     def step(self, action):
         _, reward, terminated, truncated, info = self.env.step(action)
         return self._observe(), reward, terminated, truncated, info
-
-    def set_level(self, level: float) -> None:
-        """Change the noise level (takes effect at the next step)."""
-        self.config = replace(self.config, level=float(level))
 
     # ----------------------------------------------------------------- measurement
 

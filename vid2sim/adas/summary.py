@@ -56,6 +56,11 @@ _METRIC_TEXT = {
                        "counts once).",
     "duration_s": "simulated time [s]; shorter than the scenario when a collision or leaving "
                   "the road ended the episode.",
+    "score": "one figure per episode in [0, 1], shaped like nuPlan's closed-loop score: 0 on "
+             "an at-fault collision, leaving the road, driving against the lane or making no "
+             "progress; else the weighted average of TTC >= 0.95 s (5), progress along the "
+             "recorded route (5), speed-limit compliance where the map has a limit (4) and "
+             "comfort (2). Its terms are results.csv's score_* columns.",
 }
 
 
@@ -170,6 +175,46 @@ def heat_figure(entry, episodes, axes) -> str | None:
     return _png(fig)
 
 
+def score_heat_figure(entry, episodes, axes) -> str | None:
+    """The episode score over the first two varied parameters of a grid (lowest over any
+    others), or over the first one (points); None without a varied parameter or a score."""
+    varied = _varied_axes(axes)
+    scored = [ep for ep in episodes if ep.result is not None and ep.result.score is not None]
+    if not varied or not scored:
+        return None
+    fig = Figure(figsize=(5.4, 4.2))
+    ax = fig.subplots()
+    cmap = matplotlib.colormaps["RdYlGn"].with_extremes(bad="#c8ccd4")
+    xa = varied[0]
+    if len(varied) > 1 and all(a.values is not None for a in varied[:2]):
+        ya = varied[1]
+        xs, ys = list(xa.values), list(ya.values)
+        grid = np.full((len(ys), len(xs)), np.nan)
+        for ep in scored:
+            i, j = ys.index(ep.values[ya.name]), xs.index(ep.values[xa.name])
+            grid[i, j] = np.fmin(grid[i, j], ep.result.score.score)
+        im = ax.imshow(np.ma.masked_invalid(grid), origin="lower", cmap=cmap, vmin=0.0,
+                       vmax=1.0, aspect="auto")
+        ax.set_xticks(range(len(xs)), [f"{v:.3g}" for v in xs])
+        ax.set_yticks(range(len(ys)), [f"{v:.3g}" for v in ys])
+        ax.set_ylabel(f"{ya.name}: {PARAMETERS[ya.name][0]}")
+        for i, j in zip(*np.nonzero(np.isfinite(grid)), strict=True):
+            ax.text(j, i, f"{grid[i, j]:.2f}", ha="center", va="center", fontsize=8)
+    else:
+        x = [ep.values[xa.name] for ep in scored]
+        y = [ep.result.score.score for ep in scored]
+        im = ax.scatter(x, y, c=y, cmap=cmap, vmin=0.0, vmax=1.0, s=30)
+        ax.set_ylabel("score")
+        ax.set_ylim(-0.05, 1.05)
+        ax.grid(alpha=0.3)
+    ax.set_xlabel(f"{xa.name}: {PARAMETERS[xa.name][0]}")
+    ax.set_title("episode score (0 red, 1 green)", fontsize=9)
+    fig.colorbar(im, ax=ax, fraction=0.046)
+    fig.suptitle(entry.name, fontsize=10)
+    fig.tight_layout()
+    return _png(fig)
+
+
 def _scatter(fig, ax_c, ax_t, entry, done, varied) -> str:
     xa = varied[0]
     ya = varied[1] if len(varied) > 1 else None
@@ -231,7 +276,8 @@ def _scenario_rows(entries, episodes) -> str:
 def _episode_rows(entries, spec, episodes) -> str:
     head = ("<tr><th class='l'>scenario</th><th class='l'>variation</th>"
             + "".join(f"<th>{c}</th>" for c in METRIC_COLUMNS)
-            + "<th>handovers</th><th class='l'>AEB</th><th class='l'>note</th></tr>")
+            + "<th>score</th><th>handovers</th><th class='l'>AEB</th><th class='l'>note</th>"
+            "</tr>")
     rows = []
     for ep in episodes[:MAX_TABLE_ROWS]:
         r = ep.result
@@ -240,7 +286,7 @@ def _episode_rows(entries, spec, episodes) -> str:
         if r is None or r.metrics is None:
             note = html.escape(r.skip_reason if r else "")
             rows.append(f"<tr class='skip'><td class='l'>{name}</td><td class='l'>{var}</td>"
-                        + "<td></td>" * (len(METRIC_COLUMNS) + 2)
+                        + "<td></td>" * (len(METRIC_COLUMNS) + 3)
                         + f"<td class='l'>skipped: {note}</td></tr>")
             continue
         m = r.metrics.as_dict()
@@ -249,6 +295,7 @@ def _episode_rows(entries, spec, episodes) -> str:
         rows.append(f"<tr class='{'bad' if m['collision'] else ''}'><td class='l'>{name}</td>"
                     f"<td class='l'>{var}</td>"
                     + "".join(f"<td>{_fmt(m[c])}</td>" for c in METRIC_COLUMNS)
+                    + f"<td>{_fmt(r.score.score if r.score else None)}</td>"
                     + f"<td class='l'>{html.escape(hand)}</td><td class='l'>"
                     f"{html.escape(aeb)}</td><td class='l'>{html.escape(r.terminated_by)}</td>"
                     "</tr>")
@@ -257,8 +304,27 @@ def _episode_rows(entries, spec, episodes) -> str:
     return f"<div class='scroll'><table>{head}{''.join(rows)}</table></div>{more}"
 
 
-def render_summary(*, entries, spec, episodes, axes, options) -> str:
-    """The page's HTML."""
+def _videos_html(entries, episodes, videos: dict[int, str]) -> str:
+    """The episode videos (``test-policy --render``), each with what happened in it."""
+    items = []
+    for k, href in sorted(videos.items()):
+        ep = episodes[k]
+        m = ep.result.metrics
+        what = (f"episode {k}: {entries[ep.scenario_index].name}, {label(ep.values)}; "
+                + (f"collision at {ep.result.collision_t_s:.1f} s"
+                   if ep.result.collision_t_s is not None else
+                   f"no collision, min TTC {_fmt(m.min_ttc_s)} s, min gap {_fmt(m.min_gap_m)} m"))
+        items.append(f"<figure><video controls preload='metadata' src='{html.escape(href)}' "
+                     f"style='width:100%;height:auto;background:#000'></video><figcaption>"
+                     f"{html.escape(what)} (<a href='{html.escape(href)}'>{html.escape(href)}"
+                     "</a>)</figcaption></figure>")
+    return ("<section><h2>Episode videos: the policy's drive from above, the recorded ego as "
+            "a white outline, gap, speeds and TTC below, AEB stages and the collision "
+            "marked</h2><div class='grid'>" + "".join(items) + "</div></section>")
+
+
+def render_summary(*, entries, spec, episodes, axes, options, videos=None) -> str:
+    """The page's HTML (``videos``: episode index -> episode video, relative to the page)."""
     run = [ep.result.metrics for ep in episodes if ep.result and ep.result.metrics]
     collisions = sum(m.collision for m in run)
     kpis = [("episodes", len(episodes)), ("run", len(run)), ("skipped", len(episodes) - len(run)),
@@ -287,6 +353,11 @@ def render_summary(*, entries, spec, episodes, axes, options) -> str:
                         f"<figcaption>{html.escape(entry.name)}: collision and minimum TTC over "
                         "the varied parameters (worst case over any others)</figcaption>"
                         "</figure>")
+        img = score_heat_figure(entry, [ep for ep in episodes if ep.scenario_index == si], axes)
+        if img:
+            heat.append(f"<figure><img alt='score {html.escape(entry.name)}' src='{img}'>"
+                        f"<figcaption>{html.escape(entry.name)}: the episode score over the "
+                        "varied parameters (lowest over any others)</figcaption></figure>")
     if heat:
         parts.append("<section><h2>Variations</h2><div class='wide'>" + "".join(heat)
                      + "</div></section>")
@@ -298,6 +369,8 @@ def render_summary(*, entries, spec, episodes, axes, options) -> str:
                      "TTC (red), the recorded log (dashed)</figcaption></figure>")
     parts.append("<section><h2>Gap, TTC and speed over time</h2><div class='grid'>"
                  + "".join(plots) + "</div></section>")
+    if videos:
+        parts.append(_videos_html(entries, episodes, videos))
     parts.append("<section><h2>Episodes</h2>" + _episode_rows(entries, spec, episodes)
                  + "</section>")
     parts.append("<section><h2>What the figures mean</h2><dl>"

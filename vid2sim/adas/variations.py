@@ -38,18 +38,20 @@ from dataclasses import dataclass, replace
 import numpy as np
 from shapely.geometry import Polygon
 
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import FormatError, ImpossibleValueError
 from vid2sim.core.scenario import Scenario, Trajectory
 from vid2sim.export.highway import ReplayEnv, enu_to_hw, hw_to_enu
+from vid2sim.export.openscenario import VARIATION_PARAMETERS
 
 PARAMETERS = {
-    "lead_decel": ("scale of the lead's deceleration", 1.0, None),
-    "gap": ("scale of the initial gap to the lead", 1.0, None),
-    "ego_speed": ("offset of the ego's speed [m/s]", 0.0, None),
-    "cut_in": ("time shift of the cut-in [s]", 0.0, None),
+    "lead_decel": ("scale of the lead's deceleration", VARIATION_PARAMETERS["lead_decel"], None),
+    "gap": ("scale of the initial gap to the lead", VARIATION_PARAMETERS["gap"], None),
+    "ego_speed": ("offset of the ego's speed [m/s]", VARIATION_PARAMETERS["ego_speed"], None),
+    "cut_in": ("time shift of the cut-in [s]", VARIATION_PARAMETERS["cut_in"], None),
     "noise": ("sensor noise level", 0.0, 0.0),
 }
-"""name -> (meaning, neutral value, smallest value --vary accepts or None). Values that make a
+"""name -> (meaning, neutral value, smallest value --vary accepts or None); the neutral values
+are the ones every exported scenario.xosc declares. Values that make a
 variant physically impossible (a gap scale of 0 or less, a negative deceleration scale) are
 accepted and their variants skipped with the reason, so that a grid can span them."""
 MAX_GRID = 10_000
@@ -78,9 +80,9 @@ def _number(text: str, name: str) -> float:
     try:
         value = float(text)
     except ValueError:
-        raise InputError(None, f"--vary {name}: {text!r} is not a number", _HINT) from None
+        raise FormatError(None, f"--vary {name}: {text!r} is not a number", _HINT) from None
     if not math.isfinite(value):
-        raise InputError(None, f"--vary {name}: {text!r} is not a finite number", _HINT)
+        raise ImpossibleValueError(None, f"--vary {name}: {text!r} is not a finite number", _HINT)
     return value
 
 
@@ -92,21 +94,22 @@ def parse_vary(text: str, random: bool = False) -> tuple[Axis, ...]:
     """
     axes: list[Axis] = []
     if not text or not text.strip():
-        raise InputError(None, "--vary is empty", _HINT)
+        raise FormatError(None, "--vary is empty", _HINT)
     for item in text.split(","):
         name, eq, values = item.strip().partition("=")
         name = name.strip()
         if not eq or not name or not values.strip():
-            raise InputError(None, f"--vary: {item.strip()!r} is not NAME=VALUES", _HINT)
+            raise FormatError(None, f"--vary: {item.strip()!r} is not NAME=VALUES", _HINT)
         if name not in PARAMETERS:
-            raise InputError(None, f"--vary: unknown parameter {name!r}", _HINT)
+            raise FormatError(None, f"--vary: unknown parameter {name!r}", _HINT)
         if any(a.name == name for a in axes):
-            raise InputError(None, f"--vary: {name} is given twice", _HINT)
+            raise FormatError(None, f"--vary: {name} is given twice", _HINT)
         axes.append(_parse_axis(name, values.strip(), random))
     size = math.prod(len(a.values) for a in axes if a.values is not None)
     if not random and size > MAX_GRID:
-        raise InputError(None, f"--vary: the grid has {size} variations (at most {MAX_GRID})",
-                         "use fewer points or --samples N")
+        raise ImpossibleValueError(
+            None, f"--vary: the grid has {size} variations (at most {MAX_GRID})",
+            "use fewer points or --samples N")
     return tuple(axes)
 
 
@@ -115,32 +118,35 @@ def _parse_axis(name: str, text: str, random: bool) -> Axis:
     if ":" in text:
         parts = text.split(":")
         if len(parts) not in (2, 3):
-            raise InputError(None, f"--vary {name}: {text!r} is not LO:HI:N", _HINT)
+            raise FormatError(None, f"--vary {name}: {text!r} is not LO:HI:N", _HINT)
         lo, hi = _number(parts[0], name), _number(parts[1], name)
         if hi < lo:
-            raise InputError(None, f"--vary {name}: {text!r} runs backwards (LO > HI)", _HINT)
+            raise ImpossibleValueError(
+                None, f"--vary {name}: {text!r} runs backwards (LO > HI)", _HINT)
         if len(parts) == 3:
             try:
                 n = int(parts[2])
             except ValueError:
-                raise InputError(None, f"--vary {name}: the count {parts[2]!r} is not a whole "
-                                 "number", _HINT) from None
+                raise FormatError(None, f"--vary {name}: the count {parts[2]!r} is not a whole "
+                                  "number", _HINT) from None
             if n < 1 or (n == 1 and hi != lo):
-                raise InputError(None, f"--vary {name}: {text!r} needs a count of at least 2 "
-                                 "(or LO = HI with 1)", _HINT)
+                raise ImpossibleValueError(
+                    None, f"--vary {name}: {text!r} needs a count of at least 2 "
+                    "(or LO = HI with 1)", _HINT)
             # 10 significant digits: 0.6 + 2 * 0.15 is 0.9, not 0.8999999999999999
             values = tuple(float(f"{v:.10g}") for v in np.linspace(lo, hi, n))
         elif random:
             values = None
         else:
-            raise InputError(None, f"--vary {name}: {text!r} has no number of grid points",
-                             "write LO:HI:N, or give --samples N to draw at random")
+            raise FormatError(None, f"--vary {name}: {text!r} has no number of grid points",
+                              "write LO:HI:N, or give --samples N to draw at random")
     else:
         values = tuple(_number(v, name) for v in text.split("/"))
         lo, hi = min(values), max(values)
     if minimum is not None and lo < minimum:
-        raise InputError(None, f"--vary {name}: values must be at least {minimum:g}, got {lo:g}",
-                         _HINT)
+        raise ImpossibleValueError(
+            None, f"--vary {name}: values must be at least {minimum:g}, got {lo:g}",
+            _HINT)
     return Axis(name, values, lo, hi)
 
 

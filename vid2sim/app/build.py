@@ -38,10 +38,11 @@ from vid2sim.app.loaders import (
     smooth_trace,
 )
 from vid2sim.app.recording import video_clock, video_span_s, with_embedded_gps
+from vid2sim.app.rendering import REPLAY_NAME, render_into_build
 from vid2sim.app.settings import Settings
 from vid2sim.app.settings_file import changed_settings, settings_tree
 from vid2sim.app.tracking import detect_and_range_with, lead_summary
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import InconsistentInputError
 from vid2sim.base.fileio import staged_folder, write_text_atomic
 from vid2sim.core import scenario as scenario_io
 from vid2sim.core.camera import Camera
@@ -136,9 +137,10 @@ def clip_ego_to_video(ego: EgoTrack, duration_s: float) -> tuple[EgoTrack, list[
     warnings: list[str] = []
     keep = (ego.t_s >= -1e-9) & (ego.t_s <= duration_s + 1e-9)
     if keep.sum() < 2:
-        raise InputError(None, f"the GPS trace does not overlap the video (GPS covers "
-                         f"{ego.t_s[0]:.1f}..{ego.t_s[-1]:.1f} s of video time, the video "
-                         f"0..{duration_s:.1f} s)", "check the clocks or pass --gps-offset")
+        raise InconsistentInputError(
+            None, f"the GPS trace does not overlap the video (GPS covers "
+            f"{ego.t_s[0]:.1f}..{ego.t_s[-1]:.1f} s of video time, the video "
+            f"0..{duration_s:.1f} s)", "check the clocks or pass --gps-offset")
     if ego.t_s[0] > 0.5:
         warnings.append(f"GPS starts {ego.t_s[0]:.1f} s after the first video frame")
     if ego.t_s[-1] < duration_s - 0.5:
@@ -193,7 +195,7 @@ def _write_tables(staging: Path, scenario, ranging, road_result) -> dict[str, Pa
 #: (replay.py, preview.png), which would otherwise describe a scenario no longer there.
 BUILD_OUTPUTS: tuple[str, ...] = (
     "scenario.json", "scenario.xosc", "road.xodr", "tracks.csv", "road.json", "report.html",
-    "figures", "metrics.json", "keyframes", "replay.py", "preview.png")
+    "figures", "metrics.json", "keyframes", "replay.py", "preview.png", REPLAY_NAME)
 
 
 def build(inputs: Inputs, out_dir: Path, settings: Settings | None = None,
@@ -238,16 +240,10 @@ def build(inputs: Inputs, out_dir: Path, settings: Settings | None = None,
                            imported, boxes_label, _Stages(report))
 
 
-def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings,
-                info: VideoInfo, camera: Camera, notes: list, detector, imported,
-                boxes_label: str, stages: _Stages) -> BuildResult:
-    """The stages of :func:`build`, writing into ``staging`` (``out_dir`` once moved)."""
-    video = need_video(inputs)
-    # The frames' clock is the container's (variable frame rates keep their times).
-    clock, container = video_clock(video, info)
-    video_duration_s = video_span_s(info, container)
-
-    # ---- geo: ego trajectory and road
+def _ego_and_road(inputs: Inputs, settings: Settings, video_duration_s: float, notes: list,
+                  stages: _Stages):
+    """The geo stages: the ego trajectory (GPS smoothed, or a straight drive without one) and
+    the road; ``(ego, roads, road_result, trace, ego_noise_m)``, notes added to ``notes``."""
     roads, road_result, trace = [], None, None
     ego_noise_m = None  # the ego trajectory's position noise: known with a GPS only
     if inputs.gps is not None:
@@ -269,62 +265,17 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
             f"no GPS: the ego drives a straight road heading east at {inputs.ego_speed_mps:g} "
             "m/s from an arbitrary origin (lat 0, lon 0)"
             + (" (a camera-relative scenario)" if inputs.ego_speed_mps == 0 else "")))
+    return ego, roads, road_result, trace, ego_noise_m
 
-    # ---- detect, track, range
-    ranging, camera, ranging_notes = stages.run(
-        "detect, track and range", detect_and_range_with, settings, inputs, video, camera,
-        detector, imported, assign_lanes=inputs.gps is None)
-    notes.extend(ranging_notes)
-    notes.extend(ranging.warnings)
-    notes.append(Note.estimate(
-        f"horizon at row {ranging.horizon_y_px:.1f} px (pitch {ranging.pitch_deg_estimated:.2f} "
-        f"deg) from {ranging.horizon_source}"))
-    camera_used = camera.with_pitch(ranging.pitch_deg_estimated)
-    # ---- the ego's lateral position from the lane markings (GPS keeps the along-track one)
-    lateral = stages.run("ego lateral position", fuse_lateral, ego, ranging.lanes, road_result,
-                         config=settings.lateral, speed_known=inputs.gps is not None,
-                         refilter=lambda track, speed: lane_track(
-                             track.observations, settings.lanes, speed_mps=speed))
-    ego = lateral.ego
-    notes.extend(lateral.notes)
-    if inputs.gps is not None:
-        # With a trajectory the road's course ahead is where the ego drove: lanes (and the
-        # lead) beyond the lane model's reach follow it.
-        ranging.boxes = stages.run("lanes of the vehicles", relane, ranging.boxes,
-                                   settings.ranging, ranging.lanes, road_course(lateral),
-                                   ranging.never_lead_tracks)
-    warnings = notes_of(notes, NoteKind.WARNING)
-    assumptions = [n for n in notes if getattr(n, "kind", None) in (NoteKind.ASSUMPTION,
-                                                                     NoteKind.ESTIMATE)]
 
-    # ---- assemble
-    options = {**inputs.recorded(), **settings.recorded(detector_used=detector is not None),
-               "detector_used": boxes_label,
-               "fps": info.fps, "video_clock": clock}
-    source = Source(inputs=inputs.fingerprints(), tool_version=__version__, options=options,
-                    assumptions=[str(a) for a in assumptions],
-                    settings=settings_tree(settings))
-    scenario, assemble_warnings = stages.run("assemble scenario", assemble_scenario, ego, roads,
-                                             ranging.boxes, camera_used, source=source,
-                                             config=settings.assemble,
-                                             ego_noise_m=ego_noise_m)
-    warnings.extend(assemble_warnings)
-    # ---- the street: the road's lanes from the video (and map), parked cars on their strip
-    scene = stages.run("road cross-section", lay_out_scene, scenario, lateral,
-                       settings.layout_config())
-    scenario = scene.scenario
-    warnings.extend(notes_of(scene.notes, NoteKind.WARNING))
-    scenario.source.assumptions.extend(str(n) for n in scene.notes
-                                       if getattr(n, "kind", None) is not NoteKind.WARNING)
-    scenario.source.warnings = [str(w) for w in warnings]
-    # ---- lane-change events: the actors' (lanes counted from the ego lane the ranging
-    # used) and the ego's own
-    scenario.events = stages.run("lane-change events", scenario_events, ranging.boxes,
-                                 ranging.lanes, scenario.actors, lateral.lane_changes,
-                                 settings.ranging.lane_width_m, scenario.ego.trajectory,
-                                 settings.events)
 
-    # ---- write into the staging folder (moved into place by the caller)
+def _write_outputs(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings,
+                   info: VideoInfo, camera_used: Camera, ranging, scenario, road_result, trace,
+                   ego, warnings: list[str], stages: _Stages) -> tuple[dict[str, Path], dict | None]:
+    """Write the build's outputs into ``staging`` (moved into place by the caller): tables,
+    OpenSCENARIO/OpenDRIVE, figures, the evaluation or the sampled frames, the report, and
+    with ``settings.render_replay`` the replay video; ``(files, metrics)``."""
+    video = need_video(inputs)
     files = stages.run("write scenario and tables", _write_tables, staging, scenario, ranging,
                        road_result)
     xosc, xodr = stages.run("export OpenSCENARIO/OpenDRIVE", write_openscenario, scenario,
@@ -358,12 +309,92 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
                             staging / "figures" / "frames", video, camera_used, ranging.boxes,
                             ranging.lanes, scenario, info.fps, info.n_frames,
                             video_fps=inputs.fps, config=settings.frames,
-                            progress=settings.progress,
-                            frame_times_s=ranging.frame_times_s)
+                            progress=settings.progress, frame_times_s=ranging.frame_times_s)
         stages.run("report", write_report, staging / "report.html", scenario=scenario,
                    metrics=None, extra_figures=figures, warnings=warnings, inputs=report_inputs,
                    frame_images=[(c, p, p.relative_to(staging).as_posix()) for c, p in frames])
     files["report"] = Path("report.html")
+    if settings.render_replay:
+        # the replay of the whole clip, put into the report written above
+        keyframes = (load_keyframes_for(inputs.keyframes, video, info, inputs.fps)
+                     if inputs.keyframes is not None else [])
+        stages.run("replay video", render_into_build, staging, scenario, camera_used,
+                   ranging.boxes, ranging.lanes, video, info, keyframes, inputs.fps,
+                   settings.replay, settings.progress)
+        files["replay"] = Path(REPLAY_NAME)
+    return files, metrics
+
+
+def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings,
+                info: VideoInfo, camera: Camera, notes: list, detector, imported,
+                boxes_label: str, stages: _Stages) -> BuildResult:
+    """The stages of :func:`build`, writing into ``staging`` (``out_dir`` once moved)."""
+    video = need_video(inputs)
+    # The frames' clock is the container's (variable frame rates keep their times).
+    clock, container = video_clock(video, info)
+    video_duration_s = video_span_s(info, container)
+
+    # ---- geo: ego trajectory and road
+    ego, roads, road_result, trace, ego_noise_m = _ego_and_road(inputs, settings,
+                                                                video_duration_s, notes, stages)
+
+    # ---- detect, track, range
+    ranging, camera, ranging_notes = stages.run(
+        "detect, track and range", detect_and_range_with, settings, inputs, video, camera,
+        detector, imported, assign_lanes=inputs.gps is None)
+    notes.extend(ranging_notes)
+    notes.extend(ranging.warnings)
+    notes.append(Note.estimate(
+        f"horizon at row {ranging.horizon_y_px:.1f} px (pitch {ranging.pitch_deg_estimated:.2f} "
+        f"deg) from {ranging.horizon_source}"))
+    camera_used = camera.with_pitch(ranging.pitch_deg_estimated)
+    # ---- the ego's lateral position from the lane markings (GPS keeps the along-track one)
+    lateral = stages.run("ego lateral position", fuse_lateral, ego, ranging.lanes, road_result,
+                         config=settings.lateral, speed_known=inputs.gps is not None,
+                         refilter=lambda track, speed: lane_track(
+                             track.observations, settings.lanes, speed_mps=speed))
+    ego = lateral.ego
+    notes.extend(lateral.notes)
+    if inputs.gps is not None:
+        # With a trajectory the road's course ahead is where the ego drove: lanes (and the
+        # lead) beyond the lane model's reach follow it.
+        ranging.boxes = stages.run("lanes of the vehicles", relane, ranging.boxes,
+                                   settings.ranging, ranging.lanes, road_course(lateral),
+                                   ranging.never_lead_tracks)
+    warnings = notes_of(notes, NoteKind.WARNING)
+    assumptions = [n for n in notes if getattr(n, "kind", None) in (NoteKind.ASSUMPTION,
+                                                                     NoteKind.ESTIMATE)]
+
+    # ---- assemble
+    options = {**inputs.recorded(), **settings.recorded(detector_used=detector is not None),
+               "detector_used": boxes_label,
+               "fps": info.fps, "n_frames": info.n_frames, "video_clock": clock}
+    source = Source(inputs=inputs.fingerprints(), tool_version=__version__, options=options,
+                    assumptions=[str(a) for a in assumptions],
+                    settings=settings_tree(settings))
+    scenario, assemble_warnings = stages.run("assemble scenario", assemble_scenario, ego, roads,
+                                             ranging.boxes, camera_used, source=source,
+                                             config=settings.assemble,
+                                             ego_noise_m=ego_noise_m)
+    warnings.extend(assemble_warnings)
+    # ---- the street: the road's lanes from the video (and map), parked cars on their strip
+    scene = stages.run("road cross-section", lay_out_scene, scenario, lateral,
+                       settings.layout_config())
+    scenario = scene.scenario
+    warnings.extend(notes_of(scene.notes, NoteKind.WARNING))
+    scenario.source.assumptions.extend(str(n) for n in scene.notes
+                                       if getattr(n, "kind", None) is not NoteKind.WARNING)
+    scenario.source.warnings = [str(w) for w in warnings]
+    # ---- lane-change events: the actors' (lanes counted from the ego lane the ranging
+    # used) and the ego's own
+    scenario.events = stages.run("lane-change events", scenario_events, ranging.boxes,
+                                 ranging.lanes, scenario.actors, lateral.lane_changes,
+                                 settings.ranging.lane_width_m, scenario.ego.trajectory,
+                                 settings.events)
+
+    # ---- write into the staging folder (moved into place by the caller)
+    files, metrics = _write_outputs(staging, out_dir, inputs, settings, info, camera_used,
+                                    ranging, scenario, road_result, trace, ego, warnings, stages)
 
     lead = lead_summary(ranging, info.n_frames)
     lead_range = (None if not np.isfinite(lead["lead_range_median_m"]) else

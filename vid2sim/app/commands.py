@@ -19,7 +19,7 @@ import numpy as np
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.loaders import load_keyframes_for, load_trace, smooth_trace
 from vid2sim.app.settings import Settings
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import FormatError
 from vid2sim.base.fileio import (
     check_output_file,
     check_output_folder,
@@ -33,6 +33,14 @@ from vid2sim.core.tables import write_ego_csv
 from vid2sim.core.videofile import video_info
 from vid2sim.evaluate.replay import run_eval
 from vid2sim.export import FORMATS, replay_script
+from vid2sim.export.commonroad import (
+    IDS_NAME,
+    XML_NAME,
+    CommonRoadConfig,
+    check_expressible,
+    require_commonroad,
+    write_commonroad,
+)
 from vid2sim.export.openscenario import write_openscenario
 from vid2sim.geo import roads as geo_roads
 from vid2sim.geo import trace as geo_trace
@@ -82,34 +90,51 @@ def run_road(inputs: Inputs, out_path: Path, settings: Settings | None = None,
 EXPORT_OUTPUTS: dict[str, tuple[str, ...]] = {
     "openscenario": ("scenario.xosc", "road.xodr"),
     "highway-env": ("scenario.json", "replay.py", "preview.png"),
+    "commonroad": (XML_NAME, IDS_NAME),
 }
 #: What ``vid2sim eval`` writes into its folder (a rerun replaces all of it).
 EVAL_OUTPUTS: tuple[str, ...] = ("metrics.json", "keyframes", "report.html")
 
 
-def run_export(scenario_path: Path, fmt: str, out_dir: Path) -> str:
+def run_export(scenario_path: Path, fmt: str, out_dir: Path, *, ego_as_obstacle: bool = False,
+               commonroad: CommonRoadConfig | None = None) -> str:
     """``vid2sim export``: a scenario.json for a simulator; returns the summary.
 
     ``openscenario``: ``out_dir/scenario.xosc`` + ``out_dir/road.xodr``.
     ``highway-env``: ``out_dir/scenario.json`` (canonical copy), ``out_dir/replay.py`` (runnable
     example: ACC + AEB ego, or ``--log``) and ``out_dir/preview.png`` (top view of the replay
     with the logged ego at mid-scenario).
+    ``commonroad``: ``out_dir/scenario.xml`` (CommonRoad 2020a, commonroad-io's writer; the ego
+    also a dynamic obstacle with ``ego_as_obstacle``) + ``out_dir/ids.json`` (vid2sim ids ->
+    CommonRoad ids).
 
     The scenario is validated first (schema, finite numbers, limits, road geometry), the
     outputs are staged and moved into ``out_dir`` together: a failure leaves the folder as it
     was.
     """
     if fmt not in EXPORT_OUTPUTS:
-        raise InputError(None, f"unknown export format {fmt!r}", f"use one of {', '.join(FORMATS)}")
+        raise FormatError(
+            None, f"unknown export format {fmt!r}", f"use one of {', '.join(FORMATS)}")
     scenario_path = Path(scenario_path)
+    if fmt == "commonroad":
+        require_commonroad()
     sc = scenario_io.load(scenario_path)
     out_dir = Path(out_dir)
+    if fmt == "commonroad":
+        check_expressible(sc, scenario_path)
     with staged_folder(out_dir, EXPORT_OUTPUTS[fmt]) as staging:
         if fmt == "openscenario":
             write_openscenario(sc, staging)
             return (f"wrote {out_dir / 'scenario.xosc'} (OpenSCENARIO 1.2, {1 + len(sc.actors)} "
                     f"vehicles, {sc.duration_s:.1f} s) and {out_dir / 'road.xodr'} (OpenDRIVE "
                     f"1.8, {max(len(sc.roads), 1)} road(s))")
+        if fmt == "commonroad":
+            done = write_commonroad(sc, staging, commonroad, ego_as_obstacle, scenario_path)
+            lanelets = sum(len(v) for v in done.ids["lanelets"].values())
+            return (f"wrote {out_dir / XML_NAME} (CommonRoad 2020a, {lanelets} lanelets, "
+                    f"{len(sc.actors) + ego_as_obstacle} dynamic obstacles, {done.grid.steps} "
+                    f"steps of {done.grid.dt_s:g} s, 1 planning problem) and "
+                    f"{out_dir / IDS_NAME}")
         scenario_io.save(sc, staging / "scenario.json")
         v_ref = max(float(np.max(sc.ego.trajectory.speed)), 5.0)
         write_text_atomic(staging / "replay.py", replay_script(scenario_path.name, v_ref))

@@ -6,7 +6,7 @@ import math
 from dataclasses import dataclass, fields
 from pathlib import Path
 
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import ImpossibleValueError, MissingInputError
 from vid2sim.base.fileio import sha256_path
 
 #: Every input a run may take: (field of :class:`Inputs` and manifest column, label used in
@@ -71,19 +71,22 @@ class Inputs:
         labels = dict(INPUT_ROLES)
         for role, p in self.paths().items():
             if not p.exists():
-                raise InputError(p, "no such file", f"check the path of the {labels[role]} input")
+                raise MissingInputError(
+                    p, "no such file", f"check the path of the {labels[role]} input")
         for name in INPUT_NUMBERS:
             value = getattr(self, name)
             if value is not None and not math.isfinite(value):
-                raise InputError(None, f"{name} must be a finite number, got {value}")
+                raise ImpossibleValueError(None, f"{name} must be a finite number, got {value}")
         if self.fps is not None and not 0 < self.fps <= MAX_FPS:
-            raise InputError(None, f"fps must be in (0, {MAX_FPS:g}] frames/s, got {self.fps:g}")
+            raise ImpossibleValueError(
+                None, f"fps must be in (0, {MAX_FPS:g}] frames/s, got {self.fps:g}")
         if not 0 <= self.ego_speed_mps <= MAX_EGO_SPEED_MPS:
-            raise InputError(None, f"ego speed must be 0-{MAX_EGO_SPEED_MPS:g} m/s, got "
-                             f"{self.ego_speed_mps:g}", "the unit is m/s")
+            raise ImpossibleValueError(None, f"ego speed must be 0-{MAX_EGO_SPEED_MPS:g} m/s, got "
+                                       f"{self.ego_speed_mps:g}", "the unit is m/s")
         if self.gps_offset_s is not None and abs(self.gps_offset_s) > MAX_GPS_OFFSET_S:
-            raise InputError(None, f"GPS offset {self.gps_offset_s:g} s is more than a day",
-                             "give the video time of the first fix in seconds")
+            raise ImpossibleValueError(
+                None, f"GPS offset {self.gps_offset_s:g} s is more than a day",
+                "give the video time of the first fix in seconds")
 
     def fingerprints(self) -> list[dict[str, str]]:
         """``source.inputs`` of a scenario: role, file name and sha256 of each input.

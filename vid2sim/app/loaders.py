@@ -11,7 +11,7 @@ from pathlib import Path
 
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.settings import Settings
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import InconsistentInputError, MissingInputError
 from vid2sim.core.camera import Camera, fit_camera_to_frames, load_camera
 from vid2sim.core.records import (
     Detection,
@@ -35,7 +35,7 @@ from vid2sim.geo.trace import smooth_ego
 def need_video(inputs: Inputs) -> Path:
     """The video path, or an input error for a command that needs one."""
     if inputs.video is None:
-        raise InputError(None, "no video given")
+        raise MissingInputError(None, "no video given")
     return Path(inputs.video)
 
 
@@ -108,7 +108,7 @@ def load_boxes(inputs: Inputs, settings: Settings
 def load_trace(inputs: Inputs) -> GpsTrace:
     """The GPS trace of ``inputs.gps`` (format detected from the content)."""
     if inputs.gps is None:
-        raise InputError(None, "no GPS trace given")
+        raise MissingInputError(None, "no GPS trace given")
     return read_gps(Path(inputs.gps))
 
 
@@ -137,14 +137,16 @@ def load_keyframes_for(keyframes: Path, video: Path, info: VideoInfo,
     names = [p.name for p in image_files(video)] if Path(video).is_dir() else None
     frames = read_keyframes(keyframes, fps=rate, frame_names=names)
     if not frames:
-        raise InputError(keyframes, "no annotated keyframe matches a frame of the video "
-                         f"({info.n_frames} frames)", "are the annotations for this video?")
+        raise InconsistentInputError(
+            keyframes, "no annotated keyframe matches a frame of the video "
+            f"({info.n_frames} frames)", "are the annotations for this video?")
     index = [k.frame if k.frame is not None else round(k.t_s * rate) for k in frames]
     outside = [(k, f) for k, f in zip(frames, index, strict=True)
                if not 0 <= f < info.n_frames]
     if outside:
         k, f = outside[0]
-        raise InputError(keyframes, f"{len(outside)} of {len(frames)} keyframes lie outside the "
-                         f"video's {info.n_frames} frames (first: {k.name!r}, frame {f})",
-                         "are the annotations for this video, at this frame rate?")
+        raise InconsistentInputError(
+            keyframes, f"{len(outside)} of {len(frames)} keyframes lie outside the "
+            f"video's {info.n_frames} frames (first: {k.name!r}, frame {f})",
+            "are the annotations for this video, at this frame rate?")
     return frames

@@ -23,7 +23,7 @@ from pathlib import Path
 from vid2sim.app.build import BuildResult, build
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.settings import SegmentConfig, Settings
-from vid2sim.base.errors import InconsistentInputError, InputError
+from vid2sim.base.errors import FormatError, InconsistentInputError, MissingInputError
 from vid2sim.core.container import ContainerInfo, probe_container
 from vid2sim.core.records import GpsTrace, Note
 from vid2sim.geo.embedded import find_telemetry, read_embedded
@@ -49,7 +49,7 @@ def video_files(folder: Path) -> list[Path]:
 def read_segment(path: Path) -> Segment:
     info = probe_container(path)
     if info.video is None:
-        raise InputError(path, "no video stream", "give the recording's video files")
+        raise FormatError(path, "no video stream", "give the recording's video files")
     trace = read_embedded(path) if find_telemetry(path) else None
     if trace is not None and trace.video_start_utc_s:
         return Segment(path, info, trace, trace.video_start_utc_s, "GPS")
@@ -184,7 +184,7 @@ def build_drive(videos: list[Path], inputs: Inputs, out_dir: Path,
         return build(replace(inputs, video=paths[0]), out_dir, settings, report=report)
     for p in paths:
         if not p.is_file():
-            raise InputError(p, "no such video file", "give the segments' video files")
+            raise MissingInputError(p, "no such video file", "give the segments' video files")
     ordered, offsets, notes = order_segments([read_segment(p) for p in paths],
                                              settings.segments)
     parent = Path(out_dir).resolve().parent

@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+from vid2sim.adas.score import ScoreConfig
 from vid2sim.adas.sensor import SensorConfig
 from vid2sim.base.defaults import EGO_RATE_HZ
 from vid2sim.base.errors import ImpossibleValueError
@@ -22,7 +23,9 @@ from vid2sim.detect.tracking.flow import FlowConfig
 from vid2sim.detect.tracking.tracker import TrackerConfig
 from vid2sim.detect.vehicles.models import DEFAULT_DETECTOR
 from vid2sim.evaluate.frames_config import FrameSampleConfig
+from vid2sim.evaluate.replayconfig import ReplayVideoConfig
 from vid2sim.export.assemble import AssembleConfig
+from vid2sim.export.commonroad import CommonRoadConfig
 from vid2sim.export.events import EventConfig
 from vid2sim.export.layout_config import LayoutConfig
 from vid2sim.geo.lateral_config import LateralConfig
@@ -143,10 +146,14 @@ class Settings:
     :param segments: how the segments of a split recording are joined into one drive
     :param sensor: the camera error model of ``test-policy`` (its ``level`` is
         ``--sensor-noise``)
+    :param commonroad: the CommonRoad export's goal region and header
+    :param score: thresholds and weights of test-policy's episode score
     :param rate_hz: ego trajectory sample rate [Hz]
     :param allow_download: fetch OpenStreetMap data for a trace without a map file
     :param osm_cache_dir: where downloaded maps are cached (default the user cache)
     :param progress: progress bars on stderr
+    :param replay: how replay videos are drawn and encoded
+    :param render_replay: ``build --render``: also write the replay video (replay.mp4)
     """
 
     detector: DetectorSettings = field(default_factory=DetectorSettings)
@@ -166,10 +173,14 @@ class Settings:
     frames: FrameSampleConfig = field(default_factory=FrameSampleConfig)
     segments: SegmentConfig = field(default_factory=SegmentConfig)
     sensor: SensorConfig = field(default_factory=SensorConfig)
+    commonroad: CommonRoadConfig = field(default_factory=CommonRoadConfig)
+    score: ScoreConfig = field(default_factory=ScoreConfig)
     rate_hz: float = EGO_RATE_HZ
     allow_download: bool = True
     osm_cache_dir: Path | None = None
     progress: bool = True
+    replay: ReplayVideoConfig = field(default_factory=ReplayVideoConfig)
+    render_replay: bool = False
 
     def tracker_config(self) -> TrackerConfig:
         """The tracker's thresholds with ``detector.score`` applied."""

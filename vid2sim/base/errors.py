@@ -27,10 +27,20 @@ class InputError(Exception):
             text += f" ({self.hint})"
         return text
 
+    def naming(self, path: str | Path | None) -> InputError:
+        """The same error, of the same class and with the same fields, naming ``path``: for a
+        helper's error that the caller, who knows the file, raises again."""
+        renamed = type(self).__new__(type(self))
+        renamed.__dict__.update(self.__dict__)
+        renamed.path = str(path) if path is not None else None
+        renamed.args = (str(renamed),)
+        return renamed
+
 
 class MissingInputError(InputError):
     """A file or folder that is not there, not readable, or of the wrong kind (a folder where a
-    file was expected): the user names another path."""
+    file was expected), or an input the run needs that was not given (no video, no ``--fps``
+    for frame numbers): the user names another path or adds the input."""
 
 
 class FormatError(InputError):

@@ -22,7 +22,7 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import IO, Any
 
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import FormatError, InputError, MissingInputError, OutputError
 
 #: errno values that describe the output location, not a bug: no permission, a read-only
 #: filesystem, no space or quota left, a file larger than the filesystem or ulimit allows.
@@ -46,7 +46,7 @@ def output_error(path: str | Path, exc: OSError) -> InputError:
         hint = "free some space or write the output elsewhere"
     else:
         hint = "choose a writable output location"
-    return InputError(path, f"cannot write the output: {what}", hint)
+    return OutputError(path, f"cannot write the output: {what}", hint)
 
 
 @contextlib.contextmanager
@@ -73,6 +73,34 @@ def atomic_open(path: str | Path, mode: str = "w", **kwargs) -> Iterator[IO]:
         os.chmod(tmp, 0o666 & ~_umask())
         with open(tmp, mode, **kwargs) as fh:
             yield fh
+        os.replace(tmp, path)
+    except OSError as exc:
+        _remove_quietly(tmp)
+        if exc.errno in OUTPUT_ERRNOS:
+            raise output_error(path, exc) from exc
+        raise
+    except BaseException:
+        _remove_quietly(tmp)
+        raise
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | Path) -> Iterator[Path]:
+    """A temporary path beside ``path``, with its suffix, for a writer that takes a file name
+    (a video encoder); renamed over ``path`` only if the block succeeds (as
+    :func:`atomic_open`: a failure leaves any existing ``path`` untouched and removes the
+    temporary file; a read-only location or a full disk raises :class:`InputError`)."""
+    path = Path(path)
+    if path.is_symlink():
+        path = path.resolve()
+    tmp = None
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix or ".tmp",
+                                   dir=path.parent)
+        os.close(fd)
+        os.chmod(tmp, 0o666 & ~_umask())
+        yield Path(tmp)
         os.replace(tmp, path)
     except OSError as exc:
         _remove_quietly(tmp)
@@ -140,21 +168,22 @@ def check_input_size(path: str | Path, max_bytes: int = MAX_INPUT_BYTES,
     try:
         size = path.stat().st_size
     except FileNotFoundError:
-        raise InputError(path, "no such file") from None
+        raise MissingInputError(path, "no such file") from None
     except OSError as exc:
-        raise InputError(path, f"cannot read: {exc.strerror or exc}") from None
+        raise MissingInputError(path, f"cannot read: {exc.strerror or exc}") from None
     if size > max_bytes:
         raise InputError(path, f"{what} file of {size / 2**20:.0f} MiB is larger than the "
-                         f"{max_bytes / 2**20:.0f} MiB limit", "see README 'Limits'")
+                         f"{max_bytes / 2**20:.0f} MiB limit", "see docs/limits.md")
     return size
 
 
 def read_input_text(path: str | Path, max_bytes: int = MAX_INPUT_BYTES) -> str:
     """Text of a user's input file (UTF-8, a leading BOM dropped).
 
-    Raises :class:`~vid2sim.base.errors.InputError` naming the file for a missing, unreadable,
-    oversized, binary (NUL bytes) or non-UTF-8 file, so every reader reports these the same
-    way.
+    Raises, naming the file, so every reader reports these the same way:
+    :class:`~vid2sim.base.errors.MissingInputError` for a missing or unreadable file or a
+    folder, :class:`~vid2sim.base.errors.FormatError` for binary (NUL bytes) or non-UTF-8
+    content, :class:`~vid2sim.base.errors.InputError` for a file over ``max_bytes``.
     """
     path = Path(path)
     try:
@@ -162,31 +191,31 @@ def read_input_text(path: str | Path, max_bytes: int = MAX_INPUT_BYTES) -> str:
             check_input_size(path, max_bytes)
         text = path.read_text(encoding="utf-8").lstrip("\ufeff")
     except FileNotFoundError:
-        raise InputError(path, "no such file") from None
+        raise MissingInputError(path, "no such file") from None
     except IsADirectoryError:
-        raise InputError(path, "is a folder, not a file") from None
+        raise MissingInputError(path, "is a folder, not a file") from None
     except UnicodeDecodeError as exc:
-        raise InputError(path, f"not UTF-8 text (byte {exc.start})",
-                         "is this a binary file?") from None
+        raise FormatError(path, f"not UTF-8 text (byte {exc.start})",
+                          "is this a binary file?") from None
     except OSError as exc:
-        raise InputError(path, f"cannot read: {exc.strerror or exc}") from None
+        raise MissingInputError(path, f"cannot read: {exc.strerror or exc}") from None
     nul = text.find("\x00")
     if nul >= 0:
-        raise InputError(path, f"binary content (a NUL byte at character {nul})",
-                         "expected a text file")
+        raise FormatError(path, f"binary content (a NUL byte at character {nul})",
+                          "expected a text file")
     return text
 
 
 def parse_json(text: str, path: str | Path | None) -> Any:
     """``json.loads`` with the project's errors: bad JSON or nesting too deep for the parser
-    (a 100,000-deep array) is an :class:`InputError` naming the file."""
+    (a 100,000-deep array) is a :class:`~vid2sim.base.errors.FormatError` naming the file."""
     try:
         return json.loads(text)
     except json.JSONDecodeError as exc:
-        raise InputError(path, f"not valid JSON: {exc.msg} at line {exc.lineno}") from None
+        raise FormatError(path, f"not valid JSON: {exc.msg} at line {exc.lineno}") from None
     except RecursionError:
-        raise InputError(path, "JSON nested too deeply to read",
-                         "no vid2sim input nests more than a few levels") from None
+        raise FormatError(path, "JSON nested too deeply to read",
+                          "no vid2sim input nests more than a few levels") from None
 
 
 # --------------------------------------------------------------------------- output folders
@@ -273,7 +302,7 @@ def staged_folder(out_dir: str | Path, owned: Iterable[str] = ()) -> Iterator[Pa
             # Name the output the user asked for, not the staging folder's random name.
             if exc.path is not None and exc.path.startswith(str(staging)):
                 final = out_dir / os.path.relpath(exc.path, staging)
-                raise _renamed(exc, final) from exc
+                raise exc.naming(final) from exc
             raise
         except OSError as exc:
             if exc.errno in OUTPUT_ERRNOS:
@@ -290,15 +319,6 @@ def staged_folder(out_dir: str | Path, owned: Iterable[str] = ()) -> Iterator[Pa
                 raise
     finally:
         shutil.rmtree(staging, ignore_errors=True)
-
-
-def _renamed(exc: InputError, path: Path) -> InputError:
-    """The same error naming ``path`` (keeps the subclass and its fields, e.g. ScenarioError)."""
-    renamed = type(exc).__new__(type(exc))
-    renamed.__dict__.update(exc.__dict__)
-    renamed.path = str(path)
-    renamed.args = (str(renamed),)
-    return renamed
 
 
 @contextlib.contextmanager

@@ -117,8 +117,8 @@ def _run(argv: list[str] | None, verbose: bool) -> int:
             traceback.print_exc()
         return 2
     except MemoryError:
-        click.echo("error: out of memory: an input is too large for this machine (see README "
-                   "'Limits')", err=True)
+        click.echo("error: out of memory: an input is too large for this machine (see "
+                   "docs/limits.md)", err=True)
         return 2
     except OSError as exc:
         line = _os_error_line(exc)

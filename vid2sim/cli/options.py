@@ -10,7 +10,7 @@ import click
 from vid2sim.app.settings import DetectorSettings, Settings
 from vid2sim.app.settings_file import load_settings
 from vid2sim.base.defaults import IMAGE_FOLDER_FPS
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import OutputError
 from vid2sim.detect.vehicles.models import DEFAULT_DETECTOR
 from vid2sim.detect.vehicles.windows import REFINE_MAX_BOXES
 
@@ -48,14 +48,14 @@ def check_out_file(path: Path, example: str) -> None:
     mistake; without this check it surfaced only at the final rename, as an internal error.
     """
     if path.is_dir():
-        raise InputError(path, "is a folder", f"give the output file name, e.g. {example}")
+        raise OutputError(path, "is a folder", f"give the output file name, e.g. {example}")
     _check_parents(path)
 
 
 def check_out_dir(path: Path) -> None:
     """Refuse an output folder path that is an existing file, before any work is done."""
     if path.exists() and not path.is_dir():
-        raise InputError(path, "is a file, not a folder", "give an output folder")
+        raise OutputError(path, "is a file, not a folder", "give an output folder")
     _check_parents(path)
 
 
@@ -63,8 +63,8 @@ def _check_parents(path: Path) -> None:
     for parent in path.parents:
         if parent.exists():
             if not parent.is_dir():
-                raise InputError(path, f"{parent} is a file, not a folder",
-                                 "give a path inside a folder")
+                raise OutputError(path, f"{parent} is a file, not a folder",
+                                  "give a path inside a folder")
             return
 
 def detector_options(fn):

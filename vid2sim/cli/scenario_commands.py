@@ -11,6 +11,7 @@ from vid2sim.cli.group import cli
 from vid2sim.cli.options import (
     EXISTING_PATH,
     check_out_dir,
+    check_out_file,
     config_option,
     detector_options,
     echo,
@@ -50,16 +51,22 @@ def eval_(scenario_file: Path, keyframes_path: Path, video: Path | None, fps: fl
 
 @cli.command()
 @click.argument("scenario_file", type=EXISTING_PATH)
-@click.option("--format", "fmt", type=click.Choice(["highway-env", "openscenario"]),
+@click.option("--format", "fmt",
+              type=click.Choice(["highway-env", "openscenario", "commonroad"]),
               required=True, help="openscenario: scenario.xosc + road.xodr; highway-env: "
-              "scenario.json + replay.py + preview.png.")
+              "scenario.json + replay.py + preview.png; commonroad: scenario.xml (CommonRoad "
+              "2020a) + ids.json.")
+@click.option("--ego-as-obstacle", is_flag=True,
+              help="commonroad: the ego is also a dynamic obstacle with its log (besides its "
+                   "planning problem), as criticality tools need.")
 @click.option("--out", "out_dir", type=EXISTING_PATH, required=True, help="Output folder.")
-def export(scenario_file: Path, fmt: str, out_dir: Path) -> None:
-    """Export SCENARIO_FILE for a simulator (OpenSCENARIO 1.2 / OpenDRIVE 1.8, highway-env)."""
+def export(scenario_file: Path, fmt: str, ego_as_obstacle: bool, out_dir: Path) -> None:
+    """Export SCENARIO_FILE for a simulator (OpenSCENARIO 1.2 / OpenDRIVE 1.8, highway-env,
+    CommonRoad)."""
     from vid2sim.app.commands import run_export
 
     check_out_dir(out_dir)
-    echo(run_export(scenario_file, fmt, out_dir))
+    echo(run_export(scenario_file, fmt, out_dir, ego_as_obstacle=ego_as_obstacle))
 
 
 # --------------------------------------------------------------------------- test-policy
@@ -91,12 +98,17 @@ def export(scenario_file: Path, fmt: str, out_dir: Path) -> None:
 @click.option("--write-scenarios", is_flag=True,
               help="Also write each variant as scenario.json + scenario.xosc (varied "
                    "parameters in ParameterDeclarations) + road.xodr under OUT/scenarios/.")
+@click.option("--render", "render", default=None, metavar="worst|all|N",
+              help="Episode videos (OUT/episodes/NNNN.mp4, linked in summary.html) of the "
+                   "worst episode, the N worst, or all: the drive from above with the "
+                   "recorded ego as a ghost, gap/TTC strip, AEB and collision marked.")
 @click.option("--out", "out_dir", type=EXISTING_PATH, required=True,
               help="Output folder: results.csv, summary.html.")
 @config_option
 def test_policy_cmd(scenarios: tuple[Path, ...], policy: str, reactive: bool,
                     sensor_noise: float, vary: str | None, samples: int | None, seed: int,
-                    jobs: int | None, write_scenarios: bool, out_dir: Path) -> None:
+                    jobs: int | None, write_scenarios: bool, render: str | None,
+                    out_dir: Path) -> None:
     """Score a driving policy on SCENARIO_OR_DIR... (scenario.json files, or folders searched
     for them) and on variations of them: results.csv (one row per episode) and summary.html."""
     from vid2sim.adas.campaign import CampaignOptions, default_jobs, run_campaign
@@ -105,8 +117,44 @@ def test_policy_cmd(scenarios: tuple[Path, ...], policy: str, reactive: bool,
     opts = CampaignOptions(inputs=tuple(scenarios), policy=policy, out_dir=out_dir,
                            reactive=reactive, sensor_noise=sensor_noise, vary=vary,
                            samples=samples, seed=seed, jobs=jobs or default_jobs(),
-                           write_scenarios=write_scenarios, sensor=settings_from().sensor)
+                           write_scenarios=write_scenarios, render=render,
+                           sensor=settings_from().sensor)
     echo(run_campaign(opts, progress=show_progress()))
+
+
+# --------------------------------------------------------------------------- render
+
+
+@cli.command()
+@click.argument("build_dir", type=EXISTING_PATH)
+@click.option("--video", type=EXISTING_PATH, default=None,
+              help="The build's video (file or image folder); without it the camera half is a "
+                   "grey canvas with the boxes and the scenario's vehicles.")
+@click.option("--from", "t_from", type=float, default=None, metavar="S",
+              help="First moment [s of the video's clock] (default its start).")
+@click.option("--to", "t_to", type=float, default=None, metavar="S",
+              help="Last moment [s] (default the video's end).")
+@click.option("--fps", type=float, default=None, metavar="F",
+              help="Frame rate of the replay [frames/s] (default the video's; frames are "
+                   "dropped or repeated to it, the scenario's clock kept).")
+@click.option("--keyframes", type=EXISTING_PATH, default=None,
+              help="Annotated keyframes (as for build --keyframes): their boxes on their frames.")
+@click.option("--out", "out_path", type=EXISTING_PATH, default=None,
+              help="Where to write the MP4 [default BUILD_DIR/replay.mp4; inside the build "
+                   "folder it is shown in its report.html].")
+@config_option
+def render(build_dir: Path, video: Path | None, t_from: float | None, t_to: float | None,
+           fps: float | None, keyframes: Path | None, out_path: Path | None) -> None:
+    """Replay a build (BUILD_DIR, from `vid2sim build`) as a video: the camera frame with the
+    detected boxes and the scenario's vehicles projected back, beside the scenario from above
+    (ego up), over a strip with time, speeds, lead range, TTC and events."""
+    from vid2sim.app.rendering import REPLAY_NAME, RenderRequest, run_render
+
+    out = out_path if out_path is not None else build_dir / REPLAY_NAME
+    check_out_file(out, REPLAY_NAME)
+    request = RenderRequest(build_dir=build_dir, out=out, video=video, t_from_s=t_from,
+                            t_to_s=t_to, fps=fps, keyframes=keyframes)
+    echo(run_render(request, settings_from().replay, progress=show_progress()))
 
 
 # --------------------------------------------------------------------------- build, demo
@@ -135,15 +183,19 @@ def test_policy_cmd(scenarios: tuple[Path, ...], policy: str, reactive: bool,
               help="Video time of the first GPS fix [s], overriding the file's own clock "
                    "(for the trajectory and map matching alike).")
 @click.option("--offline", is_flag=True, help="Never download a map.")
+@click.option("--render", "render_replay", is_flag=True,
+              help="Also write replay.mp4: the video beside the scenario from above, in sync "
+                   "(see `vid2sim render`), shown in report.html.")
 @click.option("--out", "out_dir", type=EXISTING_PATH, required=True, help="Output folder.")
 @config_option
 def build(videos: tuple[Path, ...], gps: Path | None, map_path: Path | None, camera_path: Path | None,
           detections_path: Path | None, fps: float | None, keyframes: Path | None,
-          ego_speed_mps: float, gps_offset_s: float | None, offline: bool, out_dir: Path,
-          **detector) -> None:
+          ego_speed_mps: float, gps_offset_s: float | None, offline: bool,
+          render_replay: bool, out_dir: Path, **detector) -> None:
     """Build a scenario from one video (or the consecutive segments of one drive, given as
     files or one folder, joined in the order of their embedded start times): scenario.json,
-    scenario.xosc + road.xodr, tracks.csv, report.html (and metrics.json with --keyframes)."""
+    scenario.xosc + road.xodr, tracks.csv, report.html (and metrics.json with --keyframes;
+    replay.mp4 with --render)."""
     from vid2sim.app.segments import build_drive
 
     check_out_dir(out_dir)
@@ -151,7 +203,8 @@ def build(videos: tuple[Path, ...], gps: Path | None, map_path: Path | None, cam
                     detections=detections_path, keyframes=keyframes, fps=fps,
                     gps_offset_s=gps_offset_s, ego_speed_mps=ego_speed_mps)
     result = build_drive(list(videos), inputs, out_dir,
-                         settings_from(**detector, allow_download=not offline), report=echo)
+                         settings_from(**detector, allow_download=not offline,
+                                       render_replay=render_replay), report=echo)
     echo(result.summary())
 
 

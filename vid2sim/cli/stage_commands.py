@@ -8,7 +8,7 @@ import click
 
 from vid2sim.app.inputs import Inputs
 from vid2sim.base.defaults import EGO_RATE_HZ
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import MissingInputError
 from vid2sim.cli.group import cli
 from vid2sim.cli.options import (
     EXISTING_PATH,
@@ -163,7 +163,7 @@ def probe(ctx: click.Context, videos: tuple[Path, ...]) -> None:
 
     for v in videos:
         if not v.is_file():
-            raise InputError(v, "no such video file", "give video files")
+            raise MissingInputError(v, "no such video file", "give video files")
     table, n_bad = probe_table(list(videos))
     echo(table)
     if n_bad:

@@ -20,7 +20,7 @@ SCHEMA = "vid2sim.scenario"
 #: newer, still loads, and a reader that does not know them still reads the rest.
 VERSION = 1
 
-# Limits of a scenario (README "Limits"). A scenario past them is refused on load and on save,
+# Limits of a scenario (docs/limits.md). A scenario past them is refused on load and on save,
 # before any exporter loops over it: `lanes: 1e9` made the highway-env export hang, and a
 # 140 MB file of 2 million points took 3.4 GB to export.
 
@@ -201,24 +201,8 @@ def _validate_events(events: list, spans: dict[str, tuple[float, float]], path) 
             raise ScenarioError(path, f"{w}type", problem)
 
 
-def validate(data: Any, path: str | Path | None = None) -> None:
-    """Check a parsed scenario.json; raise :class:`ScenarioError` naming the offending field.
-
-    Beyond the schema: every number finite and in its physical range (coordinates, times,
-    speeds, vehicle sizes, lane widths and counts), road geometry a road can have (two
-    distinct points, no spike) and the size limits above.
-    """
-    if not isinstance(data, dict):
-        raise ScenarioError(path, "<root>", "expected a JSON object")
-    if data.get("schema") != SCHEMA:
-        raise ScenarioError(path, "schema", f"expected '{SCHEMA}', got {data.get('schema')!r}")
-    version = _require(data, "version", int, "", path)
-    if version != VERSION:
-        raise ScenarioError(path, "version", f"unsupported version {version} (this tool reads {VERSION})")
-    origin = _require(data, "origin", dict, "", path)
-    for k, lo, hi in (("lat", -90, 90), ("lon", -180, 180), ("alt", -1e4, 1e5)):
-        _number(origin, k, "origin.", path, lo, hi)
-    roads = _require(data, "roads", list, "", path)
+def _validate_roads(roads: list, path) -> None:
+    """Each road's fields, lanes, widths, cross-section and centerline; the centerline limit."""
     n_line = 0
     for i, road in enumerate(roads):
         w = f"roads[{i}]."
@@ -244,11 +228,11 @@ def validate(data: Any, path: str | Path | None = None) -> None:
         if n_line > MAX_CENTERLINE_POINTS:
             raise ScenarioError(path, f"{w}centerline", f"the roads have more than "
                                 f"{MAX_CENTERLINE_POINTS:,} centerline points (the limit)")
-    ego = _require(data, "ego", dict, "", path)
-    _validate_box(ego, "ego.", path)
-    n_points = _validate_trajectory(_require(ego, "trajectory", list, "ego.", path),
-                                    "ego.trajectory", path)
-    actors = _require(data, "actors", list, "", path)
+
+
+def _validate_actors(actors: list, n_points: int, path) -> None:
+    """Each actor's id (unique), category, size and trajectory; the limits on actors and on
+    trajectory points (``n_points`` already taken by the ego)."""
     if len(actors) > MAX_ACTORS:
         raise ScenarioError(path, "actors", f"{len(actors):,} actors, more than the "
                             f"{MAX_ACTORS:,} limit")
@@ -271,6 +255,32 @@ def validate(data: Any, path: str | Path | None = None) -> None:
             raise ScenarioError(path, f"{w}trajectory", f"the vehicles have more than "
                                 f"{MAX_TRAJECTORY_POINTS:,} trajectory points (the limit)")
         n_points += _validate_trajectory(traj, f"{w}trajectory", path)
+
+
+def validate(data: Any, path: str | Path | None = None) -> None:
+    """Check a parsed scenario.json; raise :class:`ScenarioError` naming the offending field.
+
+    Beyond the schema: every number finite and in its physical range (coordinates, times,
+    speeds, vehicle sizes, lane widths and counts), road geometry a road can have (two
+    distinct points, no spike) and the size limits above.
+    """
+    if not isinstance(data, dict):
+        raise ScenarioError(path, "<root>", "expected a JSON object")
+    if data.get("schema") != SCHEMA:
+        raise ScenarioError(path, "schema", f"expected '{SCHEMA}', got {data.get('schema')!r}")
+    version = _require(data, "version", int, "", path)
+    if version != VERSION:
+        raise ScenarioError(path, "version", f"unsupported version {version} (this tool reads {VERSION})")
+    origin = _require(data, "origin", dict, "", path)
+    for k, lo, hi in (("lat", -90, 90), ("lon", -180, 180), ("alt", -1e4, 1e5)):
+        _number(origin, k, "origin.", path, lo, hi)
+    _validate_roads(_require(data, "roads", list, "", path), path)
+    ego = _require(data, "ego", dict, "", path)
+    _validate_box(ego, "ego.", path)
+    n_points = _validate_trajectory(_require(ego, "trajectory", list, "ego.", path),
+                                    "ego.trajectory", path)
+    actors = _require(data, "actors", list, "", path)
+    _validate_actors(actors, n_points, path)
     _require(data, "camera", dict, "", path)
     if "events" in data:
         spans = {str(a["id"]): (a["trajectory"][0]["t"], a["trajectory"][-1]["t"])

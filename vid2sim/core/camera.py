@@ -25,7 +25,7 @@ import cv2
 import numpy as np
 import yaml
 
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import FormatError, ImpossibleValueError, InconsistentInputError
 from vid2sim.base.fileio import read_input_text
 
 # Camera axes expressed in the vehicle frame at zero mounting angles (columns: cam x, y, z).
@@ -141,11 +141,11 @@ class Camera:
             physical range (:meth:`check`).
         """
         if not isinstance(d, dict):
-            raise InputError(path, "camera description must be a mapping of keys to values")
+            raise FormatError(path, "camera description must be a mapping of keys to values")
         missing = [k for k in _REQUIRED if k not in d]
         if missing:
-            raise InputError(path, f"camera description lacks {', '.join(missing)}",
-                             "see README 'Camera file'")
+            raise FormatError(path, f"camera description lacks {', '.join(missing)}",
+                              "see docs/formats.md, 'Camera file'")
         try:
             raw_dist = d.get("dist", [0.0] * 5)
             if not isinstance(raw_dist, (list, tuple)):
@@ -160,9 +160,9 @@ class Camera:
                 roll_deg=_real(d.get("roll_deg", 0.0)),
             )
         except (TypeError, ValueError, OverflowError) as exc:
-            raise InputError(path, f"camera value is not a number: {exc}") from None
+            raise FormatError(path, f"camera value is not a number: {exc}") from None
         if len(dist) not in (4, 5, 8, 12, 14):
-            raise InputError(path, f"dist has {len(dist)} values; OpenCV takes 4, 5, 8, 12 or 14")
+            raise FormatError(path, f"dist has {len(dist)} values; OpenCV takes 4, 5, 8, 12 or 14")
         cam.check(path)
         return cam
 
@@ -177,7 +177,7 @@ class Camera:
         """
         w, h = self.image_width, self.image_height
         if not (0 < w <= MAX_IMAGE_SIDE_PX and 0 < h <= MAX_IMAGE_SIDE_PX):
-            raise InputError(path, f"image size {w}x{h} must be positive and at most "
+            raise ImpossibleValueError(path, f"image size {w}x{h} must be positive and at most "
                              f"{MAX_IMAGE_SIDE_PX} px a side")
         values = {"fx": self.fx, "fy": self.fy, "cx": self.cx, "cy": self.cy,
                   "height_m": self.height_m, "pitch_deg": self.pitch_deg,
@@ -185,32 +185,32 @@ class Camera:
         values.update({f"dist[{i}]": v for i, v in enumerate(self.dist)})
         for name, v in values.items():
             if not math.isfinite(v):
-                raise InputError(path, f"camera {name} is {v}, not a finite number")
+                raise ImpossibleValueError(path, f"camera {name} is {v}, not a finite number")
         if self.fx <= 0 or self.fy <= 0:
-            raise InputError(path, "image size and focal lengths must be positive")
+            raise ImpossibleValueError(path, "image size and focal lengths must be positive")
         lo, hi = FOV_RANGE_DEG
         for name, f, side in (("fx", self.fx, w), ("fy", self.fy, h)):
             fov = math.degrees(2.0 * math.atan(side / (2.0 * f)))
             if not lo <= fov <= hi:
-                raise InputError(path, f"{name} {f:g} px gives a {fov:.2f} deg field of view over "
+                raise ImpossibleValueError(path, f"{name} {f:g} px gives a {fov:.2f} deg field of view over "
                                  f"{side} px; a camera's is {lo:g}-{hi:g} deg",
                                  "is the focal length in pixels, for this image size?")
         if not 0.5 <= self.fy / self.fx <= 2.0:
-            raise InputError(path, f"fy / fx = {self.fy / self.fx:.3g}: pixels are not that "
+            raise ImpossibleValueError(path, f"fy / fx = {self.fy / self.fx:.3g}: pixels are not that "
                              "far from square", "check fx and fy")
         if not (0 <= self.cx <= w and 0 <= self.cy <= h):
-            raise InputError(path, f"principal point ({self.cx:g}, {self.cy:g}) px lies outside "
+            raise ImpossibleValueError(path, f"principal point ({self.cx:g}, {self.cy:g}) px lies outside "
                              f"the {w}x{h} image", "cx, cy are pixel coordinates of the image "
                              "centre, roughly")
         if any(abs(v) > MAX_DISTORTION for v in self.dist):
-            raise InputError(path, f"distortion coefficients {list(self.dist)} are not a lens's "
+            raise ImpossibleValueError(path, f"distortion coefficients {list(self.dist)} are not a lens's "
                              f"(|k| <= {MAX_DISTORTION:g})")
         if not 0 < self.height_m < 10:
-            raise InputError(path, f"height_m {self.height_m} is not a camera height above a road")
+            raise ImpossibleValueError(path, f"height_m {self.height_m} is not a camera height above a road")
         for name in ("pitch_deg", "yaw_deg", "roll_deg"):
             v = getattr(self, name)
             if abs(v) > MAX_MOUNT_ANGLE_DEG:
-                raise InputError(path, f"{name} {v:g} is not the mounting of a forward camera "
+                raise ImpossibleValueError(path, f"{name} {v:g} is not the mounting of a forward camera "
                                  f"(at most {MAX_MOUNT_ANGLE_DEG:g} deg)", "the unit is degrees")
 
     def to_dict(self) -> dict[str, Any]:
@@ -379,7 +379,7 @@ def fit_camera_to_frames(camera: Camera, width_px: int, height_px: int,
         return (camera.scaled_to(width_px, height_px),
                 (f"camera is for {w0}x{h0} px, frames are {width_px}x{height_px} px: taken "
                  "as a resize, intrinsics scaled"))
-    raise InputError(path, f"camera is for {w0}x{h0} images but the frames are "
+    raise InconsistentInputError(path, f"camera is for {w0}x{h0} images but the frames are "
                      f"{width_px}x{height_px}", "give the camera file of this video, or none "
                      "for a default camera")
 
@@ -396,9 +396,9 @@ def load_camera(path: str | Path) -> Camera:
     try:
         data = yaml.safe_load(text)
     except yaml.YAMLError as exc:
-        raise InputError(path, f"not valid YAML: {(str(exc).splitlines() or ['?'])[0]}") from None
+        raise FormatError(path, f"not valid YAML: {(str(exc).splitlines() or ['?'])[0]}") from None
     except RecursionError:
-        raise InputError(path, "YAML nested too deeply to read") from None
+        raise FormatError(path, "YAML nested too deeply to read") from None
     return Camera.from_dict(data, path)
 
 
@@ -434,15 +434,15 @@ def _kitti_camera(text: str, path: Path, cam: int = 2) -> Camera:
     if proj is None:
         proj = values.get(f"P{cam}")
     if proj is None or proj.size != 12:
-        raise InputError(path, f"KITTI calibration lacks a 3x4 projection for camera {cam}")
+        raise FormatError(path, f"KITTI calibration lacks a 3x4 projection for camera {cam}")
     size = values.get(f"S_rect_{cam:02d}")
     if size is not None and size.size != 2:
-        raise InputError(path, f"S_rect_{cam:02d} must be two numbers (width height)")
+        raise FormatError(path, f"S_rect_{cam:02d} must be two numbers (width height)")
     try:
         width, height = ((_pixels(float(size[0]), "width"), _pixels(float(size[1]), "height"))
                          if size is not None else (1242, 375))
     except (ValueError, OverflowError) as exc:
-        raise InputError(path, f"S_rect_{cam:02d}: {exc}") from None
+        raise FormatError(path, f"S_rect_{cam:02d}: {exc}") from None
     p = proj.reshape(3, 4)
     assumptions = [f"KITTI calibration: camera {cam} rectified, {KITTI_CAMERA_HEIGHT_M} m high"]
     if size is None:

@@ -25,7 +25,7 @@ Every exporter and evaluator reads this file; the field names are a contract:
   ego's own change goes from 0 to +1 or -1)
 
 Validation (:func:`validate`, on load and on save) also enforces physical ranges and the
-size limits (``MAX_*`` below, README "Limits").
+size limits (``MAX_*`` below, docs/limits.md).
 
 Output is canonical: sorted keys, floats rounded to fixed decimals, so the same inputs give
 byte-identical files.

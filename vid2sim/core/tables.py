@@ -7,11 +7,12 @@ decimals, fixed row order), so the same records give the same bytes.
 from __future__ import annotations
 
 import csv
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import FormatError, MissingInputError
 from vid2sim.base.fileio import atomic_open
 from vid2sim.core.lead import MAX_RELATIVE_LANE
 from vid2sim.core.records import EgoTrack, RangedBox, TrackedBox, VehicleCategory
@@ -100,25 +101,33 @@ def read_tracks_csv(path: str | Path) -> list[RangedBox]:
         If the file is missing, lacks a column, or holds a value that is not a number (or a
         lane that is not a whole number of lanes within +-16).
     """
+    return list(iter_tracks_csv(path))
+
+
+def iter_tracks_csv(path: str | Path) -> Iterator[RangedBox]:
+    """The rows of a ``tracks.csv`` one at a time, in file order (frame order for the files
+    :func:`write_tracks_csv` writes), so a long clip's table is never held whole; errors as
+    :func:`read_tracks_csv`'s, raised at the row where they occur."""
     path = Path(path)
     if not path.is_file():
-        raise InputError(path, "no such file")
-    out: list[RangedBox] = []
+        raise MissingInputError(path, "no such file")
     try:
         with open(path, encoding="utf-8", newline="") as fh:
             reader = csv.DictReader(fh)
             missing = [c for c in TRACKS_CSV_REQUIRED if c not in (reader.fieldnames or [])]
             if missing:
-                raise InputError(path, f"not a tracks.csv: lacks column(s) {', '.join(missing)}",
-                                 "write it with `vid2sim track`")
+                raise FormatError(path, f"not a tracks.csv: lacks column(s) {', '.join(missing)}",
+                                  "write it with `vid2sim track`")
             for line, row in enumerate(reader, start=2):
                 try:
-                    out.append(_row_to_box(row))
+                    box = _row_to_box(row)
                 except (TypeError, ValueError, KeyError) as exc:
-                    raise InputError(path, f"line {line}: {exc}") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(path, f"cannot read: {exc}") from None
-    return out
+                    raise FormatError(path, f"line {line}: {exc}") from None
+                yield box
+    except OSError as exc:
+        raise MissingInputError(path, f"cannot read: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise FormatError(path, f"cannot read: {exc}") from None
 
 
 def _row_to_box(row: dict[str, str]) -> RangedBox:

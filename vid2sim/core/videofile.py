@@ -23,7 +23,13 @@ import numpy as np
 from PIL import Image, UnidentifiedImageError
 
 from vid2sim.base.defaults import IMAGE_FOLDER_FPS
-from vid2sim.base.errors import FormatError, InputError
+from vid2sim.base.errors import (
+    FormatError,
+    ImpossibleValueError,
+    InconsistentInputError,
+    InputError,
+    MissingInputError,
+)
 from vid2sim.core.container import UNKNOWN_CODEC, codec_of
 from vid2sim.core.records import VideoInfo
 
@@ -38,15 +44,15 @@ def image_files(folder: Path) -> list[Path]:
     files = sorted(p for p in folder.iterdir()
                    if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
     if not files:
-        raise InputError(folder, "folder holds no .png/.jpg images",
-                         "give a video file or a folder of frames named in time order")
+        raise MissingInputError(folder, "folder holds no .png/.jpg images",
+                                "give a video file or a folder of frames named in time order")
     return files
 
 
 def open_capture(path: Path) -> cv2.VideoCapture:
     """An opened OpenCV capture, or an input error naming the file."""
     if not path.exists():
-        raise InputError(path, "no such video file or folder")
+        raise MissingInputError(path, "no such video file or folder")
     cap = cv2.VideoCapture(str(path))
     if not cap.isOpened():
         cap.release()
@@ -97,12 +103,13 @@ def video_info(path: Path, fps: float | None = None) -> VideoInfo:
         rate = cap.get(cv2.CAP_PROP_FPS)
         rate = float(fps) if fps else (rate if rate and np.isfinite(rate) and rate > 0 else 0.0)
         if rate <= 0:
-            raise InputError(path, "video declares no frame rate", "pass the frame rate explicitly")
+            raise FormatError(
+                path, "video declares no frame rate", "pass the frame rate explicitly")
         count = cap.get(cv2.CAP_PROP_FRAME_COUNT)
         width, height = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
         if not (0 < width <= MAX_FRAME_SIDE_PX and 0 < height <= MAX_FRAME_SIDE_PX):
-            raise InputError(path, f"frames of {width}x{height} px are not a video's "
-                             f"(at most {MAX_FRAME_SIDE_PX} px a side)")
+            raise ImpossibleValueError(path, f"frames of {width}x{height} px are not a video's "
+                                       f"(at most {MAX_FRAME_SIDE_PX} px a side)")
         return VideoInfo(width=width, height=height, fps=rate,
                          n_frames=int(count) if math.isfinite(count) and count > 0 else 0)
     finally:
@@ -126,7 +133,7 @@ def folder_frame_size(folder: Path) -> tuple[int, int]:
     try:
         stamp = folder.stat().st_mtime_ns
     except OSError as exc:
-        raise InputError(folder, f"cannot read: {exc.strerror or exc}") from None
+        raise MissingInputError(folder, f"cannot read: {exc.strerror or exc}") from None
     return _folder_frame_size(str(folder.resolve()), stamp)
 
 
@@ -139,23 +146,25 @@ def _folder_frame_size(folder: str, _mtime_ns: int) -> tuple[int, int]:
             with Image.open(f) as img:
                 sizes[f] = (int(img.width), int(img.height))
         except Image.DecompressionBombError:
-            raise InputError(f, "image far larger than a video frame") from None
+            raise ImpossibleValueError(f, "image far larger than a video frame") from None
         except (OSError, UnidentifiedImageError, ValueError):
             continue
     if not sizes:
-        raise InputError(folder, "none of the folder's images can be read",
-                         "are the files complete images?")
+        raise FormatError(folder, "none of the folder's images can be read",
+                          "are the files complete images?")
     common, _ = Counter(sizes.values()).most_common(1)[0]
     odd = [(f, wh) for f, wh in sizes.items() if wh != common]
     if odd:
         f, (w, h) = odd[0]
-        raise InputError(f, f"frame is {w}x{h} px but {len(sizes) - len(odd)} of the folder's "
-                         f"{len(sizes)} frames are {common[0]}x{common[1]} "
-                         f"({len(odd)} frame(s) of another size)",
-                         "the frames of one video share one size; resize or remove the others")
+        raise InconsistentInputError(
+            f, f"frame is {w}x{h} px but {len(sizes) - len(odd)} of the folder's "
+            f"{len(sizes)} frames are {common[0]}x{common[1]} "
+            f"({len(odd)} frame(s) of another size)",
+            "the frames of one video share one size; resize or remove the others")
     if not (0 < common[0] <= MAX_FRAME_SIDE_PX and 0 < common[1] <= MAX_FRAME_SIDE_PX):
-        raise InputError(folder, f"frames of {common[0]}x{common[1]} px are not a video's "
-                         f"(at most {MAX_FRAME_SIDE_PX} px a side)")
+        raise ImpossibleValueError(
+            folder, f"frames of {common[0]}x{common[1]} px are not a video's "
+            f"(at most {MAX_FRAME_SIDE_PX} px a side)")
     return common
 
 
@@ -223,10 +232,10 @@ def read_frames(video: Path, indices: list[int]) -> dict[int, np.ndarray]:
                     out[i] = img
         return out
     if not video.exists():
-        raise InputError(video, "no such video file")
+        raise MissingInputError(video, "no such video file")
     cap = cv2.VideoCapture(str(video))
     if not cap.isOpened():
-        raise InputError(video, "OpenCV cannot open this video", "convert it to mp4 with ffmpeg")
+        raise FormatError(video, "OpenCV cannot open this video", "convert it to mp4 with ffmpeg")
     try:
         pos = 0
         for i in wanted:
@@ -255,14 +264,15 @@ def video_size_and_fps(video: Path) -> tuple[int, int, float | None]:
     if video.is_dir():
         img = cv2.imread(str(image_files(video)[0]), cv2.IMREAD_COLOR)
         if img is None:
-            raise InputError(video, "cannot read the first image of the folder")
+            raise FormatError(video, "cannot read the first image of the folder")
         return img.shape[1], img.shape[0], None
     if not video.exists():
-        raise InputError(video, "no such video file")
+        raise MissingInputError(video, "no such video file")
     cap = cv2.VideoCapture(str(video))
     try:
         if not cap.isOpened():
-            raise InputError(video, "OpenCV cannot open this video", "convert it to mp4 with ffmpeg")
+            raise FormatError(
+                video, "OpenCV cannot open this video", "convert it to mp4 with ffmpeg")
         w, h = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
         fps = float(cap.get(cv2.CAP_PROP_FPS))
     finally:

@@ -17,7 +17,7 @@ when the ego changes lanes under it) and reported relative to the ego lane of ea
 from __future__ import annotations
 
 from collections import defaultdict
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Protocol
 
 import numpy as np
@@ -185,12 +185,24 @@ def assign_lanes_and_lead(boxes: list[TrackedBox], range_m: np.ndarray, lateral_
     (lanes relative to the ego lane or None, is_lead mask, lane offsets [m] as
     :func:`lane_offsets`), in the order of ``boxes``
     """
-    n = len(boxes)
     range_m = np.asarray(range_m, dtype=float)
     offset, width, ego_lane = lane_offsets(boxes, range_m, lateral_m, config, lanes, course)
     known = (np.isfinite(offset) & np.isfinite(range_m)
              & (range_m <= config.max_range_m))
-    lane_idx = np.zeros(n, dtype=int)
+    lane_idx = _track_lanes(boxes, offset, width, ego_lane, known, config.lane_hysteresis_m)
+    known &= np.abs(lane_idx) <= MAX_RELATIVE_LANE
+    lanes_of = [int(k) if known[i] else None for i, k in enumerate(lane_idx)]
+    may_lead = known & (lane_idx == 0)
+    if never_lead is not None:
+        may_lead &= ~np.asarray(never_lead, bool)
+    return lanes_of, _leads_with_hysteresis(boxes, range_m, may_lead, config), offset
+
+
+def _track_lanes(boxes: list[TrackedBox], offset: np.ndarray, width: np.ndarray,
+                 ego_lane: np.ndarray, known: np.ndarray, hysteresis_m: float) -> np.ndarray:
+    """Each box's lane relative to the ego lane, with hysteresis along its own track
+    (:func:`lane_indices`); unknown offsets hold the track's lane."""
+    lane_idx = np.zeros(len(boxes), dtype=int)
     by_track: dict[int, list[int]] = defaultdict(list)
     for i, b in enumerate(boxes):
         by_track[b.track_id].append(i)
@@ -198,22 +210,31 @@ def assign_lanes_and_lead(boxes: list[TrackedBox], range_m: np.ndarray, lateral_
         members.sort(key=lambda i: (boxes[i].t_s, boxes[i].frame))
         idx = np.array(members)
         lane_idx[idx] = lane_indices(np.where(known[idx], offset[idx], np.nan), width[idx],
-                                     config.lane_hysteresis_m, ego_lane[idx])
-    known &= np.abs(lane_idx) <= MAX_RELATIVE_LANE
-    lanes_of = [int(k) if known[i] else None for i, k in enumerate(lane_idx)]
-    in_ego_lane = known & (lane_idx == 0)
+                                     hysteresis_m, ego_lane[idx])
+    return lane_idx
 
-    is_lead = np.zeros(n, dtype=bool)
-    may_lead = in_ego_lane.copy()
-    if never_lead is not None:
-        may_lead &= ~np.asarray(never_lead, bool)
+
+@dataclass(slots=True)
+class _LeadState:
+    """Who leads, frame by frame: the lead's track and when it was last seen, and a rival
+    that has been a little nearer for ``challenge_frames`` frames."""
+
+    track: int | None = None
+    seen_frame: int = -(10 ** 9)
+    challenger: int | None = None
+    challenge_frames: int = 0
+
+
+def _leads_with_hysteresis(boxes: list[TrackedBox], range_m: np.ndarray, may_lead: np.ndarray,
+                           config: LaneSettings) -> np.ndarray:
+    """The lead's mask: in each frame the nearest ego-lane vehicle ahead
+    (:func:`vid2sim.core.lead.nearest_ahead`), with the switch delay of
+    :func:`assign_lanes_and_lead`."""
+    is_lead = np.zeros(len(boxes), dtype=bool)
     by_frame: dict[int, list[int]] = defaultdict(list)
     for i, b in enumerate(boxes):
         by_frame[b.frame].append(i)
-    lead_track: int | None = None
-    lead_seen_frame = -(10 ** 9)
-    challenger: int | None = None
-    challenge_frames = 0
+    state = _LeadState()
     for frame in sorted(by_frame):
         members = np.asarray(by_frame[frame])
         k = nearest_ahead(range_m[members], may_lead[members], config.max_range_m)
@@ -222,33 +243,40 @@ def assign_lanes_and_lead(boxes: list[TrackedBox], range_m: np.ndarray, lateral_
         nearest = int(members[k])
         cands = [int(i) for i in members if may_lead[i] and np.isfinite(range_m[i])
                  and 0 < range_m[i] <= config.max_range_m]
-        current = next((i for i in cands if boxes[i].track_id == lead_track), None)
+        current = next((i for i in cands if boxes[i].track_id == state.track), None)
         if current is None:
             is_lead[nearest] = True
             # A lead missing for a frame or two (a missed detection) keeps its title: the
             # nearest stands in, and the lead takes over again as soon as it is back.
-            if frame - lead_seen_frame > config.lead_switch_frames:
-                lead_track, lead_seen_frame = boxes[nearest].track_id, frame
-            challenger, challenge_frames = None, 0
+            if frame - state.seen_frame > config.lead_switch_frames:
+                state.track, state.seen_frame = boxes[nearest].track_id, frame
+            state.challenger, state.challenge_frames = None, 0
             continue
-        chosen = current
-        gap_m = range_m[current] - range_m[nearest]
-        if boxes[nearest].track_id != lead_track and gap_m > LEAD_SWITCH_MARGIN_M:
-            if gap_m > CLEARLY_NEARER_M + CLEARLY_NEARER_FRAC * range_m[current]:
-                # Clearly nearer (a cut-in: its lane change was already debounced by the
-                # lane hysteresis): switch at once.
-                chosen, challenger, challenge_frames = nearest, None, 0
-            else:
-                tid = boxes[nearest].track_id
-                challenge_frames = challenge_frames + 1 if tid == challenger else 1
-                challenger = tid
-                if challenge_frames >= config.lead_switch_frames:
-                    chosen, challenger, challenge_frames = nearest, None, 0
-        else:
-            challenger, challenge_frames = None, 0
+        chosen = _chosen_lead(boxes, range_m, current, nearest, state, config)
         is_lead[chosen] = True
-        lead_track, lead_seen_frame = boxes[chosen].track_id, frame
-    return lanes_of, is_lead, offset
+        state.track, state.seen_frame = boxes[chosen].track_id, frame
+    return is_lead
+
+
+def _chosen_lead(boxes: list[TrackedBox], range_m: np.ndarray, current: int, nearest: int,
+                 state: _LeadState, config: LaneSettings) -> int:
+    """The current lead, or the nearest rival once it is clearly nearer (a cut-in: its lane
+    change was already debounced by the lane hysteresis) or has been nearer for
+    ``lead_switch_frames`` frames."""
+    gap_m = range_m[current] - range_m[nearest]
+    if boxes[nearest].track_id == state.track or gap_m <= LEAD_SWITCH_MARGIN_M:
+        state.challenger, state.challenge_frames = None, 0
+        return current
+    if gap_m > CLEARLY_NEARER_M + CLEARLY_NEARER_FRAC * range_m[current]:
+        state.challenger, state.challenge_frames = None, 0
+        return nearest
+    tid = boxes[nearest].track_id
+    state.challenge_frames = state.challenge_frames + 1 if tid == state.challenger else 1
+    state.challenger = tid
+    if state.challenge_frames >= config.lead_switch_frames:
+        state.challenger, state.challenge_frames = None, 0
+        return nearest
+    return current
 
 
 def relane(boxes: list[RangedBox], config: LaneSettings, lanes: LaneTrack | None,

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import ImpossibleValueError, InconsistentInputError
 from vid2sim.core.camera import Camera
 from vid2sim.core.records import (
     Detection,
@@ -165,16 +165,17 @@ def _check_box_source(detector, detections, detect_every: int) -> None:
     if detector is None and detections is None:
         raise ValueError("run_detect needs a detector or imported detections")
     if detect_every < 1:
-        raise InputError(None, f"--detect-every must be >= 1, got {detect_every}")
+        raise ImpossibleValueError(None, f"--detect-every must be >= 1, got {detect_every}")
 
 
 def _check_boxes_cover(source: Path, detections, n_seen: int) -> None:
     """Boxes made for another (longer) video: an empty result would look like an empty road."""
     box_frames = [f for f, dets in (detections or {}).items() if dets]
     if box_frames and min(box_frames) >= n_seen:
-        raise InputError(source, f"none of the imported boxes falls on the video's {n_seen} "
-                         f"frames (boxes on 0-based frames {min(box_frames)}.."
-                         f"{max(box_frames)})", "is the detections file for this video?")
+        raise InconsistentInputError(
+            source, f"none of the imported boxes falls on the video's {n_seen} frames (boxes on "
+            f"0-based frames {min(box_frames)}..{max(box_frames)})",
+            "is the detections file for this video?")
 
 
 class _ClockSwap:

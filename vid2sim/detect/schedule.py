@@ -264,11 +264,6 @@ class KeyframeSchedule:
         best = refine_candidates(boxes[keep], self.image_width_px, 1)
         return None if len(best) == 0 else ids[keep[int(best[0])]]
 
-    @property
-    def keyframe_share(self) -> float:
-        """Share of the frames seen so far that were keyframes."""
-        return self.n_keyframes / self.n_frames if self.n_frames else float("nan")
-
 
 def band_rows(tracker: Tracker, config: ScheduleConfig, image_height_px: int,
               full_scale: float, horizon_row_px: float) -> tuple[float, float]:

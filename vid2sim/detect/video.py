@@ -10,7 +10,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import FormatError, ImpossibleValueError, InconsistentInputError
 from vid2sim.core.records import Frame
 from vid2sim.core.videofile import (
     image_files,
@@ -98,7 +98,7 @@ def iter_frames(path: Path, every: int = 1, fps: float | None = None,
     """
     path = Path(path)
     if every < 1:
-        raise InputError(None, f"--detect-every must be >= 1, got {every}")
+        raise ImpossibleValueError(None, f"--detect-every must be >= 1, got {every}")
     info = video_info(path, fps=fps)
     lost = skipped if skipped is not None else []
     wanted = frozenset(int(i) for i in only) if only is not None else None
@@ -124,13 +124,13 @@ def _iter_folder(folder: Path, decode: Callable[[int], bool], fps: float,
                 skipped.append(index)
                 continue
             if (image.shape[1], image.shape[0]) != size:
-                raise InputError(file, f"frame is {image.shape[1]}x{image.shape[0]} px, the "
+                raise InconsistentInputError(file, f"frame is {image.shape[1]}x{image.shape[0]} px, the "
                                  f"folder's frames are {size[0]}x{size[1]}",
                                  "the frames of one video share one size")
             n_read += 1
         yield Frame(index=index, t_s=index / fps, image_bgr=image)
     if n_read == 0 and n_tried > 0:
-        raise InputError(folder, "none of the folder's images can be decoded")
+        raise FormatError(folder, "none of the folder's images can be decoded")
 
 
 def _iter_video(path: Path, decode: Callable[[int], bool], fps: float, n_declared: int,

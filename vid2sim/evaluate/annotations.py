@@ -32,7 +32,12 @@ from collections import defaultdict
 from pathlib import Path
 from typing import Any
 
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import (
+    FormatError,
+    ImpossibleValueError,
+    InconsistentInputError,
+    MissingInputError,
+)
 from vid2sim.base.fileio import check_input_size, parse_json
 from vid2sim.core.records import AnnotatedBox, Keyframe, VehicleCategory
 
@@ -103,17 +108,19 @@ def read_keyframes(path: str | Path, *, fps: float | None = None,
     """
     path = Path(path)
     if fps is not None and not (math.isfinite(fps) and fps > 0):
-        raise InputError(path, f"fps {fps} must be a positive number")
+        raise ImpossibleValueError(path, f"fps {fps} must be a positive number")
     try:
         check_input_size(path, what="annotation")
         text = path.read_text(encoding="utf-8-sig")
     except FileNotFoundError:
-        raise InputError(path, "no such annotation file") from None
+        raise MissingInputError(path, "no such annotation file") from None
     except IsADirectoryError:
-        raise InputError(path, "is a folder, expected an annotation file",
-                         "give the JSON, XML or label_02 .txt file itself") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(path, f"cannot read: {exc}") from None
+        raise MissingInputError(path, "is a folder, expected an annotation file",
+                                "give the JSON, XML or label_02 .txt file itself") from None
+    except OSError as exc:
+        raise MissingInputError(path, f"cannot read: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise FormatError(path, f"cannot read: {exc}") from None
     head = text.lstrip()[:1]
     if head in ("[", "{"):
         frames = _read_scalabel(text, path, fps, frame_names)
@@ -122,8 +129,8 @@ def read_keyframes(path: str | Path, *, fps: float | None = None,
     elif head and head[0].isdigit():
         frames = _read_kitti(text, path, fps, frame_names)
     else:
-        raise InputError(path, "unknown annotation format",
-                         "expected Scalabel/BDD100K JSON, KITTI label_02 text or CVAT XML")
+        raise FormatError(path, "unknown annotation format",
+                          "expected Scalabel/BDD100K JSON, KITTI label_02 text or CVAT XML")
     if labelled_only:
         frames = [k for k in frames if any(not b.ignore for b in k.boxes)]
     frames.sort(key=lambda k: (k.t_s, k.name))
@@ -166,17 +173,18 @@ class _FrameIndex:
 
 def _need_fps(path: Path, fps: float | None, what: str) -> float:
     if fps is None:
-        raise InputError(path, f"{what} are frame numbers but no frame rate is known",
-                         "pass --fps (video frames per second)")
+        raise MissingInputError(path, f"{what} are frame numbers but no frame rate is known",
+                                "pass --fps (video frames per second)")
     return fps
 
 
 def _finite_box(vals: list[float], path: Path, where: str) -> tuple[float, float, float, float]:
     if len(vals) != 4 or not all(math.isfinite(v) for v in vals):
-        raise InputError(path, f"{where}: box coordinates must be four finite numbers")
+        raise ImpossibleValueError(path, f"{where}: box coordinates must be four finite numbers")
     x1, y1, x2, y2 = vals
     if x2 < x1 or y2 < y1:
-        raise InputError(path, f"{where}: box has x2 < x1 or y2 < y1 ({x1}, {y1}, {x2}, {y2})")
+        raise ImpossibleValueError(
+            path, f"{where}: box has x2 < x1 or y2 < y1 ({x1}, {y1}, {x2}, {y2})")
     return (float(x1), float(y1), float(x2), float(y2))
 
 
@@ -196,17 +204,17 @@ def _read_kitti(text: str, path: Path, fps: float | None,
         if not fields:
             continue
         if len(fields) not in (17, 18):
-            raise InputError(path, f"line {lineno}: expected 17 fields of KITTI label_02, "
-                             f"got {len(fields)}")
+            raise FormatError(path, f"line {lineno}: expected 17 fields of KITTI label_02, "
+                              f"got {len(fields)}")
         try:
             frame = int(fields[0])
             track_id = int(fields[1])
             nums = [float(v) for v in fields[3:17]]
         except ValueError:
-            raise InputError(path, f"line {lineno}: frame, track id or a value is not a number"
-                             ) from None
+            raise FormatError(path, f"line {lineno}: frame, track id or a value is not a number"
+                              ) from None
         if frame < 0:
-            raise InputError(path, f"line {lineno}: negative frame number {frame}")
+            raise ImpossibleValueError(path, f"line {lineno}: negative frame number {frame}")
         mapped = normalise_category(fields[2])
         if mapped is None:
             if fields[2].lower() not in _NOT_VEHICLES:
@@ -230,7 +238,7 @@ def _read_kitti(text: str, path: Path, fps: float | None,
         log.warning("%s: classes %s are not vehicles the scenario models; dropped",
                     path, ", ".join(sorted(unknown)))
     if not boxes_by_frame:
-        raise InputError(path, "no labelled objects found in this KITTI label file")
+        raise FormatError(path, "no labelled objects found in this KITTI label file")
     out = []
     for frame, boxes in boxes_by_frame.items():
         name = f"{frame:06d}"
@@ -242,8 +250,9 @@ def _read_kitti(text: str, path: Path, fps: float | None,
         else:
             out.append(Keyframe(frame=frame, t_s=frame / rate, name=name, boxes=boxes))
     if not out:
-        raise InputError(path, "none of the labelled frames has an image among the video's "
-                         "frames", "name images by KITTI frame number, e.g. 000010.png")
+        raise InconsistentInputError(
+            path, "none of the labelled frames has an image among the video's "
+            "frames", "name images by KITTI frame number, e.g. 000010.png")
     return out
 
 
@@ -258,11 +267,11 @@ def _read_scalabel(text: str, path: Path, fps: float | None,
     data = parse_json(text, path)  # bad JSON, or nesting too deep, as an input error
     if isinstance(data, dict):
         if "frames" not in data:
-            raise InputError(path, "JSON object without 'frames'",
-                             "expected Scalabel: a list of frames or {\"frames\": [...]}")
+            raise FormatError(path, "JSON object without 'frames'",
+                              "expected Scalabel: a list of frames or {\"frames\": [...]}")
         data = data["frames"]
     if not isinstance(data, list):
-        raise InputError(path, "'frames' must be a list of frame objects")
+        raise FormatError(path, "'frames' must be a list of frame objects")
     index = _FrameIndex(frame_names) if frame_names is not None else None
     timestamps = [f.get("timestamp") for f in data if isinstance(f, dict)
                   and isinstance(f.get("timestamp"), (int, float))
@@ -273,77 +282,92 @@ def _read_scalabel(text: str, path: Path, fps: float | None,
     for i, fr in enumerate(data):
         where = f"frames[{i}]"
         if not isinstance(fr, dict):
-            raise InputError(path, f"{where}: expected an object")
+            raise FormatError(path, f"{where}: expected an object")
         name = fr.get("name")
         name = str(name) if name is not None else None
-        frame_no = fr.get("index", fr.get("frameIndex"))
-        ts = fr.get("timestamp")
-        video_frame: int | None
-        if frame_no is not None:
-            if isinstance(frame_no, bool) or not isinstance(frame_no, int) or frame_no < 0:
-                raise InputError(path, f"{where}.index: expected a non-negative integer")
-            video_frame = frame_no
-            t_s = frame_no / _need_fps(path, fps, "frame indices")
-        elif ts is not None:
-            if isinstance(ts, bool) or not isinstance(ts, (int, float)) or not math.isfinite(ts):
-                raise InputError(path, f"{where}.timestamp: expected a number of milliseconds")
-            t_s = (ts - t0_ms) / 1000.0
-            video_frame = round(t_s * fps) if fps is not None else None
-        elif name is not None:
-            pos = index.position_of_name(name) if index is not None else None
-            if index is not None and pos is None:
-                continue  # no image of that name: nothing to replay against
-            if pos is None:
-                # A name like "frame_000012.jpg" carries the frame number.
-                pos = _trailing_number(name)
-                if pos is None:
-                    raise InputError(path, f"{where}: frame '{name}' has no index, timestamp "
-                                     "or frame number in its name",
-                                     "add 'index' to each frame or pass the frame names")
-            video_frame = pos
-            t_s = pos / _need_fps(path, fps, "frame names")
-        else:
-            raise InputError(path, f"{where}: frame has no name, index or timestamp")
-        labels = fr.get("labels") or []
-        if not isinstance(labels, list):
-            raise InputError(path, f"{where}.labels: expected a list")
-        boxes = []
-        for j, lab in enumerate(labels):
-            lw = f"{where}.labels[{j}]"
-            if not isinstance(lab, dict):
-                raise InputError(path, f"{lw}: expected an object")
-            box2d = lab.get("box2d")
-            if box2d is None:
-                continue  # polygons, lanes, drivable area: not boxes
-            if not isinstance(box2d, dict) or not all(k in box2d for k in ("x1", "y1", "x2", "y2")):
-                raise InputError(path, f"{lw}.box2d: expected {{x1, y1, x2, y2}}")
-            try:
-                vals = [float(box2d[k]) for k in ("x1", "y1", "x2", "y2")]
-            except (TypeError, ValueError):
-                raise InputError(path, f"{lw}.box2d: coordinates must be numbers") from None
-            box = _finite_box(vals, path, lw)
-            cat_name = str(lab.get("category", ""))
-            mapped = normalise_category(cat_name)
-            if mapped is None:
-                if cat_name.lower() not in _NOT_VEHICLES:
-                    unknown.add(cat_name)
-                continue
-            category, ignore = mapped
-            attrs = lab.get("attributes") or {}
-            if isinstance(attrs, dict) and attrs.get("crowd") is True:
-                ignore = True
-            label_id = lab.get("id")
-            boxes.append(AnnotatedBox(box_px=box, category=category,
-                                      id=None if label_id is None else str(label_id),
-                                      ignore=ignore))
+        when = _scalabel_frame_time(fr, name, where, path, fps, index, t0_ms)
+        if when is None:
+            continue  # no image of that name: nothing to replay against
+        video_frame, t_s = when
+        boxes = _scalabel_boxes(fr, where, path, unknown)
         out.append(Keyframe(frame=video_frame, t_s=float(t_s),
                             name=name if name is not None else str(video_frame), boxes=boxes))
     if unknown:
         log.warning("%s: categories %s are not vehicles the scenario models; dropped",
                     path, ", ".join(sorted(unknown)))
     if not out:
-        raise InputError(path, "no frames found in this annotation file")
+        raise FormatError(path, "no frames found in this annotation file")
     return out
+
+
+def _scalabel_frame_time(fr: dict, name: str | None, where: str, path: Path,
+                         fps: float | None, index: _FrameIndex | None, t0_ms: float | None
+                         ) -> tuple[int | None, float] | None:
+    """A Scalabel frame's video frame and time [s] from its ``index``, else its ``timestamp``
+    (from the file's first), else its name (looked up in the image folder, or the number it
+    ends in); None for a name the image folder does not hold."""
+    frame_no = fr.get("index", fr.get("frameIndex"))
+    ts = fr.get("timestamp")
+    if frame_no is not None:
+        if isinstance(frame_no, bool) or not isinstance(frame_no, int) or frame_no < 0:
+            raise FormatError(path, f"{where}.index: expected a non-negative integer")
+        return frame_no, frame_no / _need_fps(path, fps, "frame indices")
+    if ts is not None:
+        if isinstance(ts, bool) or not isinstance(ts, (int, float)) or not math.isfinite(ts):
+            raise FormatError(path, f"{where}.timestamp: expected a number of milliseconds")
+        t_s = (ts - t0_ms) / 1000.0
+        return (round(t_s * fps) if fps is not None else None), t_s
+    if name is None:
+        raise FormatError(path, f"{where}: frame has no name, index or timestamp")
+    pos = index.position_of_name(name) if index is not None else None
+    if index is not None and pos is None:
+        return None
+    if pos is None:
+        # A name like "frame_000012.jpg" carries the frame number.
+        pos = _trailing_number(name)
+        if pos is None:
+            raise FormatError(path, f"{where}: frame '{name}' has no index, timestamp "
+                              "or frame number in its name",
+                              "add 'index' to each frame or pass the frame names")
+    return pos, pos / _need_fps(path, fps, "frame names")
+
+
+def _scalabel_boxes(fr: dict, where: str, path: Path, unknown: set[str]) -> list[AnnotatedBox]:
+    """The vehicle boxes of a Scalabel frame's ``labels`` (crowds as ignore regions); labels
+    without a ``box2d`` are skipped, categories that are not vehicles added to ``unknown``."""
+    labels = fr.get("labels") or []
+    if not isinstance(labels, list):
+        raise FormatError(path, f"{where}.labels: expected a list")
+    boxes = []
+    for j, lab in enumerate(labels):
+        lw = f"{where}.labels[{j}]"
+        if not isinstance(lab, dict):
+            raise FormatError(path, f"{lw}: expected an object")
+        box2d = lab.get("box2d")
+        if box2d is None:
+            continue  # polygons, lanes, drivable area: not boxes
+        if not isinstance(box2d, dict) or not all(k in box2d for k in ("x1", "y1", "x2", "y2")):
+            raise FormatError(path, f"{lw}.box2d: expected {{x1, y1, x2, y2}}")
+        try:
+            vals = [float(box2d[k]) for k in ("x1", "y1", "x2", "y2")]
+        except (TypeError, ValueError):
+            raise FormatError(path, f"{lw}.box2d: coordinates must be numbers") from None
+        box = _finite_box(vals, path, lw)
+        cat_name = str(lab.get("category", ""))
+        mapped = normalise_category(cat_name)
+        if mapped is None:
+            if cat_name.lower() not in _NOT_VEHICLES:
+                unknown.add(cat_name)
+            continue
+        category, ignore = mapped
+        attrs = lab.get("attributes") or {}
+        if isinstance(attrs, dict) and attrs.get("crowd") is True:
+            ignore = True
+        label_id = lab.get("id")
+        boxes.append(AnnotatedBox(box_px=box, category=category,
+                                  id=None if label_id is None else str(label_id),
+                                  ignore=ignore))
+    return boxes
 
 
 # --------------------------------------------------------------------------- CVAT for video
@@ -359,72 +383,22 @@ def _read_cvat(text: str, path: Path, fps: float | None,
     try:
         root = ET.fromstring(text)
     except ET.ParseError as exc:
-        raise InputError(path, f"not well-formed XML: {exc}") from None
+        raise FormatError(path, f"not well-formed XML: {exc}") from None
     if root.tag != "annotations":
-        raise InputError(path, f"XML root is <{root.tag}>, expected CVAT's <annotations>")
-    index = _FrameIndex(frame_names) if frame_names is not None else None
+        raise FormatError(path, f"XML root is <{root.tag}>, expected CVAT's <annotations>")
     boxes_by_frame: dict[int, list[AnnotatedBox]] = defaultdict(list)
     key_frames: set[int] = set()
     names: dict[int, str] = {}
     unknown: set[str] = set()
-
-    def parse_box(el: ET.Element, label: str, track_id: str | None, where: str
-                  ) -> AnnotatedBox | None:
-        try:
-            vals = [float(el.attrib[k]) for k in ("xtl", "ytl", "xbr", "ybr")]
-        except KeyError as exc:
-            raise InputError(path, f"{where}: <box> lacks {exc.args[0]}") from None
-        except ValueError:
-            raise InputError(path, f"{where}: box coordinates must be numbers") from None
-        box = _finite_box(vals, path, where)
-        mapped = normalise_category(label)
-        if mapped is None:
-            if label.lower() not in _NOT_VEHICLES:
-                unknown.add(label)
-            return None
-        return AnnotatedBox(box_px=box, category=mapped[0], id=track_id, ignore=mapped[1])
-
-    def frame_of(el: ET.Element, where: str) -> int:
-        try:
-            frame = int(el.attrib["frame"])
-        except KeyError:
-            raise InputError(path, f"{where}: <box> lacks its frame") from None
-        except ValueError:
-            raise InputError(path, f"{where}: frame is not an integer") from None
-        if frame < 0:
-            raise InputError(path, f"{where}: negative frame {frame}")
-        return frame
-
-    for t_i, track in enumerate(root.iter("track")):
-        label = track.attrib.get("label", "")
-        track_id = track.attrib.get("id")
-        for b_i, el in enumerate(track.iter("box")):
-            where = f"track {track_id if track_id is not None else t_i} box {b_i}"
-            frame = frame_of(el, where)
-            if el.attrib.get("outside", "0") == "1":
-                continue
-            if el.attrib.get("keyframe", "1") == "1":
-                key_frames.add(frame)
-            ab = parse_box(el, label, track_id, where)
-            if ab is not None:
-                boxes_by_frame[frame].append(ab)
-    for img in root.iter("image"):
-        try:
-            frame = int(img.attrib["id"])
-        except (KeyError, ValueError):
-            raise InputError(path, "<image> without an integer id") from None
-        key_frames.add(frame)
-        names[frame] = img.attrib.get("name", str(frame))
-        for b_i, el in enumerate(img.iter("box")):
-            ab = parse_box(el, el.attrib.get("label", ""), None, f"image {frame} box {b_i}")
-            if ab is not None:
-                boxes_by_frame[frame].append(ab)
+    _read_cvat_tracks(root, path, boxes_by_frame, key_frames, unknown)
+    _read_cvat_images(root, path, boxes_by_frame, key_frames, names, unknown)
     if unknown:
         log.warning("%s: labels %s are not vehicles the scenario models; dropped",
                     path, ", ".join(sorted(unknown)))
     if not key_frames:
-        raise InputError(path, "no <track> boxes or <image> elements found",
-                         "export the task as 'CVAT for video 1.1'")
+        raise FormatError(path, "no <track> boxes or <image> elements found",
+                          "export the task as 'CVAT for video 1.1'")
+    index = _FrameIndex(frame_names) if frame_names is not None else None
     out = []
     for frame in sorted(key_frames):
         name = names.get(frame, f"{frame:06d}")
@@ -439,8 +413,76 @@ def _read_cvat(text: str, path: Path, fps: float | None,
         out.append(Keyframe(frame=pos, t_s=pos / rate, name=name,
                             boxes=list(boxes_by_frame.get(frame, []))))
     if not out:
-        raise InputError(path, "none of the annotated frames is among the video's frames")
+        raise InconsistentInputError(path, "none of the annotated frames is among the video's "
+                                     "frames")
     return out
+
+
+def _read_cvat_tracks(root: ET.Element, path: Path, boxes_by_frame: dict[int, list],
+                      key_frames: set[int], unknown: set[str]) -> None:
+    """CVAT for video: every visible box of every ``<track>`` into ``boxes_by_frame``; the
+    frames where a box was drawn or corrected by hand into ``key_frames``."""
+    for t_i, track in enumerate(root.iter("track")):
+        label = track.attrib.get("label", "")
+        track_id = track.attrib.get("id")
+        for b_i, el in enumerate(track.iter("box")):
+            where = f"track {track_id if track_id is not None else t_i} box {b_i}"
+            frame = _cvat_frame(el, where, path)
+            if el.attrib.get("outside", "0") == "1":
+                continue
+            if el.attrib.get("keyframe", "1") == "1":
+                key_frames.add(frame)
+            ab = _cvat_box(el, label, track_id, where, path, unknown)
+            if ab is not None:
+                boxes_by_frame[frame].append(ab)
+
+
+def _read_cvat_images(root: ET.Element, path: Path, boxes_by_frame: dict[int, list],
+                      key_frames: set[int], names: dict[int, str], unknown: set[str]) -> None:
+    """CVAT for images: each ``<image>`` a keyframe of its boxes, named by its file."""
+    for img in root.iter("image"):
+        try:
+            frame = int(img.attrib["id"])
+        except (KeyError, ValueError):
+            raise FormatError(path, "<image> without an integer id") from None
+        key_frames.add(frame)
+        names[frame] = img.attrib.get("name", str(frame))
+        for b_i, el in enumerate(img.iter("box")):
+            ab = _cvat_box(el, el.attrib.get("label", ""), None, f"image {frame} box {b_i}",
+                           path, unknown)
+            if ab is not None:
+                boxes_by_frame[frame].append(ab)
+
+
+def _cvat_box(el: ET.Element, label: str, track_id: str | None, where: str, path: Path,
+              unknown: set[str]) -> AnnotatedBox | None:
+    """A ``<box>`` as a vehicle box (None for a label that is not a vehicle's)."""
+    try:
+        vals = [float(el.attrib[k]) for k in ("xtl", "ytl", "xbr", "ybr")]
+    except KeyError as exc:
+        raise FormatError(path, f"{where}: <box> lacks {exc.args[0]}") from None
+    except ValueError:
+        raise FormatError(path, f"{where}: box coordinates must be numbers") from None
+    box = _finite_box(vals, path, where)
+    mapped = normalise_category(label)
+    if mapped is None:
+        if label.lower() not in _NOT_VEHICLES:
+            unknown.add(label)
+        return None
+    return AnnotatedBox(box_px=box, category=mapped[0], id=track_id, ignore=mapped[1])
+
+
+def _cvat_frame(el: ET.Element, where: str, path: Path) -> int:
+    """A track ``<box>``'s frame number."""
+    try:
+        frame = int(el.attrib["frame"])
+    except KeyError:
+        raise FormatError(path, f"{where}: <box> lacks its frame") from None
+    except ValueError:
+        raise FormatError(path, f"{where}: frame is not an integer") from None
+    if frame < 0:
+        raise ImpossibleValueError(path, f"{where}: negative frame {frame}")
+    return frame
 
 
 def describe(keyframes: list[Keyframe]) -> dict[str, Any]:

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 from shapely.geometry import LineString, Point
 
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import InconsistentInputError
 from vid2sim.core.camera import parse_kitti_calib
 from vid2sim.core.enu import EnuFrame
 from vid2sim.core.records import Origin
@@ -61,7 +61,7 @@ def kitti_camera_poses(drive: Path, camera_stamps: str = "image_00_timestamps.tx
     t_oxts = np.array(read_kitti_stamps(drive / "oxts" / "timestamps.txt"))
     t_cam = np.array(read_kitti_stamps(drive / camera_stamps))
     if len(t_oxts) != len(table):
-        raise InputError(drive / "oxts", "timestamps and data files differ in number")
+        raise InconsistentInputError(drive / "oxts", "timestamps and data files differ in number")
     enu = EnuFrame(Origin(table[0, _LAT], table[0, _LON], table[0, _ALT])).to_enu(
         table[:, _LAT], table[:, _LON], table[:, _ALT])
     yaw = np.unwrap(table[:, _YAW])

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
+import cv2
 import numpy as np
 
 from vid2sim.core.camera import Camera
@@ -58,6 +59,32 @@ def project_box_clipped(camera: Camera, center_veh_m: np.ndarray, length_m: floa
     BoxView or None
         None when nothing of the box is in view.
     """
+    seen = _visible_points_px(camera, center_veh_m, length_m, width_m, height_m, yaw_rad,
+                              near_m, outline)
+    if seen is None:
+        return None
+    uv, x_min, cut = seen
+    x1, y1 = uv.min(axis=0)
+    x2, y2 = uv.max(axis=0)
+    w, h = camera.image_width - 1, camera.image_height - 1
+    if x2 <= 0 or y2 <= 0 or x1 >= w or y1 >= h:
+        return None
+    full_area = max((x2 - x1) * (y2 - y1), 1e-9)
+    x1, x2 = float(np.clip(x1, 0, w)), float(np.clip(x2, 0, w))
+    y1, y2 = float(np.clip(y1, 0, h)), float(np.clip(y2, 0, h))
+    if x2 - x1 < 1.0 or y2 - y1 < 1.0:
+        return None
+    return BoxView((x1, y1, x2, y2), x_min, float((x2 - x1) * (y2 - y1) / full_area), cut)
+
+
+def _visible_points_px(camera: Camera, center_veh_m: np.ndarray, length_m: float,
+                       width_m: float, height_m: float, yaw_rad: float, near_m: float,
+                       outline: OutlineShape | None
+                       ) -> tuple[np.ndarray, float, bool] | None:
+    """The pixels a vehicle's image spans: its outline's points (its 3D box's corners without
+    an outline, or where the outline reaches behind the near plane), the box cut at the near
+    plane where it reaches behind it. ``(uv, nearest x [m], cut)`` or None when nothing is in
+    front of the camera."""
     corners = camera.box_corners_veh(center_veh_m, length_m, width_m, height_m, yaw_rad)
     depth = camera.vehicle_to_camera(corners)[:, 2]
     front = depth > near_m
@@ -79,15 +106,20 @@ def project_box_clipped(camera: Camera, center_veh_m: np.ndarray, length_m: floa
     uv = uv[ok]
     if uv.size == 0:
         return None
-    x1, y1 = uv.min(axis=0)
-    x2, y2 = uv.max(axis=0)
-    w, h = camera.image_width - 1, camera.image_height - 1
-    if x2 <= 0 or y2 <= 0 or x1 >= w or y1 >= h:
+    return uv, float(corners[:, 0].min()), bool(not front.all())
+
+
+def project_hull(camera: Camera, center_veh_m: np.ndarray, length_m: float, width_m: float,
+                 height_m: float, yaw_rad: float, near_m: float = NEAR_PLANE_M,
+                 outline: OutlineShape | None = None) -> np.ndarray | None:
+    """(K, 2) pixel polygon [px], the convex hull of the points whose bounding box
+    :func:`project_box_clipped` returns (unclipped: it may reach beyond the image); None when
+    nothing of the vehicle is in front of the camera."""
+    seen = _visible_points_px(camera, center_veh_m, length_m, width_m, height_m, yaw_rad,
+                              near_m, outline)
+    if seen is None:
         return None
-    full_area = max((x2 - x1) * (y2 - y1), 1e-9)
-    x1, x2 = float(np.clip(x1, 0, w)), float(np.clip(x2, 0, w))
-    y1, y2 = float(np.clip(y1, 0, h)), float(np.clip(y2, 0, h))
-    if x2 - x1 < 1.0 or y2 - y1 < 1.0:
-        return None
-    return BoxView((x1, y1, x2, y2), float(corners[:, 0].min()),
-                   float((x2 - x1) * (y2 - y1) / full_area), bool(not front.all()))
+    uv = seen[0]
+    if len(uv) < 3:
+        return uv
+    return cv2.convexHull(uv.astype(np.float32)).reshape(-1, 2).astype(float)

@@ -99,7 +99,7 @@ def _actor_active(actor: Actor, t_s: float) -> bool:
     return bool(t[0] - TIME_TOLERANCE_S <= t_s <= t[-1] + TIME_TOLERANCE_S)
 
 
-def _poses_from_trajectories(scenario: Scenario, t_s: float
+def poses_at(scenario: Scenario, t_s: float
                              ) -> tuple[tuple[float, float, float], dict[str, tuple[float, float, float]]]:
     """Ego and active actors' (x, y, heading) in ENU [m, m, rad] at ``t_s``, interpolated."""
     e = scenario.ego.trajectory.state_at(t_s)
@@ -235,7 +235,7 @@ def replay_boxes(scenario: Scenario, times_s: list[float], *, use_env: bool = Tr
     else:
         if use_env:
             log.warning("%s is not available: poses interpolated from the trajectories", ENV_ID)
-        poses = {t: _poses_from_trajectories(scenario, t) for t in times}
+        poses = {t: poses_at(scenario, t) for t in times}
     return {t: boxes_at(scenario, cam, *poses[t], outlines) for t in times}
 
 
@@ -340,36 +340,12 @@ def run_eval(scenario_path: str | Path, keyframes_path: str | Path, *, video: Pa
         The metrics.json content and a few human-readable lines.
     """
     scenario_path, keyframes_path, out_dir = Path(scenario_path), Path(keyframes_path), Path(out_dir)
+    video = Path(video) if video is not None else None
     scenario = load(scenario_path)
-    camera = Camera.from_dict(scenario.camera, scenario_path)
     warnings: list[str] = []  # this stage's, in metrics.json and the summary
-    frame_names = None
-    video_fps = None
-    if video is not None:
-        video = Path(video)
-        vw, vh, video_fps = video_size_and_fps(video)
-        if video.is_dir():
-            frame_names = [p.name for p in image_files(video)]
-        camera, note = fit_camera_to_frames(camera, vw, vh, scenario_path)
-        if note:
-            warnings.append(f"scenario {note}")
-    rate = fps or video_fps or _scenario_fps(scenario)
-    if rate is None and video is not None and video.is_dir():
-        rate = IMAGE_FOLDER_FPS
-        warnings.append(f"no frame rate given for the image folder: assumed {IMAGE_FOLDER_FPS:g} "
-                        "frames/s as vid2sim build does (pass --fps)")
-    keyframes = read_keyframes(keyframes_path, fps=rate, frame_names=frame_names)
-    if rate is not None:
-        # Timestamps give times; frames for seeking follow from the rate.
-        for k in keyframes:
-            if k.frame is None:
-                k.frame = round(k.t_s * rate)
-    t0, t1 = scenario.ego.trajectory.t[0], scenario.ego.trajectory.t[-1]
-    outside = [k.name for k in keyframes if not t0 - 0.05 <= k.t_s <= t1 + 0.05]
-    if outside:
-        warnings.append(f"{len(outside)} keyframe(s) lie outside the scenario's "
-                        f"{t0:.2f}-{t1:.2f} s (first: {outside[0]}); the ego is held at its "
-                        "first/last pose there")
+    camera, frame_names, video_fps = _camera_and_frames(scenario, scenario_path, video, warnings)
+    rate = _frame_rate(fps, video_fps, scenario, video, warnings)
+    keyframes = _keyframes_on_the_clock(keyframes_path, rate, frame_names, scenario, warnings)
     env_used = use_env and _env_available()
     if use_env and not env_used:
         warnings.append(f"{ENV_ID} not available: vehicle poses interpolated from the "
@@ -381,7 +357,69 @@ def run_eval(scenario_path: str | Path, keyframes_path: str | Path, *, video: Pa
     metrics["inputs"] = {"scenario": scenario_label or str(scenario_path),
                          "keyframes": str(keyframes_path),
                          "video": str(video) if video is not None else None, "fps": rate}
+    images = _write_overlays(out_dir, video, keyframes, metrics, camera, boxes, warnings)
+    metrics["warnings"] = warnings
+    write_text_atomic(out_dir / "metrics.json",
+                      json.dumps(_json_safe(metrics), indent=1, sort_keys=False) + "\n")
+    write_report(out_dir / "report.html", scenario=scenario, metrics=metrics,
+                 keyframe_images=images, extra_figures=list(extra_figures or []),
+                 warnings=[*(extra_warnings or []), *warnings],
+                 inputs=report_inputs or metrics["inputs"])
+    return metrics, _summary(metrics, keyframes, out_dir)
 
+
+def _camera_and_frames(scenario: Scenario, scenario_path: Path, video: Path | None,
+                       warnings: list[str]) -> tuple[Camera, list[str] | None, float | None]:
+    """The scenario's camera fitted to the video's frames (a crop or resize noted in
+    ``warnings``), the image folder's frame names, and the video's own frame rate."""
+    camera = Camera.from_dict(scenario.camera, scenario_path)
+    if video is None:
+        return camera, None, None
+    vw, vh, video_fps = video_size_and_fps(video)
+    frame_names = [p.name for p in image_files(video)] if video.is_dir() else None
+    camera, note = fit_camera_to_frames(camera, vw, vh, scenario_path)
+    if note:
+        warnings.append(f"scenario {note}")
+    return camera, frame_names, video_fps
+
+
+def _frame_rate(fps: float | None, video_fps: float | None, scenario: Scenario,
+                video: Path | None, warnings: list[str]) -> float | None:
+    """The rate that turns frame numbers into times: ``--fps``, else the video's, else the
+    scenario's recorded one; an image folder without any gets build's default (noted)."""
+    rate = fps or video_fps or _scenario_fps(scenario)
+    if rate is None and video is not None and video.is_dir():
+        rate = IMAGE_FOLDER_FPS
+        warnings.append(f"no frame rate given for the image folder: assumed {IMAGE_FOLDER_FPS:g} "
+                        "frames/s as vid2sim build does (pass --fps)")
+    return rate
+
+
+def _keyframes_on_the_clock(keyframes_path: Path, rate: float | None,
+                            frame_names: list[str] | None, scenario: Scenario,
+                            warnings: list[str]) -> list[Keyframe]:
+    """The annotated keyframes, each with its video frame (timestamps give times, the rate
+    the frame to seek); those outside the scenario's time span noted in ``warnings``."""
+    keyframes = read_keyframes(keyframes_path, fps=rate, frame_names=frame_names)
+    if rate is not None:
+        for k in keyframes:
+            if k.frame is None:
+                k.frame = round(k.t_s * rate)
+    t0, t1 = scenario.ego.trajectory.t[0], scenario.ego.trajectory.t[-1]
+    outside = [k.name for k in keyframes if not t0 - 0.05 <= k.t_s <= t1 + 0.05]
+    if outside:
+        warnings.append(f"{len(outside)} keyframe(s) lie outside the scenario's "
+                        f"{t0:.2f}-{t1:.2f} s (first: {outside[0]}); the ego is held at its "
+                        "first/last pose there")
+    return keyframes
+
+
+def _write_overlays(out_dir: Path, video: Path | None, keyframes: list[Keyframe],
+                    metrics: dict, camera: Camera, boxes: dict, warnings: list[str]
+                    ) -> list[tuple[str, bytes]]:
+    """One overlay PNG per keyframe in ``out_dir/keyframes`` (on its video frame, or grey
+    where the video has none), named in each keyframe's stats; (caption, PNG) for the
+    report."""
     frames = read_frames(video, [k.frame for k in keyframes]) if video is not None else {}
     if video is not None:
         missing = [k.name for k in keyframes if k.frame not in frames]
@@ -396,14 +434,7 @@ def run_eval(scenario_path: str | Path, keyframes_path: str | Path, *, video: Pa
         stats["overlay"] = f"keyframes/{fname}"
         f1 = "n/a" if stats["f1"] is None else f"{stats['f1']:.2f}"
         images.append((f"{k.name}  t={k.t_s:.2f} s  F1 {f1}", png))
-    metrics["warnings"] = warnings
-    write_text_atomic(out_dir / "metrics.json",
-                      json.dumps(_json_safe(metrics), indent=1, sort_keys=False) + "\n")
-    write_report(out_dir / "report.html", scenario=scenario, metrics=metrics,
-                 keyframe_images=images, extra_figures=list(extra_figures or []),
-                 warnings=[*(extra_warnings or []), *warnings],
-                 inputs=report_inputs or metrics["inputs"])
-    return metrics, _summary(metrics, keyframes, out_dir)
+    return images
 
 
 def _json_safe(obj):

@@ -22,11 +22,11 @@ from matplotlib.figure import Figure
 
 from vid2sim import __version__
 from vid2sim.base.defaults import LANE_WIDTH_M
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import FormatError, MissingInputError
 from vid2sim.base.fileio import write_text_atomic
 from vid2sim.base.htmlpage import BASE_CSS, figure_png
-from vid2sim.core.lead import lead_of
 from vid2sim.core.scenario import Scenario
+from vid2sim.evaluate.scenetime import SceneClock
 
 LEAD_SAMPLE_HZ = 10.0
 """Rate at which the lead vehicle is looked up for the plots [Hz]."""
@@ -88,8 +88,9 @@ def _lane_width_m(scenario: Scenario) -> float:
 
 
 def lead_series(scenario: Scenario, rate_hz: float = LEAD_SAMPLE_HZ) -> dict[str, np.ndarray]:
-    """Lead vehicle over time (:mod:`vid2sim.core.lead`): the nearest actor ahead whose centre lies
-    within half a lane width of the ego's longitudinal axis.
+    """Lead vehicle over time (:func:`vid2sim.core.lead.lead_of`): the nearest actor ahead whose
+    centre lies within half a lane width of the path the ego drove, measured along that path
+    (:class:`vid2sim.evaluate.scenetime.SceneClock`, as the environment measures it).
 
     Returns
     -------
@@ -100,33 +101,21 @@ def lead_series(scenario: Scenario, rate_hz: float = LEAD_SAMPLE_HZ) -> dict[str
     ego = scenario.ego.trajectory
     n = max(2, math.floor(ego.duration_s * rate_hz) + 1)
     t = np.linspace(ego.t[0], ego.t[-1], n)
-    e = ego.state_at(t)
-    lane_width_m = _lane_width_m(scenario)
-    c, s = np.cos(e["heading"]), np.sin(e["heading"])
-    rear = np.full((len(scenario.actors), n), np.nan)  # ego origin to each actor's rear [m]
-    lat = np.full((len(scenario.actors), n), np.nan)
-    speed = np.full((len(scenario.actors), n), np.nan)
-    for k, a in enumerate(scenario.actors):
-        tr = a.trajectory
-        active = (t >= tr.t[0] - 1e-6) & (t <= tr.t[-1] + 1e-6)
-        if not active.any():
-            continue
-        st = tr.state_at(t)
-        dx, dy = st["x"] - e["x"], st["y"] - e["y"]
-        rear[k] = np.where(active, c * dx + s * dy - a.length_m / 2.0, np.nan)
-        lat[k] = -s * dx + c * dy
-        speed[k] = st["speed"]
-    lead = lead_of(rear, lat, lane_width_m) if len(scenario.actors) else np.full(n, -1)
-    has = lead >= 0
-    cols = np.flatnonzero(has)
     rng = np.full(n, np.nan)
     lead_v = np.full(n, np.nan)
+    ego_v = np.full(n, np.nan)
     lead_id = np.full(n, "", dtype=object)
-    rng[has] = rear[lead[has], cols]
-    lead_v[has] = speed[lead[has], cols]
-    lead_id[has] = [scenario.actors[k].id for k in lead[has]]
-    return {"t_s": t, "range_m": rng, "lead_speed_mps": lead_v,
-            "ego_speed_mps": np.asarray(e["speed"], dtype=float), "lead_id": lead_id}
+    # the lead along the ego's driven path (THE lead rule, as the environment and the replay
+    # video measure it): in a bend the ego's straight axis leaves the lane
+    clock = SceneClock(scenario)
+    for k, tk in enumerate(t):
+        pose, actors = clock.at(float(tk))
+        ego_v[k] = pose.speed_mps
+        lead = clock.lead(pose, actors)
+        if lead is not None:
+            rng[k], lead_v[k], lead_id[k] = lead.range_m, lead.speed_mps, lead.id
+    return {"t_s": t, "range_m": rng, "lead_speed_mps": lead_v, "ego_speed_mps": ego_v,
+            "lead_id": lead_id}
 
 
 def lead_figure(scenario: Scenario) -> bytes:
@@ -167,14 +156,14 @@ def _image_bytes(img: ImageLike) -> tuple[bytes, str]:
         try:
             data = p.read_bytes()
         except OSError as exc:
-            raise InputError(p, f"cannot read figure: {exc}") from None
+            raise MissingInputError(p, f"cannot read figure: {exc}") from None
     if data[:8] == b"\x89PNG\r\n\x1a\n":
         return data, "image/png"
     if data[:3] == b"\xff\xd8\xff":
         return data, "image/jpeg"
     if data.lstrip()[:5] in (b"<?xml", b"<svg ") or b"<svg" in data[:200]:
         return data, "image/svg+xml"
-    raise InputError(None, "figure is not a PNG, JPEG or SVG image")
+    raise FormatError(None, "figure is not a PNG, JPEG or SVG image")
 
 
 KEYFRAME_MAX_WIDTH_PX = 960
@@ -345,6 +334,61 @@ def _metrics_html(m: dict) -> str:
     return "".join(out)
 
 
+# --------------------------------------------------------------------------- replay video
+
+#: Where the replay video's section sits in a report: between these markers, so that
+#: ``vid2sim render`` can put one into the report of a finished build (or replace it).
+REPLAY_START, REPLAY_END = "<!--vid2sim:replay-->", "<!--/vid2sim:replay-->"
+
+
+def replay_section(href: str, moments: Sequence[tuple[str, float, int | None]], *,
+                   t_from_s: float = 0.0, caption: str = "", playable: bool = True) -> str:
+    """The report's replay section: a ``<video controls>`` element playing ``href``
+    (relative to the report) and a table of the moments to look at, each linked to its time
+    in the video (a media fragment, ``href#t=seconds``: the browser opens the video there).
+
+    Parameters
+    ----------
+    href : the video's address relative to the report
+    moments : (what happens, scenario time [s], video frame or None) of each row
+    t_from_s : the scenario time of the video's first frame [s]
+    caption : a line about the video (frames, size, codec)
+    playable : False for a codec browsers do not play (the section then says so)
+    """
+    rows = []
+    for what, t_s, frame in moments:
+        at = max(t_s - t_from_s, 0.0)
+        rows.append(f"<tr><td class='l'>{_e(what)}</td><td>{t_s:.2f}</td>"
+                    f"<td>{'' if frame is None else frame}</td><td class='l'><a href="
+                    f"'{_e(href)}#t={at:.2f}' target='_blank'>play from {at:.1f} s</a></td></tr>")
+    note = ("" if playable else "<p class='small'><b>This video is MPEG-4 part 2, which "
+            "browsers do not play</b>: open it with a video player (VLC, mpv), or install a PyAV "
+            "whose FFmpeg has libx264 and render again for H.264.</p>")
+    table = ("<table><tr><th class='l'>moment</th><th>t [s]</th><th>frame</th><th class='l'>"
+             "</th></tr>" + "".join(rows) + "</table>") if rows else ""
+    return (f"{REPLAY_START}<section id='replay'><h2>Replay: the video with the tracked boxes "
+            "and the scenario's vehicles projected back (outline colour: IoU with the "
+            "detection), the scenario from above (right), time, speeds, lead and TTC "
+            f"(bottom)</h2><video controls preload='metadata' src='{_e(href)}' "
+            f"style='width:100%;height:auto;background:#000'>"
+            f"<a href='{_e(href)}'>{_e(href)}</a></video>"
+            f"<p class='small'>{_e(caption)} <a href='{_e(href)}'>{_e(href)}</a></p>{note}"
+            f"{table}</section>{REPLAY_END}")
+
+
+def with_replay(report_html: str, section: str) -> str:
+    """The report's text with its replay section replaced by ``section`` (put after the
+    header where a report of an older version has none)."""
+    start, end = report_html.find(REPLAY_START), report_html.find(REPLAY_END)
+    if start >= 0 and end > start:
+        return report_html[:start] + section + report_html[end + len(REPLAY_END):]
+    at = report_html.find("<main>")
+    if at < 0:
+        raise FormatError(None, "not a vid2sim report (no <main> element)")
+    at += len("<main>")
+    return report_html[:at] + section + report_html[at:]
+
+
 # --------------------------------------------------------------------------- the report
 
 
@@ -353,8 +397,10 @@ def render_report(*, scenario: Scenario, metrics: dict | None,
                   extra_figures: Sequence[tuple[str, ImageLike]] = (),
                   warnings: Sequence[str] = (), inputs: Any = None,
                   title: str = "vid2sim scenario report",
-                  frame_images: Sequence[tuple[str, Path, str]] = ()) -> str:
-    """The report's HTML text (see :func:`write_report`)."""
+                  frame_images: Sequence[tuple[str, Path, str]] = (),
+                  replay: str | None = None) -> str:
+    """The report's HTML text (see :func:`write_report`; ``replay``: the replay section,
+    :func:`replay_section`)."""
     parts = ["<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>",
              "<meta name='viewport' content='width=device-width, initial-scale=1'>",
              f"<title>{_e(title)}</title><style>{_CSS}</style></head><body>",
@@ -365,6 +411,8 @@ def render_report(*, scenario: Scenario, metrics: dict | None,
     if warnings:
         parts.append("<section class='warn'><h2>Warnings</h2><ul>"
                      + "".join(f"<li>{_e(w)}</li>" for w in warnings) + "</ul></section>")
+    # the replay video's place (vid2sim render fills it)
+    parts.append(replay or REPLAY_START + REPLAY_END)
     parts.append(_inputs_html(scenario, inputs))
     if metrics:
         parts.append(_metrics_html(metrics))

@@ -1,4 +1,5 @@
-"""Export: scenario assembly, the highway-env gymnasium environment, OpenSCENARIO/OpenDRIVE.
+"""Export: scenario assembly, the highway-env gymnasium environment, OpenSCENARIO/OpenDRIVE,
+CommonRoad.
 
 The ``vid2sim export`` command itself (loading, staging the outputs) is
 :func:`vid2sim.app.commands.run_export`.
@@ -6,7 +7,7 @@ The ``vid2sim export`` command itself (loading, staging the outputs) is
 
 from __future__ import annotations
 
-FORMATS = ("highway-env", "openscenario")
+FORMATS = ("highway-env", "openscenario", "commonroad")
 
 _REPLAY_SCRIPT = '''"""Replay {name} in highway-env (written by `vid2sim export --format highway-env`).
 

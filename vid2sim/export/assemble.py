@@ -42,7 +42,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from vid2sim.base.defaults import EGO_HEIGHT_M, EGO_LENGTH_M, EGO_WIDTH_M, LANE_WIDTH_M
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import InconsistentInputError
 from vid2sim.core.records import EgoTrack, RangedBox, VehicleCategory
 from vid2sim.core.scenario import Actor, Ego, Road, Scenario, Source, Trajectory
 
@@ -442,8 +442,8 @@ def assemble_scenario(ego: EgoTrack, roads: list[Road], tracks: list[RangedBox] 
     cfg = config or AssembleConfig()
     if len(ego.t_s) < 2:
 
-        raise InputError(None, "the ego trajectory has fewer than two samples",
-                         "check the GPS input and --gps-offset")
+        raise InconsistentInputError(None, "the ego trajectory has fewer than two samples",
+                                     "check the GPS input and --gps-offset")
     warnings: list[str] = []
     assumptions = list(source.assumptions)
     assumptions.extend(a for a in camera.assumptions if a not in assumptions)

@@ -48,6 +48,17 @@ _SINGLE_SAMPLE_HOLD_S = 0.1  # how long a once-seen vehicle's polyline lasts [s]
 XOSC_NAME = "scenario.xosc"
 XODR_NAME = "road.xodr"
 
+#: The variation parameters of ``vid2sim test-policy --vary`` every scenario.xosc declares,
+#: with their neutral values (the recorded scenario): ``lead_decel`` scale of the lead's
+#: deceleration, ``gap`` scale of the initial gap to the lead, ``ego_speed`` offset of the
+#: ego's speed [m/s], ``cut_in`` time shift of the cut-in's lateral motion [s]
+#: (:mod:`vid2sim.adas.variations`).
+VARIATION_PARAMETERS = {"lead_decel": 1.0, "gap": 1.0, "ego_speed": 0.0, "cut_in": 0.0}
+#: Values a parameter's physics allows, as OpenSCENARIO value constraints (rule, value):
+#: a deceleration scale below 0 would turn braking into accelerating, a gap scale of 0 or
+#: less puts the vehicles into each other.
+PARAMETER_CONSTRAINTS = {"lead_decel": ("greaterOrEqual", 0.0), "gap": ("greaterThan", 0.0)}
+
 
 # --------------------------------------------------------------------------- OpenSCENARIO
 
@@ -119,8 +130,12 @@ def build_openscenario(scenario: Scenario, road_file: str = XODR_NAME,
                        parameters: dict[str, float] | None = None):
     """The scenario as a scenariogeneration ``Scenario`` (OpenSCENARIO 1.2).
 
-    ``parameters`` are declared in ``ParameterDeclarations`` (type double), e.g. the values of
-    a ``vid2sim test-policy --vary`` variant, so the file records which variant it is.
+    ``ParameterDeclarations`` declare the variation parameters of ``vid2sim test-policy
+    --vary`` (:data:`VARIATION_PARAMETERS`) at their neutral values, or at ``parameters``'
+    (type double), e.g. a variant's, so the file records which variant it is. The recorded
+    trajectories are polylines: the file written for a variant (``test-policy
+    --write-scenarios``) holds the varied trajectories; overriding a parameter in a player
+    does not re-shape them (OpenSCENARIO cannot express "scale this polyline's braking").
     """
     from scenariogeneration import xosc
 
@@ -175,13 +190,29 @@ def build_openscenario(scenario: Scenario, road_file: str = XODR_NAME,
     story.add_act(act)
     storyboard = xosc.StoryBoard(init, _stop_trigger(t_end))
     storyboard.add_story(story)
-    declarations = xosc.ParameterDeclarations()
-    for name, value in (parameters or {}).items():
-        declarations.add_parameter(xosc.Parameter(name, xosc.ParameterType.double,
-                                                  format(float(value), ".12g")))
     return xosc.Scenario(
-        "vid2sim replay", "vid2sim", declarations, entities, storyboard,
+        "vid2sim replay", "vid2sim", _declarations(parameters), entities, storyboard,
         xosc.RoadNetwork(roadfile=road_file), xosc.Catalog(), osc_minor_version=2)
+
+
+def _declarations(parameters: dict[str, float] | None):
+    """``ParameterDeclarations``: the variation parameters (:data:`VARIATION_PARAMETERS`) at
+    their neutral values or the variant's, then any other given parameter; doubles, with
+    :data:`PARAMETER_CONSTRAINTS`."""
+    from scenariogeneration import xosc
+
+    values = dict(VARIATION_PARAMETERS, **(parameters or {}))
+    declarations = xosc.ParameterDeclarations()
+    for name, value in values.items():
+        param = xosc.Parameter(name, xosc.ParameterType.double, format(float(value), ".12g"))
+        if name in PARAMETER_CONSTRAINTS:
+            rule, bound = PARAMETER_CONSTRAINTS[name]
+            group = xosc.ValueConstraintGroup()
+            group.add_value_constraint(xosc.ValueConstraint(getattr(xosc.Rule, rule),
+                                                            format(bound, ".12g")))
+            param.add_value_constraint_group(group)
+        declarations.add_parameter(param)
+    return declarations
 
 
 def _stop_trigger(t_end_s: float):

@@ -7,7 +7,12 @@ import math
 from dataclasses import replace
 from pathlib import Path
 
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import (
+    FormatError,
+    ImpossibleValueError,
+    InconsistentInputError,
+    MissingInputError,
+)
 from vid2sim.base.fileio import check_input_size
 from vid2sim.core.records import GpsFix, GpsTrace
 
@@ -40,19 +45,19 @@ def finish_trace(fixes: list[GpsFix], fmt: str, path: Path, n_skipped: int = 0,
     """Validate ranges, sort by time, drop duplicate times, and wrap into a GpsTrace."""
     warnings = list(warnings or [])
     if not fixes:
-        raise InputError(path, f"no usable GPS fixes in this {fmt} file"
+        raise FormatError(path, f"no usable GPS fixes in this {fmt} file"
                          + (f" ({n_skipped} records skipped)" if n_skipped else ""),
                          "is the receiver reporting a fix, and do the records carry a time?")
     for i, f in enumerate(fixes):
         if not (math.isfinite(f.t_utc_s) and math.isfinite(f.lat_deg) and math.isfinite(f.lon_deg)):
-            raise InputError(path, f"fix {i + 1}: time or position is not a finite number")
+            raise ImpossibleValueError(path, f"fix {i + 1}: time or position is not a finite number")
         if not -90.0 <= f.lat_deg <= 90.0:
-            raise InputError(path, f"fix {i + 1}: latitude {f.lat_deg} outside [-90, 90]",
+            raise ImpossibleValueError(path, f"fix {i + 1}: latitude {f.lat_deg} outside [-90, 90]",
                              "are lat and lon swapped?")
         if not -180.0 <= f.lon_deg <= 180.0:
-            raise InputError(path, f"fix {i + 1}: longitude {f.lon_deg} outside [-180, 180]")
+            raise ImpossibleValueError(path, f"fix {i + 1}: longitude {f.lon_deg} outside [-180, 180]")
         if abs(f.t_utc_s) > MAX_FIX_TIME_S:
-            raise InputError(path, f"fix {i + 1}: time {f.t_utc_s:g} s is not a time (after the "
+            raise ImpossibleValueError(path, f"fix {i + 1}: time {f.t_utc_s:g} s is not a time (after the "
                              "year 2286)", "times are seconds (or ms, ISO 8601) since the epoch")
     fixes = [f if f.alt_m is None or ALTITUDE_RANGE_M[0] <= f.alt_m <= ALTITUDE_RANGE_M[1]
              else replace(f, alt_m=None) for f in fixes]
@@ -72,11 +77,11 @@ def finish_trace(fixes: list[GpsFix], fmt: str, path: Path, n_skipped: int = 0,
         warnings.append(f"dropped {n_dup} fixes repeating an earlier time")
     if video_start_utc_s is not None and not (math.isfinite(video_start_utc_s)
                                               and abs(video_start_utc_s) <= MAX_FIX_TIME_S):
-        raise InputError(path, f"the video start time {video_start_utc_s:g} s is not a time",
+        raise ImpossibleValueError(path, f"the video start time {video_start_utc_s:g} s is not a time",
                          "times are seconds (or ms) since the epoch")
     span_s = unique[-1].t_utc_s - unique[0].t_utc_s
     if span_s > MAX_TRACE_SPAN_S:
-        raise InputError(path, f"the fixes span {span_s / 3600:.1f} h, more than the "
+        raise InconsistentInputError(path, f"the fixes span {span_s / 3600:.1f} h, more than the "
                          f"{MAX_TRACE_SPAN_S / 3600:.0f} h of one drive",
                          "cut the log to the drive of the video")
     return GpsTrace(fixes=unique, format=fmt, path=path, video_start_utc_s=video_start_utc_s,
@@ -90,7 +95,7 @@ def read_text(path: Path) -> str:
     try:
         return path.read_text(encoding="utf-8", errors="replace").lstrip("\ufeff")
     except OSError as exc:
-        raise InputError(path, f"cannot read: {exc.strerror or exc}") from exc
+        raise MissingInputError(path, f"cannot read: {exc.strerror or exc}") from exc
 
 
 def optional_value(value: float | None, lo: float = -math.inf, hi: float = math.inf) -> float | None:

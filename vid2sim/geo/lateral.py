@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
@@ -180,65 +180,101 @@ def fuse_lateral(ego: EgoTrack, lanes: LaneTrack | None, road: RoadResult | None
     speed_obs = (np.interp(lanes.t_s, ego.t_s, ego.speed_mps) if speed_known
                  else np.full(len(lanes), np.nan))
     track = refilter(lanes, speed_obs) if refilter is not None else lanes
-    offset = _interp_finite(ego.t_s, track.t_s, track.ego_offset_m, cfg.max_hold_s)
-    width = _interp_finite(ego.t_s, track.t_s, track.lane_width_m, cfg.max_hold_s)
-    lane_rel = _step_at(ego.t_s, track.t_s, track.lane)
+    lane_facts = _LaneFacts.on_clock(ego.t_s, track, cfg.max_hold_s)
     coverage = float(np.isfinite(track.ego_offset_m).mean())
-    notes: list[str] = []
-    if coverage < cfg.min_coverage or not np.isfinite(offset).any():
+    if coverage < cfg.min_coverage or not np.isfinite(lane_facts.offset).any():
         unchanged.notes.append(Note.warning(
             f"lane markings measured on {coverage:.0%} of the frames: too few to place the "
             "ego across the road; its lateral position is the GPS's"))
         unchanged.lanes = track
         return unchanged
     w_video = float(np.nanmedian(track.lane_width_m))
-
     main = None
     if road is not None and road.source == "osm" and road.roads:
         main = max(road.roads, key=lambda r: len(r.centerline))
     if main is None:
-        return _without_map(ego, track, offset, width, lane_rel, w_video, coverage, notes)
+        return _without_map(ego, track, lane_facts.offset, lane_facts.width, lane_facts.lane_rel,
+                            w_video, coverage, [])
+    return _on_map_road(ego, track, lane_facts, main, road, w_video, coverage, cfg)
 
-    # ---- along the map road
+
+@dataclass(slots=True)
+class _LaneFacts:
+    """The lane track's facts at the ego's samples: the ego's offset in its lane [m], the
+    lane's width [m] and the ego's lane relative to the clip's first one."""
+
+    offset: np.ndarray
+    width: np.ndarray
+    lane_rel: np.ndarray
+
+    @classmethod
+    def on_clock(cls, t_s: np.ndarray, track: LaneTrack, max_hold_s: float) -> _LaneFacts:
+        return cls(offset=_interp_finite(t_s, track.t_s, track.ego_offset_m, max_hold_s),
+                   width=_interp_finite(t_s, track.t_s, track.lane_width_m, max_hold_s),
+                   lane_rel=_step_at(t_s, track.t_s, track.lane))
+
+
+@dataclass(slots=True)
+class _CrossSection:
+    """Where each lane lies across a map road: ``total`` lanes, ``forward`` of them in the
+    ego's direction, ``width_m`` [m] per sample."""
+
+    total: int
+    forward: int
+    width_m: np.ndarray
+
+    def offsets(self, j0: int, facts: _LaneFacts) -> np.ndarray:
+        """The ego's offset from the centerline [m, left] with the clip's first lane ``j0``
+        (0 = the rightmost lane in its direction)."""
+        j = j0 + facts.lane_rel
+        w = self.width_m
+        if self.total > self.forward:  # two-way: count lanes from the centre line (offset 0)
+            left_boundary = -(self.forward - 1 - j) * w
+        else:  # one-way: lanes centred on the centerline
+            left_boundary = (j + 1 - 0.5 * self.total) * w
+        return left_boundary - 0.5 * w + facts.offset
+
+
+def _first_lane(ego: EgoTrack, track: LaneTrack, facts: _LaneFacts, section: _CrossSection,
+                d_gps: np.ndarray, cfg: LateralConfig) -> int:
+    """The clip's first lane: the one whose offsets agree best with the GPS (errors
+    correlated over ``gps_correlation_s``, so the clip's mean has duration / correlation
+    independent samples), where markings that say "rightmost" while the ego would not be
+    there weigh like a 2-sigma GPS disagreement."""
+    n = len(ego.t_s)
+    valid = np.isfinite(facts.offset) & np.isfinite(d_gps)
+    duration = float(ego.t_s[-1] - ego.t_s[0]) if n > 1 else 0.0
+    n_eff = max(1.0, duration / cfg.gps_correlation_s)
+    sigma_mean = cfg.gps_lateral_std_m / math.sqrt(n_eff)
+    rightmost = rightmost_evidence(track)
+    measured = np.isfinite(track.ego_offset_m)
+    choices = [j for j in range(max(section.forward, 1))
+               if j + int(facts.lane_rel.min()) >= 0
+               and j + int(facts.lane_rel.max()) <= section.total - 1] or [0]
+    costs = []
+    for j0 in choices:
+        resid = (float(np.mean((d_gps - section.offsets(j0, facts))[valid])) if valid.any()
+                 else 0.0)
+        wrong = rightmost & (j0 + track.lane > 0)
+        costs.append((resid / sigma_mean) ** 2
+                     + 4.0 * float(wrong.sum() / max(measured.sum(), 1)))
+    return choices[int(np.argmin(costs))]
+
+
+def _on_map_road(ego: EgoTrack, track: LaneTrack, facts: _LaneFacts, main, road: RoadResult,
+                 w_video: float, coverage: float, cfg: LateralConfig) -> EgoLateral:
+    """The ego moved across the map road to where the lane markings put it (see the module
+    docstring); where the markings say nothing the GPS places it, blended over ``blend_s``."""
     line = _smooth_polyline(np.asarray(main.centerline, float), cfg.centerline_smoothing_m)
     s, d_gps = _project_along(line, np.column_stack((ego.x_m, ego.y_m)), ego.t_s,
                               ego.speed_mps)
     total = int(main.lanes)
-    forward = int(road.lanes_forward) if road.lanes_forward else total
-    w = np.where(np.isfinite(width), width, w_video)
-
-    def placed(j0: int) -> np.ndarray:
-        """Offset from the centerline with the clip's first lane index ``j0``."""
-        j = j0 + lane_rel
-        if total > forward:  # two-way: count lanes from the centre line (offset 0)
-            left_boundary = -(forward - 1 - j) * w
-        else:  # one-way: lanes centred on the centerline
-            left_boundary = (j + 1 - 0.5 * total) * w
-        return left_boundary - 0.5 * w + offset
-
-    # The first lane: GPS agreement (errors correlated over ~2 s, so the mean over the clip
-    # has n_eff = duration / correlation independent samples) and the markings.
-    valid = np.isfinite(offset) & np.isfinite(d_gps)
-    duration = float(ego.t_s[-1] - ego.t_s[0]) if n > 1 else 0.0
-    n_eff = max(1.0, duration / cfg.gps_correlation_s)
-    sigma_mean = cfg.gps_lateral_std_m / math.sqrt(n_eff)
-    # Markings that say "rightmost" while the ego would not be there weigh like a 2-sigma
-    # GPS disagreement.
-    rightmost = rightmost_evidence(track)
-    measured = np.isfinite(track.ego_offset_m)
-    choices = [j for j in range(max(forward, 1))
-               if j + int(lane_rel.min()) >= 0 and j + int(lane_rel.max()) <= total - 1] or [0]
-    costs = []
-    for j0 in choices:
-        resid = float(np.mean((d_gps - placed(j0))[valid])) if valid.any() else 0.0
-        wrong = rightmost & (j0 + track.lane > 0)
-        costs.append((resid / sigma_mean) ** 2
-                     + 4.0 * float(wrong.sum() / max(measured.sum(), 1)))
-    j0 = choices[int(np.argmin(costs))]
-    d_video = placed(j0)
-    lane = j0 + lane_rel
-
-    # Where the markings say nothing the GPS places the ego, blended over blend_s.
+    section = _CrossSection(total=total,
+                            forward=int(road.lanes_forward) if road.lanes_forward else total,
+                            width_m=np.where(np.isfinite(facts.width), facts.width, w_video))
+    j0 = _first_lane(ego, track, facts, section, d_gps, cfg)
+    d_video = section.offsets(j0, facts)
+    lane = j0 + facts.lane_rel
     have = np.isfinite(d_video)
     weight = _blend_weight(ego.t_s, have, cfg.blend_s)
     d_gps_filled = np.where(np.isfinite(d_gps), d_gps, 0.0)
@@ -254,16 +290,16 @@ def fuse_lateral(ego: EgoTrack, lanes: LaneTrack | None, road: RoadResult | None
     x_new = np.where(on_road, x_new, ego.x_m)
     y_new = np.where(on_road, y_new, ego.y_m)
     correction = np.where(on_road, d_new - d_gps_filled, 0.0)
-    new_ego = _moved(ego, x_new, y_new)
     changes = [LaneChange(c.t_s, c.from_lane + j0, c.to_lane + j0) for c in track.lane_changes]
-    notes.append(Note.estimate(
+    notes = [Note.estimate(
         f"ego placed across the road from the lane markings ({coverage:.0%} of frames "
-        f"measured): lane {int(np.median(lane))} of {forward} in its direction (0 = "
+        f"measured): lane {int(np.median(lane))} of {section.forward} in its direction (0 = "
         f"rightmost), {len(changes)} lane change(s), lateral correction of the GPS "
-        f"{np.sqrt(np.mean(correction ** 2)):.1f} m RMS"))
-    return EgoLateral(ego=new_ego, lane=lane.astype(int), offset_in_lane_m=offset,
+        f"{np.sqrt(np.mean(correction ** 2)):.1f} m RMS")]
+    return EgoLateral(ego=_moved(ego, x_new, y_new), lane=lane.astype(int),
+                      offset_in_lane_m=facts.offset,
                       offset_from_centerline_m=np.where(on_road, d_new, np.nan),
-                      correction_m=correction, lane_width_m=width, lane_changes=changes,
+                      correction_m=correction, lane_width_m=facts.width, lane_changes=changes,
                       lane_center_xy_m=None, source="lane markings + map", lanes=track,
                       notes=notes)
 

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
 
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import FormatError
 from vid2sim.core.records import GpsFix, GpsTrace
 from vid2sim.geo.gpsfile import KNOTS_TO_MPS, UERE_M, finish_trace, read_text
 
@@ -91,7 +91,7 @@ def read_nmea(path: Path) -> GpsTrace:
     """
     parsed = parse_nmea_lines(read_text(path).splitlines())
     if not parsed.fixes and parsed.n_bad:
-        raise InputError(path, f"no valid NMEA sentence ({parsed.n_bad} with a bad checksum or "
+        raise FormatError(path, f"no valid NMEA sentence ({parsed.n_bad} with a bad checksum or "
                          "fields)", "is the log corrupted?")
     return finish_trace(parsed.fixes, "nmea", path, n_skipped=parsed.n_bad + parsed.n_void,
                         warnings=parsed.warnings)

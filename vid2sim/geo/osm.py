@@ -35,7 +35,13 @@ from typing import Any
 import networkx as nx
 import numpy as np
 
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import (
+    FormatError,
+    ImpossibleValueError,
+    InconsistentInputError,
+    InputError,
+    MissingInputError,
+)
 from vid2sim.core.enu import EnuFrame
 from vid2sim.core.records import Origin
 from vid2sim.geo.mapcache import DrivableMap, cached_map, default_cache_dir
@@ -162,10 +168,10 @@ def _read_pbf(path: Path) -> _WaySegments:
         osm = pyrosm.OSM(str(path))
         got = osm.get_network(network_type="driving", nodes=True)
     except Exception as exc:  # noqa: BLE001 - pyrosm raises bare errors for corrupt files
-        raise InputError(path, f"cannot read OSM PBF: {type(exc).__name__}: {exc}",
+        raise FormatError(path, f"cannot read OSM PBF: {type(exc).__name__}: {exc}",
                          "is it an .osm.pbf extract?") from None
     if got is None or got[1] is None or len(got[1]) == 0:
-        raise InputError(path, "no drivable roads in this map",
+        raise InconsistentInputError(path, "no drivable roads in this map",
                          "use an extract that covers streets open to cars")
     nodes, edges = got
     node_lonlat = {int(i): (float(lo), float(la))
@@ -237,7 +243,7 @@ def _read_osm_xml(path: Path) -> _WaySegments:
         with _osmnx_settings(useful_tags_way=tags_way, log_console=False) as ox:
             graph = ox.graph_from_xml(path, simplify=False, retain_all=True)
     except Exception as exc:  # noqa: BLE001 - osmnx/ElementTree errors on bad files
-        raise InputError(path, f"cannot read OSM XML: {type(exc).__name__}: {exc}",
+        raise FormatError(path, f"cannot read OSM XML: {type(exc).__name__}: {exc}",
                          "is it an .osm file exported from OpenStreetMap?") from None
     return _segments_from_osmnx(graph)
 
@@ -246,9 +252,9 @@ def read_osm(path: str | Path) -> _WaySegments:
     """Read an ``.osm`` (XML) or ``.osm.pbf`` extract into way segments (not yet filtered)."""
     path = Path(path)
     if not path.is_file():
-        raise InputError(path, "no such map file")
+        raise MissingInputError(path, "no such map file")
     if path.stat().st_size == 0:
-        raise InputError(path, "empty map file", "export the area again from OpenStreetMap")
+        raise FormatError(path, "empty map file", "export the area again from OpenStreetMap")
     with open(path, "rb") as fh:
         head = fh.read(512)
     is_xml = head.lstrip().startswith(b"<")
@@ -256,7 +262,7 @@ def read_osm(path: str | Path) -> _WaySegments:
         return _checked_nodes(_read_pbf(path), path)
     if is_xml:
         return _checked_nodes(_read_osm_xml(path), path)
-    raise InputError(path, "not an OSM map (neither XML nor PBF)", "pass a .osm or .osm.pbf file")
+    raise FormatError(path, "not an OSM map (neither XML nor PBF)", "pass a .osm or .osm.pbf file")
 
 
 def _checked_nodes(ways: _WaySegments, path: Path) -> _WaySegments:
@@ -265,7 +271,7 @@ def _checked_nodes(ways: _WaySegments, path: Path) -> _WaySegments:
     for node, (lon, lat) in ways.node_lonlat.items():
         if not (math.isfinite(lon) and math.isfinite(lat) and -90 <= lat <= 90
                 and -180 <= lon <= 180):
-            raise InputError(path, f"node {node}: lat {lat}, lon {lon} is not a position",
+            raise ImpossibleValueError(path, f"node {node}: lat {lat}, lon {lon} is not a position",
                              "is the map file damaged?")
     return ways
 
@@ -319,14 +325,14 @@ def drivable_map(ways: _WaySegments, source: str = "") -> DrivableMap:
     # a reader drops nodes outside its extract: pieces through them cannot be drawn
     pieces = [(w, p) for w, p in pieces if all(n in ways.node_lonlat for n in p)]
     if not pieces:
-        raise InputError(source or None, "no drivable roads in this map",
+        raise InconsistentInputError(source or None, "no drivable roads in this map",
                          "highway=* ways open to cars are needed")
     try:
         node_id = np.array(sorted({n for _, p in pieces for n in p}), dtype=np.int64)
         flat = np.array([n for _, p in pieces for n in p], dtype=np.int64)
         way_id = np.array([w for w, _ in pieces], dtype=np.int64)
     except OverflowError:
-        raise InputError(source or None, "an OSM node or way id does not fit in 64 bits",
+        raise ImpossibleValueError(source or None, "an OSM node or way id does not fit in 64 bits",
                          "OSM ids are 64-bit integers: is the file damaged?") from None
     return DrivableMap(
         node_id=node_id,
@@ -358,7 +364,7 @@ def project_network(dmap: DrivableMap, origin: Origin, *, source: str = "",
         keep = np.flatnonzero((hi[:, 0] >= west) & (lo[:, 0] <= east)
                               & (hi[:, 1] >= south) & (lo[:, 1] <= north))
     if not keep.size:
-        raise InputError(source or None, "no drivable roads near the trace",
+        raise InconsistentInputError(source or None, "no drivable roads near the trace",
                          "highway=* ways open to cars are needed")
     used = np.unique(np.concatenate([dmap.piece_node[dmap.piece_ptr[k]:dmap.piece_ptr[k + 1]]
                                      for k in keep]))
@@ -451,9 +457,9 @@ def load_network(path: str | Path, origin: Origin, *,
         return project_network(dmap, origin, source=path.name, bbox_lonlat=bbox_lonlat)
     except InputError as exc:
         if bbox_lonlat is None:
-            raise InputError(path, exc.problem, exc.hint) from None
+            raise exc.naming(path) from None
     # nothing near the trace: say where the map's drivable roads are
-    raise InputError(path, f"the trace area ({format_bbox(bbox_lonlat)}) lies outside the map's "
+    raise InconsistentInputError(path, f"the trace area ({format_bbox(bbox_lonlat)}) lies outside the map's "
                      f"drivable roads ({format_bbox(dmap.bbox_lonlat())})",
                      "pass a map that covers the drive")
 
@@ -461,11 +467,11 @@ def load_network(path: str | Path, origin: Origin, *,
 def _parse_map(path: Path) -> DrivableMap:
     ways = read_osm(path)
     if not ways.segments:
-        raise InputError(path, "no ways in this map", "is the extract empty?")
+        raise FormatError(path, "no ways in this map", "is the extract empty?")
     try:
         return drivable_map(ways, path.name)
     except InputError as exc:
-        raise InputError(path, exc.problem, exc.hint) from None
+        raise exc.naming(path) from None
 
 
 #: what the drivable pieces depend on besides the file: a changed filter makes cached maps

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import FormatError, InconsistentInputError, MissingInputError
 from vid2sim.core.records import GpsFix, GpsTrace
 from vid2sim.geo.gpsfile import finish_trace, optional_value, read_text
 
@@ -38,7 +38,7 @@ def _kitti_folder(path: Path) -> tuple[Path, Path]:
         return path / "oxts", path
     if (path / "data").is_dir() and (path / "timestamps.txt").is_file():
         return path, path.parent
-    raise InputError(path, "folder is not a KITTI drive or OXTS folder",
+    raise MissingInputError(path, "folder is not a KITTI drive or OXTS folder",
                      "expected oxts/data/*.txt and oxts/timestamps.txt")
 
 
@@ -51,18 +51,18 @@ def read_kitti_stamps(path: Path) -> list[float]:
         try:
             out.append(kitti_time_s(line))
         except ValueError as exc:
-            raise InputError(path, f"line {i + 1}: unparsable timestamp {line.strip()!r}") from exc
+            raise FormatError(path, f"line {i + 1}: unparsable timestamp {line.strip()!r}") from exc
     return out
 
 
 def _oxts_values(path: Path) -> list[float]:
     parts = read_text(path).split()
     if len(parts) < _OXTS_MIN_FIELDS:
-        raise InputError(path, f"{len(parts)} fields, expected 30", "truncated OXTS file?")
+        raise FormatError(path, f"{len(parts)} fields, expected 30", "truncated OXTS file?")
     try:
         return [float(x) for x in parts]
     except ValueError as exc:
-        raise InputError(path, f"unparsable number ({exc})") from exc
+        raise FormatError(path, f"unparsable number ({exc})") from exc
 
 
 def read_kitti_oxts_table(path: Path) -> np.ndarray:
@@ -72,7 +72,7 @@ def read_kitti_oxts_table(path: Path) -> np.ndarray:
     oxts, _ = _kitti_folder(Path(path))
     files = sorted((oxts / "data").glob("*.txt"))
     if not files:
-        raise InputError(oxts / "data", "no OXTS data files")
+        raise MissingInputError(oxts / "data", "no OXTS data files")
     return np.array([_oxts_values(f)[:_OXTS_MIN_FIELDS] for f in files], dtype=float)
 
 
@@ -87,12 +87,12 @@ def read_kitti_oxts(path: Path) -> GpsTrace:
     files = sorted((oxts / "data").glob("*.txt"))
     stamps_file = oxts / "timestamps.txt"
     if not stamps_file.is_file():
-        raise InputError(oxts, "missing timestamps.txt", "a KITTI OXTS folder has one")
+        raise MissingInputError(oxts, "missing timestamps.txt", "a KITTI OXTS folder has one")
     stamps = read_kitti_stamps(stamps_file)
     if not files:
-        raise InputError(oxts / "data", "no OXTS data files")
+        raise MissingInputError(oxts / "data", "no OXTS data files")
     if len(stamps) != len(files):
-        raise InputError(stamps_file, f"{len(stamps)} timestamps for {len(files)} data files",
+        raise InconsistentInputError(stamps_file, f"{len(stamps)} timestamps for {len(files)} data files",
                          "the drive is incomplete")
     fixes = []
     for f, t in zip(files, stamps, strict=True):

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import FormatError, MissingInputError
 from vid2sim.base.fileio import parse_json
 from vid2sim.core.container import looks_like_container
 from vid2sim.core.records import GpsFix, GpsTrace
@@ -100,22 +100,22 @@ def read_gps(path: str | Path) -> GpsTrace:
     """
     path = Path(path)
     if not path.exists():
-        raise InputError(path, "no such file or folder", "check the path")
+        raise MissingInputError(path, "no such file or folder", "check the path")
     if path.is_dir():
         return read_kitti_oxts(path)
     try:
         with open(path, "rb") as fh:
             head = fh.read(_HEAD_BYTES)
     except OSError as exc:
-        raise InputError(path, f"cannot read: {exc.strerror or exc}") from exc
+        raise MissingInputError(path, f"cannot read: {exc.strerror or exc}") from exc
     if not head.strip():
-        raise InputError(path, "empty file", "expected a GPS log (GPX, NMEA, BDD JSON, CSV)")
+        raise FormatError(path, "empty file", "expected a GPS log (GPX, NMEA, BDD JSON, CSV)")
     if looks_like_container(head):
         return read_embedded(path)  # the GPS inside a video (GoPro, dash-cams)
     text = head.decode("utf-8", errors="replace").lstrip("\ufeff \t\r\n")
     reader = _detect(text, path)
     if reader is None:
-        raise InputError(path, "unknown GPS format",
+        raise FormatError(path, "unknown GPS format",
                          "expected GPX, NMEA 0183, BDD100K info JSON, KITTI OXTS folder or a CSV "
                          "with columns time/lat/lon")
     return reader(path)
@@ -136,7 +136,7 @@ def _detect(text: str, path: Path) -> Callable[[Path], GpsTrace] | None:
     if _csv_header_columns(first) is not None:
         return read_csv
     if path.name == "timestamps.txt" or _OXTS_LINE.match(first):
-        raise InputError(path, "looks like a single KITTI OXTS file",
+        raise MissingInputError(path, "looks like a single KITTI OXTS file",
                          "pass the drive folder or its oxts/ folder instead")
     return None
 
@@ -162,7 +162,7 @@ def read_gpx(path: Path) -> GpsTrace:
     try:
         gpx = gpxpy.parse(read_text(path))
     except (gpxpy.gpx.GPXException, ValueError) as exc:
-        raise InputError(path, f"not a valid GPX file: {exc}") from exc
+        raise FormatError(path, f"not a valid GPX file: {exc}") from exc
     points = [p for track in gpx.tracks for seg in track.segments for p in seg.points]
     points += [p for route in gpx.routes for p in route.points]
     fixes: list[GpsFix] = []
@@ -184,10 +184,10 @@ def read_gpx(path: Path) -> GpsTrace:
             accuracy_m=None if hdop is None else hdop * UERE_M))
     warnings = []
     if not points:
-        raise InputError(path, "GPX file has no track or route points",
+        raise FormatError(path, "GPX file has no track or route points",
                          "waypoints alone are not a trajectory")
     if n_no_time and not fixes:
-        raise InputError(path, "GPX points carry no <time>",
+        raise FormatError(path, "GPX points carry no <time>",
                          "a trajectory needs timestamps; export the track with times")
     if n_no_time:
         warnings.append(f"skipped {n_no_time} GPX points without <time>")
@@ -221,13 +221,13 @@ def read_bdd_json(path: Path) -> GpsTrace:
     """
     data = parse_json(read_text(path), path)
     if not isinstance(data, dict):
-        raise InputError(path, "JSON is not a BDD100K info object",
+        raise FormatError(path, "JSON is not a BDD100K info object",
                          "expected an object with a 'locations' list")
     locs = data.get("locations")
     if not locs and isinstance(data.get("gps"), list):
         locs = data["gps"]
     if not isinstance(locs, list):
-        raise InputError(path, "JSON has no 'locations' list", "is this a BDD100K info file?")
+        raise FormatError(path, "JSON has no 'locations' list", "is this a BDD100K info file?")
     fixes = []
     n_bad = 0
     for i, loc in enumerate(locs):
@@ -239,9 +239,9 @@ def read_bdd_json(path: Path) -> GpsTrace:
             lat = float(loc["latitude"])
             lon = float(loc["longitude"])
         except KeyError as exc:
-            raise InputError(path, f"locations[{i}] lacks {exc.args[0]!r}") from exc
+            raise FormatError(path, f"locations[{i}] lacks {exc.args[0]!r}") from exc
         except (TypeError, ValueError, OverflowError) as exc:
-            raise InputError(path, f"locations[{i}]: unparsable number ({exc})") from exc
+            raise FormatError(path, f"locations[{i}]: unparsable number ({exc})") from exc
         fixes.append(GpsFix(t_utc_s=t_ms / 1000.0, lat_deg=lat, lon_deg=lon,
                             alt_m=optional_value(loc.get("altitude")),
                             speed_mps=optional_value(loc.get("speed"), 0.0, 1e3),
@@ -253,7 +253,7 @@ def read_bdd_json(path: Path) -> GpsTrace:
         try:
             start_s = float(start) / 1000.0
         except (TypeError, ValueError, OverflowError) as exc:
-            raise InputError(path, f"startTime {start!r} is not a number of ms") from exc
+            raise FormatError(path, f"startTime {start!r} is not a number of ms") from exc
     warnings = [f"skipped {n_bad} malformed location entries"] if n_bad else []
     return finish_trace(fixes, "bdd100k", path, n_skipped=n_bad, warnings=warnings,
                    video_start_utc_s=start_s)
@@ -324,7 +324,7 @@ def read_csv(path: Path) -> GpsTrace:
     cols = _csv_header_columns(header)
     split = _csv_split(header)
     if cols is None or split is None:
-        raise InputError(path, "CSV header lacks a time, lat or lon column",
+        raise FormatError(path, "CSV header lacks a time, lat or lon column",
                          "name the columns t|time|timestamp, lat, lon")
     delim = split[1]
     rows = list(csv.reader(io.StringIO(text), delimiter=delim))[1:]
@@ -337,9 +337,9 @@ def read_csv(path: Path) -> GpsTrace:
             lat = float(row[cols["lat"]])
             lon = float(row[cols["lon"]])
         except IndexError as exc:
-            raise InputError(path, f"line {i}: too few columns") from exc
+            raise FormatError(path, f"line {i}: too few columns") from exc
         except (ValueError, OverflowError) as exc:
-            raise InputError(path, f"line {i}: unparsable value ({exc})",
+            raise FormatError(path, f"line {i}: unparsable value ({exc})",
                              "time must be seconds, ms since the epoch or ISO 8601") from exc
         extra: dict[str, float | None] = {}
         for k in ("alt", "speed", "heading", "accuracy"):
@@ -347,13 +347,13 @@ def read_csv(path: Path) -> GpsTrace:
                 try:
                     extra[k] = float(row[cols[k]])
                 except ValueError as exc:
-                    raise InputError(path, f"line {i}: unparsable {k} {row[cols[k]]!r}") from exc
+                    raise FormatError(path, f"line {i}: unparsable {k} {row[cols[k]]!r}") from exc
         raw.append((t, kind, lat, lon, extra))
     if not raw:
-        raise InputError(path, "CSV has a header but no rows", "no GPS fixes to read")
+        raise FormatError(path, "CSV has a header but no rows", "no GPS fixes to read")
     kinds = {r[1] for r in raw}
     if len(kinds) > 1:
-        raise InputError(path, "time column mixes numbers and ISO 8601 dates")
+        raise FormatError(path, "time column mixes numbers and ISO 8601 dates")
     scale = 1.0
     if kinds == {"num"} and float(np.median([abs(r[0]) for r in raw])) > 1e11:
         scale = 1e-3  # milliseconds since the epoch

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from vid2sim.base.defaults import LANE_WIDTH_M
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import InconsistentInputError
 from vid2sim.base.fileio import atomic_open
 from vid2sim.core.enu import EnuFrame
 from vid2sim.core.lanelayout import (
@@ -380,7 +380,7 @@ def build_road(trace: GpsTrace, ego: EgoTrack, map_path: Path | None, *,
     """
     fixes = trace.fixes
     if not fixes:
-        raise InputError(trace.path, "no GPS fixes")
+        raise InconsistentInputError(trace.path, "no GPS fixes")
     lat = np.array([f.lat_deg for f in fixes])
     lon = np.array([f.lon_deg for f in fixes])
     t_fix = fix_times_s(trace, gps_offset_s)
@@ -408,7 +408,7 @@ def build_road(trace: GpsTrace, ego: EgoTrack, map_path: Path | None, *,
     res = match(net, xy[:, 0], xy[:, 1], t_fix, heading_rad=_ego_headings(ego, t_fix),
                 accuracy_m=accuracy, speed_mps=speed, config=config)
     if not res.route_edges or res.matched_share == 0.0:
-        raise InputError(map_path, f"no fix lies near a drivable road of this map: the trace "
+        raise InconsistentInputError(map_path, f"no fix lies near a drivable road of this map: the trace "
                          f"({format_bbox(_trace_bbox(lat, lon, 0.0))}) and the map's roads "
                          f"({format_bbox(net.bbox_lonlat)}) do not overlap",
                          "pass a map that covers the drive")

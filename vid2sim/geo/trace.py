@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from vid2sim.base.defaults import EGO_RATE_HZ
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import ImpossibleValueError, InconsistentInputError
 from vid2sim.core.enu import EnuFrame
 from vid2sim.core.records import EgoTrack, GpsTrace, Origin, TraceStats
 from vid2sim.geo._gps_kalman import hermite, smooth
@@ -96,10 +96,10 @@ def smooth_ego(trace: GpsTrace, rate_hz: float = EGO_RATE_HZ, gps_offset_s: floa
     p = params or TraceParams()
     path = trace.path
     if not (rate_hz > 0 and math.isfinite(rate_hz)):
-        raise InputError(path, f"output rate {rate_hz} Hz must be > 0")
+        raise ImpossibleValueError(path, f"output rate {rate_hz} Hz must be > 0")
     n_in = len(trace.fixes)
     if n_in < 2:
-        raise InputError(path, f"{n_in} GPS fix(es); a trajectory needs at least two",
+        raise InconsistentInputError(path, f"{n_in} GPS fix(es); a trajectory needs at least two",
                          "is the log long enough?")
     warnings = list(trace.warnings)
     fx = trace.fixes
@@ -114,7 +114,7 @@ def smooth_ego(trace: GpsTrace, rate_hz: float = EGO_RATE_HZ, gps_offset_s: floa
     if np.any(order != np.arange(n_in)):
         t_utc, lat, lon, alt, spd, crs, acc = (a[order] for a in (t_utc, lat, lon, alt, spd, crs, acc))
     if np.any(np.diff(t_utc) <= 0):
-        raise InputError(path, "fix times do not increase strictly", "duplicate timestamps?")
+        raise InconsistentInputError(path, "fix times do not increase strictly", "duplicate timestamps?")
 
     # ---- 1. time alignment
     t0_utc, alignment = video_t0_utc(trace, gps_offset_s)
@@ -174,7 +174,7 @@ def smooth_ego(trace: GpsTrace, rate_hz: float = EGO_RATE_HZ, gps_offset_s: floa
                 break
             used = new_used
     if used.sum() < 2:
-        raise InputError(path, "fewer than two fixes survive outlier rejection",
+        raise InconsistentInputError(path, "fewer than two fixes survive outlier rejection",
                          "the trace is too noisy to use")
 
     # ---- 5. stops from positions; final smoothing with zero-velocity updates
@@ -191,10 +191,10 @@ def smooth_ego(trace: GpsTrace, rate_hz: float = EGO_RATE_HZ, gps_offset_s: floa
     tu, xu = t[used], xs[used]
     k0, k1 = math.ceil(tu[0] * rate_hz - 1e-9), math.floor(tu[-1] * rate_hz + 1e-9)
     if k1 < k0:
-        raise InputError(path, f"fixes span {tu[-1] - tu[0]:.3f} s, less than one sample at "
+        raise InconsistentInputError(path, f"fixes span {tu[-1] - tu[0]:.3f} s, less than one sample at "
                          f"{rate_hz} Hz", "use a higher --rate")
     if k1 - k0 + 1 > MAX_EGO_SAMPLES:
-        raise InputError(path, f"{k1 - k0 + 1:,} trajectory samples at {rate_hz:g} Hz, more "
+        raise ImpossibleValueError(path, f"{k1 - k0 + 1:,} trajectory samples at {rate_hz:g} Hz, more "
                          f"than the {MAX_EGO_SAMPLES:,} limit", "use a lower --rate")
     tg = np.arange(k0, k1 + 1) / rate_hz
     pos, vel = hermite(tu, xu[:, 0:2], xu[:, 2:4], tg)
@@ -387,10 +387,10 @@ def _check_one_drive(t: np.ndarray, xy: np.ndarray, keep: np.ndarray, p: TracePa
     bad = np.flatnonzero(step > p.v_max_mps * dt + p.jump_allowance_m)
     hint = "a trace is one drive: remove the fixes of other places or times"
     if bad.size == 0:
-        raise InputError(path, f"{n_far} fixes lie farther from the rest of the trace than any "
+        raise InconsistentInputError(path, f"{n_far} fixes lie farther from the rest of the trace than any "
                          f"car could drive ({p.v_max_mps:g} m/s)", hint)
     k = int(bad[0])
-    raise InputError(path, f"fix {k + 2} (in time order) is {step[k] / 1000:.1f} km from fix "
+    raise InconsistentInputError(path, f"fix {k + 2} (in time order) is {step[k] / 1000:.1f} km from fix "
                      f"{k + 1}, {dt[k]:.1f} s earlier: {step[k] / dt[k]:,.0f} m/s, beyond any "
                      f"car ({p.v_max_mps:g} m/s); {n_far} fixes lie that far from the rest", hint)
 

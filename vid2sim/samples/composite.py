@@ -40,7 +40,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import FormatError, InconsistentInputError
 from vid2sim.base.fileio import write_text_atomic
 from vid2sim.core.boxes import iou_matrix
 from vid2sim.core.camera import Camera, fit_camera_to_frames, load_camera
@@ -170,7 +170,7 @@ def frame_cameras(camera: Camera, pitch_rad: np.ndarray | None, n_frames: int
         return [camera] * n_frames
     rel = np.degrees(np.asarray(pitch_rad, dtype=float) - float(np.mean(pitch_rad)))
     if rel.size < n_frames:
-        raise InputError(None, f"{rel.size} pitch samples for {n_frames} frames")
+        raise InconsistentInputError(None, f"{rel.size} pitch samples for {n_frames} frames")
     return [camera.with_pitch(camera.pitch_deg + float(d)) for d in rel[:n_frames]]
 
 
@@ -227,7 +227,7 @@ def write_composite_clip(raw_dir: Path, cutout: CarCutout, truth: LeadTruth, out
     video = raw_dir / "video.mp4"
     cap = cv2.VideoCapture(str(video))
     if not cap.isOpened():
-        raise InputError(video, "OpenCV cannot open this video")
+        raise FormatError(video, "OpenCV cannot open this video")
     width = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH))
     height = int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
     fps = float(cap.get(cv2.CAP_PROP_FPS)) or DEFAULT_FPS
@@ -241,7 +241,8 @@ def write_composite_clip(raw_dir: Path, cutout: CarCutout, truth: LeadTruth, out
         for i in range(n_frames):
             ok, frame = cap.read()
             if not ok:
-                raise InputError(video, f"video ends at frame {i}, truth has {n_frames}")
+                raise InconsistentInputError(
+                    video, f"video ends at frame {i}, truth has {n_frames}")
             r, y = float(truth.range_m[i]), float(truth.lateral_m[i])
             writer.write(paste_car(frame, cutout, cams[i], r, y))
             boxes.append(truth_box(cutout, cams[i], r, y))

@@ -43,7 +43,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import FormatError, InconsistentInputError, MissingInputError
 from vid2sim.base.fileio import read_input_text
 from vid2sim.core.camera import Camera, load_camera, parse_kitti_calib
 from vid2sim.detect.vehicles.external import KittiLabel, read_kitti_tracking_labels
@@ -129,7 +129,7 @@ def read_kitti_projection(calib_path: Path, cam: int = 2) -> np.ndarray:
     """
     values = parse_kitti_calib(read_input_text(Path(calib_path))).get(f"P{cam}")
     if values is None or values.size != 12:
-        raise InputError(calib_path, f"no 3x4 projection P{cam}")
+        raise FormatError(calib_path, f"no 3x4 projection P{cam}")
     return values.reshape(3, 4)
 
 
@@ -246,17 +246,62 @@ def cut_out_car(image_bgr: np.ndarray, label: KittiLabel, yaw_rad: float, proj: 
         ``face_scale`` corrects the source's slight yaw (a rear face turned by a few degrees
         off a side position looks a few per cent wider than one square to the camera).
     """
+    face = _rear_face_in_image(label, yaw_rad, proj, columns_px, contact_row_px)
+    fx1, top, fx2, fy2 = face.box_px
+    hgt, wid = image_bgr.shape[:2]
+    bottom = max(fy2, label.box_px[3]) if contact_row_px is None else fy2
+    cx1 = max(math.floor(fx1) - margin_px, 0)
+    cy1 = max(math.floor(top) - margin_px, 0)
+    cx2 = min(math.ceil(fx2) + margin_px, wid - 1)
+    cy2 = min(math.ceil(bottom) + margin_px, hgt - 1)
+    alpha = _silhouette_alpha(image_bgr, label.box_px, face)
+
+    gray = cv2.cvtColor(image_bgr, cv2.COLOR_BGR2GRAY).astype(np.float32)
+    sl = (slice(cy1, cy2 + 1), slice(cx1, cx2 + 1))
+    # Pixel coordinates as the projection gives them (integer = pixel centre), crop-relative.
+    anchor = (0.5 * (fx1 + fx2) - cx1, fy2 - cy1)
+    ys, xs = np.nonzero(alpha[sl] >= 0.5)
+    outline_box = ((float(xs.min()) - 0.5, float(ys.min()) - 0.5, float(xs.max()) + 0.5,
+                    float(ys.max()) + 0.5) if xs.size else None)
+    h3, w3, l3 = label.size_hwl_m
+    return CarCutout(
+        gray=np.ascontiguousarray(gray[sl]), alpha=np.ascontiguousarray(alpha[sl]),
+        anchor_px=(float(anchor[0]), float(anchor[1])),
+        rear_box_px=(fx1 - cx1, top - cy1, fx2 - cx1, fy2 - cy1),
+        depth_m=face.depth_m, focal_px=float(proj[0, 0]), width_m=float(w3),
+        height_m=float(h3), length_m=float(l3), source=source,
+        face_scale=float(face.scale), contact_m=face.contact_m, outline_box_px=outline_box)
+
+
+@dataclass(frozen=True, slots=True)
+class _RearFace:
+    """The car's rear as the crop sees it: ``box_px`` (left column, top row, right column,
+    bottom row) [px], ``face_top_px`` the projected rear face's top row, ``depth_m`` the face's
+    depth, ``scale`` its yaw correction and ``contact_m`` how far ahead of it the tyres touch
+    the road (see :class:`CarCutout`)."""
+
+    box_px: tuple[float, float, float, float]
+    face_top_px: float
+    depth_m: float
+    scale: float
+    contact_m: float
+
+
+def _rear_face_in_image(label: KittiLabel, yaw_rad: float, proj: np.ndarray,
+                        columns_px: tuple[float, float] | None,
+                        contact_row_px: float | None) -> _RearFace:
+    """The rear's columns (given, else the projected rear face within the label box), its top
+    (the label box's or the face's, whichever is higher) and its bottom: the tyres' contact
+    row, on the label's ground plane, else the projected face's bottom."""
     uv, depth, _ = _rear_face(label, yaw_rad, proj)
-    bx1, by1, bx2, by2 = label.box_px
+    bx1, by1, bx2, _ = label.box_px
     fx1, fy1 = float(uv[:, 0].min()), float(uv[:, 1].min())
     fx2, fy2 = float(uv[:, 0].max()), float(uv[:, 1].max())
-    h3, w3, l3 = label.size_hwl_m
-    face_scale = (proj[0, 0] * w3 / depth) / (fx2 - fx1)
+    face_scale = (proj[0, 0] * label.size_hwl_m[1] / depth) / (fx2 - fx1)
     if columns_px is not None:
         fx1, fx2 = (float(c) for c in columns_px)
     else:
         fx1, fx2 = max(fx1, bx1), min(fx2, bx2)
-    top = min(by1, fy1)
     contact_m = 0.0
     if contact_row_px is not None:
         # Depth of the contact row on the label's ground plane (y = the box's bottom, in the
@@ -264,17 +309,21 @@ def cut_out_car(image_bgr: np.ndarray, label: KittiLabel, yaw_rad: float, proj: 
         y_ground = float(label.location_m[1])
         z_contact = (proj[1, 1] * y_ground + proj[1, 3]) / (contact_row_px - proj[1, 2])
         if not z_contact > depth:
-            raise InputError(None, f"contact row {contact_row_px} px lies nearer than the "
-                             "rear face")
+            raise InconsistentInputError(
+                None, f"contact row {contact_row_px} px lies nearer than the rear face")
         contact_m = float(z_contact - depth)
         fy2 = float(contact_row_px)
-    bottom = max(fy2, by2) if contact_row_px is None else fy2
-    hgt, wid = image_bgr.shape[:2]
-    cx1 = max(math.floor(fx1) - margin_px, 0)
-    cy1 = max(math.floor(top) - margin_px, 0)
-    cx2 = min(math.ceil(fx2) + margin_px, wid - 1)
-    cy2 = min(math.ceil(bottom) + margin_px, hgt - 1)
+    return _RearFace((fx1, min(by1, fy1), fx2, fy2), fy1, depth, face_scale, contact_m)
 
+
+def _silhouette_alpha(image_bgr: np.ndarray, label_box: tuple[float, float, float, float],
+                      face: _RearFace) -> np.ndarray:
+    """(H, W) float32 opacity of the car in the whole frame: GrabCut's foreground in the label
+    box intersected with the rear-outline prior, the body below the belt line filled, opened
+    and closed, cut to the rear's columns and bottom, feathered."""
+    bx1, by1, bx2, by2 = label_box
+    fx1, top, fx2, fy2 = face.box_px
+    hgt, wid = image_bgr.shape[:2]
     # GrabCut on the frame with the label box as the foreground rectangle.
     rect = (int(bx1), int(by1), math.ceil(bx2 - bx1), math.ceil(by2 - by1))
     gc_mask = np.zeros((hgt, wid), np.uint8)
@@ -282,7 +331,7 @@ def cut_out_car(image_bgr: np.ndarray, label: KittiLabel, yaw_rad: float, proj: 
     cv2.setRNGSeed(0)
     cv2.grabCut(image_bgr, gc_mask, rect, bgd, fgd, 5, cv2.GC_INIT_WITH_RECT)
     fg = np.where((gc_mask == cv2.GC_FGD) | (gc_mask == cv2.GC_PR_FGD), 255, 0).astype(np.uint8)
-    prior = _silhouette_prior((hgt, wid), (fx1, fy1, fx2, fy2), top)
+    prior = _silhouette_prior((hgt, wid), (fx1, face.face_top_px, fx2, fy2), top)
     mask = cv2.bitwise_and(fg, prior)
     # The body below the belt line is solid: fill GrabCut's holes (dark bumper, plate).
     belt = round(fy2 - _BELT_FRACTION * (fy2 - top))
@@ -297,22 +346,7 @@ def cut_out_car(image_bgr: np.ndarray, label: KittiLabel, yaw_rad: float, proj: 
     rows = np.arange(hgt)[:, None]
     inside = (cols >= fx1) & (cols <= fx2) & (rows <= fy2)
     mask = np.where(inside, mask, 0).astype(np.float32) / 255.0
-    alpha = cv2.GaussianBlur(mask, (0, 0), FEATHER_SIGMA_PX)
-
-    gray = cv2.cvtColor(image_bgr, cv2.COLOR_BGR2GRAY).astype(np.float32)
-    sl = (slice(cy1, cy2 + 1), slice(cx1, cx2 + 1))
-    # Pixel coordinates as the projection gives them (integer = pixel centre), crop-relative.
-    anchor = (0.5 * (fx1 + fx2) - cx1, fy2 - cy1)
-    ys, xs = np.nonzero(alpha[sl] >= 0.5)
-    outline_box = ((float(xs.min()) - 0.5, float(ys.min()) - 0.5, float(xs.max()) + 0.5,
-                    float(ys.max()) + 0.5) if xs.size else None)
-    return CarCutout(
-        gray=np.ascontiguousarray(gray[sl]), alpha=np.ascontiguousarray(alpha[sl]),
-        anchor_px=(float(anchor[0]), float(anchor[1])),
-        rear_box_px=(fx1 - cx1, top - cy1, fx2 - cx1, fy2 - cy1),
-        depth_m=depth, focal_px=float(proj[0, 0]), width_m=float(w3), height_m=float(h3),
-        length_m=float(l3), source=source, face_scale=float(face_scale), contact_m=contact_m,
-        outline_box_px=outline_box)
+    return cv2.GaussianBlur(mask, (0, 0), FEATHER_SIGMA_PX)
 
 
 # The cars at hand: name -> (sequence, frame, track id, columns of the rear outline or None,
@@ -348,19 +382,20 @@ def load_cutout(tracking_dir: Path, car: str = "polo", require_rear_view: bool =
     img_path = tracking_dir / "image_02" / seq / f"{frame:06d}.png"
     image = cv2.imread(str(img_path), cv2.IMREAD_COLOR)
     if image is None:
-        raise InputError(img_path, "cannot read this KITTI frame")
+        raise MissingInputError(img_path, "cannot read this KITTI frame")
     label_path = tracking_dir / "label_02" / f"{seq}.txt"
     found = [(lb, yaw) for lb, yaw in read_labels_with_yaw(label_path).get(frame, [])
              if lb.track_id == track]
     if not found:
-        raise InputError(label_path, f"no object {track} in frame {frame}")
+        raise MissingInputError(label_path, f"no object {track} in frame {frame}")
     label, yaw = found[0]
     if require_rear_view and not is_rear_view(label, yaw):
-        raise InputError(img_path, f"object {track} is not a whole car seen from behind")
+        raise InconsistentInputError(
+            img_path, f"object {track} is not a whole car seen from behind")
     calib = tracking_dir / "calib" / f"{seq}.txt"
     proj = read_kitti_projection(calib)
     if abs(load_camera(calib).fx - proj[0, 0]) > 1e-6:  # the same calibration, read twice
-        raise InputError(calib, "P2 and the camera disagree on the focal length")
+        raise InconsistentInputError(calib, "P2 and the camera disagree on the focal length")
     return cut_out_car(image, label, yaw, proj, columns_px=columns, contact_row_px=contact_row,
                        source=f"kitti_tracking {seq}/{frame:06d} object {track} ({car})")
 

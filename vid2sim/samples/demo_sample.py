@@ -39,7 +39,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import ImpossibleValueError, InputError
 from vid2sim.base.fileio import write_text_atomic
 from vid2sim.core.camera import Camera
 from vid2sim.core.enu import EnuFrame
@@ -69,7 +69,12 @@ from vid2sim.samples.demo_drive import (
     helsinki_pbf_path,
     load_route,
 )
-from vid2sim.samples.demo_traffic import EnuTrack, simulate_traffic, traffic_to_enu
+from vid2sim.samples.demo_traffic import (
+    EnuTrack,
+    TrafficTruth,
+    simulate_traffic,
+    traffic_to_enu,
+)
 from vid2sim.samples.demo_truth import compare_to_truth, truth_scenario
 from vid2sim.samples.render import DrawnVehicle, SceneRenderer, VehicleView
 
@@ -291,104 +296,158 @@ def generate_demo_sample(out_dir: Path, *, seed: int = 7, duration_s: float = 24
     DemoSample
     """
     if not 0.0 < duration_s <= 24.0:
-        raise InputError(None, f"duration {duration_s} s outside (0, 24] s",
-                         "the scripted drive lasts 24 s")
+        raise ImpossibleValueError(None, f"duration {duration_s} s outside (0, 24] s",
+                                   "the scripted drive lasts 24 s")
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    route = route or load_route()
-    frame = EnuFrame(route.origin)
-    traffic = simulate_traffic(24.0, route.length_m)
-    tracks = traffic_to_enu(traffic, route.road)
-    t_sim = traffic.t_s
-    cam = demo_camera(width, height)
-    renderer = SceneRenderer(cam, route.road, demo_buildings(route.length_m))
+    drive = _scripted_drive(route or load_route(), width, height)
     seeds = np.random.SeedSequence(seed).spawn(3)
     rng_gps, rng_det, rng_px = (np.random.default_rng(s) for s in seeds)
-    grain = _GrainNoise(rng_px, (height, width, 3))
-    horizon_px = cam.horizon_y_px()
-
     n_frames = round(duration_s * fps)
-    t_frames = np.arange(n_frames) / fps
-    spec = {a.id: a for a in ACTORS}
-    names = ["ego"] + [a.id for a in ACTORS]
+    clip = _render_clip(out_dir, drive, fps, n_frames,
+                        _keyframe_indices(duration_s, fps, n_frames), rng_det,
+                        _GrainNoise(rng_px, (height, width, 3)))
 
-    def at(name: str, t: float) -> tuple[float, float, float, float]:
-        tr = tracks[name]
+    paths = {k: out_dir / v for k, v in (("gps", "demo.gpx"), ("camera", "camera.yaml"),
+                                         ("keyframes", "keyframes.json"),
+                                         ("detections", "detections.txt"),
+                                         ("truth", "truth.json"), ("manifest", "sample.json"))}
+    t_sim = drive.traffic.t_s
+    fixes = _write_gpx(paths["gps"], drive.frame, drive.tracks, t_sim, duration_s, rng_gps)
+    write_text_atomic(paths["camera"], _camera_yaml(drive.cam))
+    write_text_atomic(paths["keyframes"],
+                      json.dumps(clip.keyframes, indent=1, sort_keys=True) + "\n")
+    write_text_atomic(paths["detections"], "".join(r + "\n" for r in clip.det_rows))
+    truth = _truth_json(drive.route, drive.frame, drive.tracks, t_sim, clip.t_frames,
+                        ["ego"] + [a.id for a in ACTORS], drive.spec, drive.cam, fps,
+                        clip.frame_truth, fixes)
+    write_text_atomic(paths["truth"], dumps_canonical(truth))
+    sample = DemoSample(
+        out_dir=out_dir, video=clip.video, seed=seed, fps=fps, n_frames=n_frames, width=width,
+        height=height, origin=drive.route.origin, video_start_utc=_iso(VIDEO_START_UTC),
+        n_keyframes=len(clip.keyframes), n_detections=len(clip.det_rows),
+        render_s=clip.render_s, **paths)
+    write_text_atomic(paths["manifest"],
+                      json.dumps(_manifest(sample, drive.route), indent=1) + "\n")
+    return sample
+
+
+@dataclass(slots=True)
+class _Drive:
+    """The scripted drive on its route: the simulated traffic, its tracks in the route's ENU
+    frame, and the dash-cam and renderer that film it."""
+
+    route: RouteInfo
+    frame: EnuFrame
+    traffic: TrafficTruth
+    tracks: dict[str, EnuTrack]
+    cam: Camera
+    renderer: SceneRenderer
+    spec: dict[str, ActorSpec]
+
+    def pose(self, name: str, t: float) -> tuple[float, float, float, float]:
+        """x, y [m], heading [rad] and speed [m/s] of ``name`` at time ``t`` [s]."""
+        tr, t_sim = self.tracks[name], self.traffic.t_s
         return (float(np.interp(t, t_sim, tr.x_m)), float(np.interp(t, t_sim, tr.y_m)),
                 float(np.interp(t, t_sim, tr.heading_rad)),
                 float(np.interp(t, t_sim, tr.speed_mps)))
 
-    keyframe_idx = {round((KEYFRAME_OFFSET_S + k * KEYFRAME_PERIOD_S) * fps)
-                    for k in range(int(duration_s / KEYFRAME_PERIOD_S) + 1)}
-    keyframe_idx = sorted(i for i in keyframe_idx if i < n_frames)
-    keyframes: list[dict] = []
-    det_rows: list[str] = []
-    frame_truth: list[dict] = []
+    def film(self, t: float) -> tuple[np.ndarray, list[VehicleView]]:
+        """The frame the dash-cam sees at ``t`` [s] and every vehicle's view in it."""
+        ex, ey, eh, _ = self.pose("ego", t)
+        ego_s = float(np.interp(t, self.traffic.t_s, self.traffic.s_m["ego"]))
+        vehicles = []
+        for a in ACTORS:
+            x, y, h, _ = self.pose(a.id, t)
+            vehicles.append(DrawnVehicle(a.id, x, y, h, a.length_m, a.width_m, a.height_m,
+                                         a.color_bgr, a.style))
+        return self.renderer.render((ex, ey), eh, ego_s, vehicles)
 
+
+def _scripted_drive(route: RouteInfo, width: int, height: int) -> _Drive:
+    """The 24 s of traffic on ``route``, filmed by the demo camera at ``width`` x ``height``."""
+    traffic = simulate_traffic(24.0, route.length_m)
+    cam = demo_camera(width, height)
+    return _Drive(route=route, frame=EnuFrame(route.origin), traffic=traffic,
+                  tracks=traffic_to_enu(traffic, route.road), cam=cam,
+                  renderer=SceneRenderer(cam, route.road, demo_buildings(route.length_m)),
+                  spec={a.id: a for a in ACTORS})
+
+
+def _keyframe_indices(duration_s: float, fps: float, n_frames: int) -> list[int]:
+    """The annotated frames: one every ``KEYFRAME_PERIOD_S`` from ``KEYFRAME_OFFSET_S``."""
+    idx = {round((KEYFRAME_OFFSET_S + k * KEYFRAME_PERIOD_S) * fps)
+           for k in range(int(duration_s / KEYFRAME_PERIOD_S) + 1)}
+    return sorted(i for i in idx if i < n_frames)
+
+
+@dataclass(slots=True)
+class _Clip:
+    """The rendered video and what was recorded with it, frame by frame."""
+
+    video: Path
+    t_frames: np.ndarray
+    keyframes: list[dict]
+    det_rows: list[str]
+    frame_truth: list[dict]
+    render_s: float
+
+
+def _render_clip(out_dir: Path, drive: _Drive, fps: float, n_frames: int,
+                 keyframe_idx: list[int], rng_det: np.random.Generator,
+                 grain: _GrainNoise) -> _Clip:
+    """Film ``n_frames`` frames into the video (renamed into place when whole) and record, per
+    frame, the true boxes, the keyframe labels and the noisy detections."""
+    cam = drive.cam
+    width, height, horizon_px = cam.image_width, cam.image_height, cam.horizon_y_px()
+    t_frames = np.arange(n_frames) / fps
     writer, tmp_video, final_video = _open_video(out_dir, width, height, fps)
-    t_render = 0.0
+    clip = _Clip(final_video, t_frames, [], [], [], 0.0)
     try:
         for i, t in enumerate(t_frames):
-            ex, ey, eh, _ = at("ego", t)
-            ego_s = float(np.interp(t, t_sim, traffic.s_m["ego"]))
-            vehicles = []
-            for a in ACTORS:
-                x, y, h, _ = at(a.id, t)
-                vehicles.append(DrawnVehicle(a.id, x, y, h, a.length_m, a.width_m, a.height_m,
-                                             a.color_bgr, a.style))
             t0 = time.perf_counter()
-            img, views = renderer.render((ex, ey), eh, ego_s, vehicles)
+            img, views = drive.film(t)
             img = grain.apply(img, i)
-            t_render += time.perf_counter() - t0
+            clip.render_s += time.perf_counter() - t0
             writer.write(img)
-            boxes = []
-            labels = []
-            for v in views:
-                vis = _visible(v, width, height)
-                boxes.append({"id": v.id, "box2d": _box_json(v.box_px), "visible": bool(vis),
-                              "visible_fraction": v.visible_fraction,
-                              "in_image_fraction": v.in_image_fraction, "in_front": v.in_front,
-                              "range_m": v.range_m, "lateral_m": v.lateral_m})
-                if vis and i in keyframe_idx:
-                    labels.append({
-                        "id": v.id, "category": spec[v.id].category,
-                        "box2d": _box_json(v.box_px),
-                        "attributes": {"occluded": bool(v.visible_fraction < 0.9),
-                                       "truncated": bool(v.in_image_fraction < 0.99),
-                                       "crowd": False},
-                    })
-            frame_truth.append({"index": i, "t": float(t), "boxes": boxes})
+            truth, labels = _frame_truth(i, t, views, drive.spec, width, height,
+                                         keyframe=i in keyframe_idx)
+            clip.frame_truth.append(truth)
             if i in keyframe_idx:
-                keyframes.append({"name": f"frame_{i:06d}", "videoName": final_video.stem,
-                                  "index": i, "frameIndex": i,
-                                  "timestamp": round(t * 1000.0), "labels": labels})
-            det_rows.extend(_noisy_detections(i + 1, views, rng_det, width, height,
-                                              horizon_px))
+                clip.keyframes.append({"name": f"frame_{i:06d}", "videoName": final_video.stem,
+                                       "index": i, "frameIndex": i,
+                                       "timestamp": round(t * 1000.0), "labels": labels})
+            clip.det_rows.extend(_noisy_detections(i + 1, views, rng_det, width, height,
+                                                   horizon_px))
     finally:
         writer.release()
     os.replace(tmp_video, final_video)
     for stale in ("demo.mp4", "demo.avi"):
         if stale != final_video.name:
             (out_dir / stale).unlink(missing_ok=True)
+    return clip
 
-    paths = {k: out_dir / v for k, v in (("gps", "demo.gpx"), ("camera", "camera.yaml"),
-                                         ("keyframes", "keyframes.json"),
-                                         ("detections", "detections.txt"),
-                                         ("truth", "truth.json"), ("manifest", "sample.json"))}
-    fixes = _write_gpx(paths["gps"], frame, tracks, t_sim, duration_s, rng_gps)
-    write_text_atomic(paths["camera"], _camera_yaml(cam))
-    write_text_atomic(paths["keyframes"], json.dumps(keyframes, indent=1, sort_keys=True) + "\n")
-    write_text_atomic(paths["detections"], "".join(r + "\n" for r in det_rows))
 
-    truth = _truth_json(route, frame, tracks, t_sim, t_frames, names, spec, cam, fps,
-                        frame_truth, fixes)
-    write_text_atomic(paths["truth"], dumps_canonical(truth))
-    sample = DemoSample(
-        out_dir=out_dir, video=final_video, seed=seed, fps=fps, n_frames=n_frames, width=width,
-        height=height, origin=route.origin, video_start_utc=_iso(VIDEO_START_UTC),
-        n_keyframes=len(keyframes), n_detections=len(det_rows), render_s=t_render, **paths)
-    write_text_atomic(paths["manifest"], json.dumps(_manifest(sample, route), indent=1) + "\n")
-    return sample
+def _frame_truth(i: int, t: float, views: list[VehicleView], spec: dict[str, ActorSpec],
+                 width: int, height: int, keyframe: bool) -> tuple[dict, list[dict]]:
+    """Frame ``i``'s true boxes (every vehicle, visible or not) and, on a keyframe, the
+    Scalabel labels of the vehicles the annotation rule keeps."""
+    boxes, labels = [], []
+    for v in views:
+        vis = _visible(v, width, height)
+        boxes.append({"id": v.id, "box2d": _box_json(v.box_px), "visible": bool(vis),
+                      "visible_fraction": v.visible_fraction,
+                      "in_image_fraction": v.in_image_fraction, "in_front": v.in_front,
+                      "range_m": v.range_m, "lateral_m": v.lateral_m})
+        if vis and keyframe:
+            labels.append({
+                "id": v.id, "category": spec[v.id].category,
+                "box2d": _box_json(v.box_px),
+                "attributes": {"occluded": bool(v.visible_fraction < 0.9),
+                               "truncated": bool(v.in_image_fraction < 0.99),
+                               "crowd": False},
+            })
+    return {"index": i, "t": float(t), "boxes": boxes}, labels
 
 
 def _iso(when: datetime) -> str:

@@ -102,22 +102,46 @@ BRAKING_LEAD = {"speed_mps": 14.0, "lead_ahead_m": 30.0, "lead_brake_s": 3.0,
 (centre to centre) brakes at 4 m/s^2 from 3 s down to 4 m/s; the recorded driver does the
 same 1 s later. Gap 25.55 m at first, 15.55 m at least (lost: 2 + 6 + 2 m)."""
 
+RUN_INTO_LEAD = {"reaction_s": math.inf}
+""":func:`braking_lead_scenario` overrides for a recorded driver who never brakes: the gap
+closes at 10 m/s from 5.5 s and the ego drives into the lead at 6.8 s (13.05 m / 10 m/s)."""
 
-def braking_lead_scenario(duration_s: float = 12.0, dt_s: float = 0.1) -> Scenario:
+LATE_REACTION = {"lead_ahead_m": 40.0, "lead_brake_s": 1.0, "end_speed_mps": 6.0,
+                 "reaction_s": 3.0, "ego_decel_mps2": 6.0, "ego_end_speed_mps": 6.0,
+                 "straight": True}
+""":func:`braking_lead_scenario` overrides with a phase of constant closing speed: on a
+straight road the lead, 35.55 m ahead (bumper to bumper), brakes from 1 s to 3 s (14 -> 6
+m/s), the recorded driver keeps 14 m/s until 4 s (the gap closes at 8 m/s, from 27.55 m to
+19.55 m: TTC 3.44 s -> 2.44 s) and then brakes at 6 m/s^2 to 6 m/s, 14.2 m behind the lead
+at least. The braking lifts the TTC at once (d TTC / dt = gap * 6 / 8^2 - 1 > 0), so the
+smallest TTC is the one where the braking begins."""
+
+
+def braking_lead_scenario(duration_s: float = 12.0, dt_s: float = 0.1, **overrides) -> Scenario:
     """A 2-lane LEFT curve (radius 60 m); ego in the right lane, a lead ahead in the same lane
-    that brakes (see :data:`BRAKING_LEAD`), a car in the left lane overtaking at 16 m/s."""
-    p = BRAKING_LEAD
-    line = left_turn_centerline(radius_m=60.0)
+    that brakes (see :data:`BRAKING_LEAD`), a car in the left lane overtaking at 16 m/s.
+
+    ``overrides`` replace :data:`BRAKING_LEAD`'s numbers (``reaction_s`` inf: the recorded
+    driver never brakes) and may give ``ego_decel_mps2`` and ``ego_end_speed_mps`` (the
+    recorded driver's braking; default the lead's) and ``straight`` (a straight road instead
+    of the curve): :data:`RUN_INTO_LEAD`, :data:`LATE_REACTION`."""
+    p = dict(BRAKING_LEAD, **overrides)
+    line = (np.array([[0.0, 0.0], [400.0, 0.0]]) if p.get("straight")
+            else left_turn_centerline(radius_m=60.0))
     t = np.round(np.arange(0.0, duration_s + 1e-9, dt_s), 6)
     road = Road("r1", "Curve", "primary", "osm", [1], 2, 3.5, line)
     right = -1.75  # the right lane's centre, left of the centerline negative
-    _, s_ego = _s_profile(t, p["speed_mps"], p["lead_brake_s"] + p["reaction_s"],
-                          p["decel_mps2"], p["end_speed_mps"])
-    _, s_lead = _s_profile(t, p["speed_mps"], p["lead_brake_s"], p["decel_mps2"],
-                           p["end_speed_mps"])
+    v_ego, s_ego = _s_profile(t, p["speed_mps"], p["lead_brake_s"] + p["reaction_s"],
+                              p.get("ego_decel_mps2", p["decel_mps2"]),
+                              p.get("ego_end_speed_mps", p["end_speed_mps"]))
+    v_lead, s_lead = _s_profile(t, p["speed_mps"], p["lead_brake_s"], p["decel_mps2"],
+                                p["end_speed_mps"])
     ego = trajectory_along(line, 5.0 + s_ego, t, right)
     lead = Actor("lead", "car", 4.4, 1.8, 1.5,
                  trajectory_along(line, 5.0 + p["lead_ahead_m"] + s_lead, t, right))
+    # the exact speeds of the profiles (a central difference of s would start the braking
+    # one sample early)
+    ego.speed[:], lead.trajectory.speed[:] = v_ego, v_lead
     passing = Actor("left", "car", 4.6, 1.85, 1.5,
                     trajectory_along(line, -10.0 + 16.0 * t, t, right + 3.5))
     return Scenario(ORIGIN, [road], Ego(4.5, 1.8, 1.5, ego), [lead, passing],

@@ -68,81 +68,101 @@ def vehicle_model(length_m: float, width_m: float, height_m: float,
     """
     L, W, H = length_m, width_m, height_m
     hx, hy = L / 2.0, W / 2.0
-    quads: list[np.ndarray] = []
-    normals: list[np.ndarray] = []
-    colors: list[tuple[int, int, int]] = []
-
-    def add_box(x0, x1, y0, y1, z0, z1, color, face_colors=None) -> None:
-        for name, corners, n in box_faces(x0, x1, y0, y1, z0, z1):
-            if name == "bottom":
-                continue  # never seen from a camera above the road
-            c = face_colors.get(name, color) if face_colors else color
-            quads.append(corners)
-            normals.append(n)
-            colors.append(shade(c, _SHADE[name]) if not face_colors or name not in face_colors
-                          else c)
-
-    def add_decal(corners_normal, color) -> None:
-        quads.append(corners_normal[0])
-        normals.append(corners_normal[1])
-        colors.append(color)
-
-    wheel_r = 0.33 if style == "car" else 0.36
+    polys = _Polygons()
     clearance = 0.28 if style == "car" else 0.35
-    axle = min(0.85, 0.2 * L)
     # Wheels first: the body drawn afterwards hides their upper part, leaving the dark
     # tyres visible under the bumper and along the sills as on a real car.
-    for ax in (-hx + axle, hx - axle):
-        for side in (-1.0, 1.0):
-            y_out = side * (hy - 0.02)
-            y_in = side * (hy - 0.27)
-            add_box(ax - wheel_r, ax + wheel_r, min(y_out, y_in), max(y_out, y_in),
-                    0.0, 2 * wheel_r, _TYRE_BGR)
+    _add_wheels(polys, hx, hy, L, wheel_r=0.33 if style == "car" else 0.36)
     if style == "van":
         body_top = 0.97 * H
-        add_box(-hx, hx, -hy, hy, clearance, body_top, color_bgr)
+        polys.add_box(-hx, hx, -hy, hy, clearance, body_top, color_bgr)
         # Rear doors' windows high up, a dark windscreen band on the front.
-        add_decal(_decal(-hx, -1, -hy + 0.12, -0.04, 0.62 * H, 0.86 * H), GLASS_BGR)
-        add_decal(_decal(-hx, -1, 0.04, hy - 0.12, 0.62 * H, 0.86 * H), GLASS_BGR)
-        add_decal(_decal(hx, 1, -hy + 0.1, hy - 0.1, 0.58 * H, 0.9 * H), GLASS_BGR)
+        polys.add_decal(_decal(-hx, -1, -hy + 0.12, -0.04, 0.62 * H, 0.86 * H), GLASS_BGR)
+        polys.add_decal(_decal(-hx, -1, 0.04, hy - 0.12, 0.62 * H, 0.86 * H), GLASS_BGR)
+        polys.add_decal(_decal(hx, 1, -hy + 0.1, hy - 0.1, 0.58 * H, 0.9 * H), GLASS_BGR)
         light_z = (0.28 * H, 0.42 * H)
         plate_z = (0.22 * H, 0.28 * H)
     else:
         body_top = _BELT_FRAC * H
-        add_box(-hx, hx, -hy, hy, clearance, body_top, color_bgr)
+        polys.add_box(-hx, hx, -hy, hy, clearance, body_top, color_bgr)
         light_z = (body_top - 0.22, body_top - 0.06)
         plate_z = (clearance + 0.12, clearance + 0.26)
-    # Rear: bumper band, tail lights at the outer corners, a light plate in the middle.
-    add_decal(_decal(-hx, -1, -hy + 0.02, hy - 0.02, clearance, clearance + 0.12), _BUMPER_BGR)
+    _add_lights_and_plates(polys, hx, hy, clearance, light_z, plate_z)
+    if style != "van":
+        _add_cabin(polys, hx, hy, body_top, H, color_bgr)
+    return (np.asarray(polys.quads, float), np.asarray(polys.normals, float),
+            np.asarray(polys.colors, float))
+
+
+class _Polygons:
+    """A vehicle's quads, outward normals and colours, in drawing order."""
+
+    def __init__(self) -> None:
+        self.quads: list[np.ndarray] = []
+        self.normals: list[np.ndarray] = []
+        self.colors: list[tuple[int, int, int]] = []
+
+    def add(self, corners: np.ndarray, normal: np.ndarray, color: tuple[int, int, int]) -> None:
+        self.quads.append(corners)
+        self.normals.append(normal)
+        self.colors.append(color)
+
+    def add_box(self, x0, x1, y0, y1, z0, z1, color) -> None:
+        """A box's faces shaded by orientation (its bottom is never seen from above)."""
+        for name, corners, n in box_faces(x0, x1, y0, y1, z0, z1):
+            if name != "bottom":
+                self.add(corners, n, shade(color, _SHADE[name]))
+
+    def add_decal(self, corners_normal: tuple[np.ndarray, np.ndarray], color) -> None:
+        self.add(corners_normal[0], corners_normal[1], color)
+
+
+def _add_wheels(polys: _Polygons, hx: float, hy: float, length_m: float,
+                wheel_r: float) -> None:
+    """Four tyres, their axles ``min(0.85 m, 20 % of the length)`` in from the bumpers."""
+    axle = min(0.85, 0.2 * length_m)
+    for ax in (-hx + axle, hx - axle):
+        for side in (-1.0, 1.0):
+            y_out = side * (hy - 0.02)
+            y_in = side * (hy - 0.27)
+            polys.add_box(ax - wheel_r, ax + wheel_r, min(y_out, y_in), max(y_out, y_in),
+                          0.0, 2 * wheel_r, _TYRE_BGR)
+
+
+def _add_lights_and_plates(polys: _Polygons, hx: float, hy: float, clearance: float,
+                           light_z: tuple[float, float], plate_z: tuple[float, float]) -> None:
+    """Rear: bumper band, tail lights at the outer corners, a light plate in the middle;
+    front: headlights and a dark grille band."""
+    polys.add_decal(_decal(-hx, -1, -hy + 0.02, hy - 0.02, clearance, clearance + 0.12),
+                    _BUMPER_BGR)
     for side in (-1.0, 1.0):
         y_a, y_b = side * (hy - 0.04), side * (hy - 0.38)
-        add_decal(_decal(-hx, -1, min(y_a, y_b), max(y_a, y_b), *light_z), _TAIL_LIGHT_BGR)
-        add_decal(_decal(hx, 1, min(y_a, y_b), max(y_a, y_b), *light_z), _HEAD_LIGHT_BGR)
-    add_decal(_decal(-hx, -1, -0.26, 0.26, *plate_z), _PLATE_BGR)
-    add_decal(_decal(hx, 1, -0.42, 0.42, plate_z[0], light_z[1] - 0.04), _BUMPER_BGR)
-    if style != "van":
-        # Cabin (greenhouse): a frustum on the body, its rear window and windscreen raked and
-        # its sides drawn in (tumblehome), glass all round, roof in body colour. A box here
-        # reads as a pickup's cab; the rake is what makes the outline a saloon's.
-        bottom = (-hx + _CABIN[0], hx - _CABIN[1], hy - 0.08, body_top)
-        top = (-hx + _CABIN[2], hx - _CABIN[3], hy - _CABIN[4], H)
-        glass = {"rear": GLASS_BGR, "front": GLASS_BGR, "right": GLASS_SIDE_BGR,
-                 "left": GLASS_SIDE_BGR}
-        inside = np.array([0.0, 0.0, (body_top + H) / 2])
-        for name, corners in _frustum_faces(bottom, top):
-            n = outward_normal(corners, inside)
-            quads.append(corners)
-            normals.append(n)
-            colors.append(shade(color_bgr, _SHADE[name]))
-            if name in glass:
-                # The window inset in its frame: body-coloured pillars and roof edge around
-                # dark glass are much of what makes a rear view read as a car.
-                quads.append(_inset(corners, 0.14 if name in ("rear", "front") else 0.08,
-                                    0.12) + 0.01 * n)
-                normals.append(n)
-                colors.append(glass[name])
-    return (np.asarray(quads, float), np.asarray(normals, float),
-            np.asarray(colors, float))
+        polys.add_decal(_decal(-hx, -1, min(y_a, y_b), max(y_a, y_b), *light_z),
+                        _TAIL_LIGHT_BGR)
+        polys.add_decal(_decal(hx, 1, min(y_a, y_b), max(y_a, y_b), *light_z),
+                        _HEAD_LIGHT_BGR)
+    polys.add_decal(_decal(-hx, -1, -0.26, 0.26, *plate_z), _PLATE_BGR)
+    polys.add_decal(_decal(hx, 1, -0.42, 0.42, plate_z[0], light_z[1] - 0.04), _BUMPER_BGR)
+
+
+def _add_cabin(polys: _Polygons, hx: float, hy: float, body_top: float, height_m: float,
+               color_bgr: tuple[int, int, int]) -> None:
+    """The cabin (greenhouse): a frustum on the body, its rear window and windscreen raked and
+    its sides drawn in (tumblehome), glass all round, roof in body colour. A box here reads as
+    a pickup's cab; the rake is what makes the outline a saloon's."""
+    bottom = (-hx + _CABIN[0], hx - _CABIN[1], hy - 0.08, body_top)
+    top = (-hx + _CABIN[2], hx - _CABIN[3], hy - _CABIN[4], height_m)
+    glass = {"rear": GLASS_BGR, "front": GLASS_BGR, "right": GLASS_SIDE_BGR,
+             "left": GLASS_SIDE_BGR}
+    inside = np.array([0.0, 0.0, (body_top + height_m) / 2])
+    for name, corners in _frustum_faces(bottom, top):
+        n = outward_normal(corners, inside)
+        polys.add(corners, n, shade(color_bgr, _SHADE[name]))
+        if name in glass:
+            # The window inset in its frame: body-coloured pillars and roof edge around
+            # dark glass are much of what makes a rear view read as a car.
+            polys.add(_inset(corners, 0.14 if name in ("rear", "front") else 0.08, 0.12)
+                      + 0.01 * n, n, glass[name])
 
 
 def _frustum_faces(bottom: tuple[float, float, float, float],

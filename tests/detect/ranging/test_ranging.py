@@ -21,7 +21,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import FormatError, MissingInputError
 from vid2sim.core.camera import Camera, PitchSource
 from vid2sim.core.lead import lane_name
 from vid2sim.core.outline import CLASS_SHAPES, project_outline
@@ -548,11 +548,11 @@ def test_tracks_csv_round_trip(tmp_path):
 
 
 def test_tracks_csv_bad_input(tmp_path):
-    with pytest.raises(InputError, match="no such file"):
+    with pytest.raises(MissingInputError):
         read_tracks_csv(tmp_path / "nope.csv")
     bad = tmp_path / "bad.csv"
     bad.write_text("frame,t_s\n1,0.0\n")
-    with pytest.raises(InputError, match="lacks column"):
+    with pytest.raises(FormatError, match="track_id"):  # names a missing column
         read_tracks_csv(bad)
 
 

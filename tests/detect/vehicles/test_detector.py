@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import FormatError
 from vid2sim.core.boxes import cut_by_window, iou_matrix, nms, suppress_fragments
 from vid2sim.detect.vehicles.detector import (
     COCO_VEHICLES,
@@ -200,7 +200,7 @@ def test_vehicle_classes():
 
 
 def test_load_detector_unknown_name(tmp_path):
-    with pytest.raises(InputError, match="unknown detector"):
+    with pytest.raises(FormatError, match="yolo-v99"):
         load_detector("yolo-v99", tmp_path)
 
 
@@ -308,9 +308,9 @@ def test_weights_under_another_name_get_the_right_decoder(model_dir, tmp_path):
         assert det.input_size_px == (416, 416)
     bad = tmp_path / "broken.onnx"
     bad.write_bytes(b"not a model")
-    with pytest.raises(InputError, match="cannot load"):
+    with pytest.raises(FormatError, match="broken.onnx"):  # not an ONNX model
         load_detector(bad, decoder="yolox")
-    with pytest.raises(InputError, match="cannot load"):
+    with pytest.raises(FormatError, match="broken.onnx"):
         load_detector(bad)
 
 

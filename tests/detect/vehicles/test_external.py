@@ -8,7 +8,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import FormatError, ImpossibleValueError, MissingInputError
 from vid2sim.core.records import Detection
 from vid2sim.detect.vehicles.external import (
     KittiLabel,
@@ -94,19 +94,19 @@ def test_scalabel_object_with_frames_and_non_vehicles(tmp_path):
     assert got == {0: [Detection((1.0, 2.0, 3.0, 4.0), 1.0, "motorcycle")], 1: []}
 
 
-@pytest.mark.parametrize("content, suffix, match", [
-    ("0,1,2,3,4,5,0.5\n", ".txt", "frames count from 1"),
-    ("1,2,3\n", ".txt", "at least 6 columns"),
-    ("1,2,a,b,c,d\n", ".csv", "numbers"),
-    ("{not json", ".json", "not valid JSON"),
-    ('{"x": 1}', ".json", "list of frames"),
+@pytest.mark.parametrize("content, suffix, error, where", [
+    ("0,1,2,3,4,5,0.5\n", ".txt", ImpossibleValueError, "line 1"),  # MOT frames count from 1
+    ("1,2,3\n", ".txt", FormatError, "line 1"),  # 3 of at least 6 columns
+    ("1,2,a,b,c,d\n", ".csv", FormatError, "line 1"),
+    ("{not json", ".json", FormatError, "line 1"),
+    ('{"x": 1}', ".json", FormatError, ""),  # neither a list of frames nor {"frames": ...}
 ])
-def test_bad_files_raise_input_error(tmp_path, content, suffix, match):
+def test_bad_files_raise_input_error(tmp_path, content, suffix, error, where):
     path = tmp_path / f"bad{suffix}"
     path.write_text(content)
-    with pytest.raises(InputError, match=match):
+    with pytest.raises(error, match=where):
         read_detections(path)
-    with pytest.raises(InputError, match="no such"):
+    with pytest.raises(MissingInputError):
         read_detections(tmp_path / "absent.txt")
 
 
@@ -194,28 +194,29 @@ def test_detection_file_damage_gives_input_error_only(tmp_path, name):
     check()
 
 
-@pytest.mark.parametrize("content,suffix,match", [
-    ("1,1,nan,20,30,40,0.9,car\n", ".txt", "not a finite number"),
-    ("1,1,10,20,inf,40,0.9,car\n", ".txt", "not a finite number"),
-    ("1,1,10,20,0,40,0.9,car\n", ".txt", "no area"),
-    ("1,1,10,20,30,-4,0.9,car\n", ".txt", "no area"),
-    ("1e300,1,10,20,30,40,0.9,car\n", ".txt", "frame"),
+@pytest.mark.parametrize("content,suffix,error,where", [
+    ("1,1,nan,20,30,40,0.9,car\n", ".txt", ImpossibleValueError, "line 1"),
+    ("1,1,10,20,inf,40,0.9,car\n", ".txt", ImpossibleValueError, "line 1"),
+    ("1,1,10,20,0,40,0.9,car\n", ".txt", ImpossibleValueError, "line 1"),  # no width
+    ("1,1,10,20,30,-4,0.9,car\n", ".txt", ImpossibleValueError, "line 1"),  # negative height
+    ("1e300,1,10,20,30,40,0.9,car\n", ".txt", ImpossibleValueError, "line 1"),  # no frame's
     ("frame,t_s,track_id,category,score,x1,y1,x2,y2\n0,0,1,car,nan,1,2,3,4\n", ".csv",
-     "not a finite number"),
+     ImpossibleValueError, "line 2"),
     (('[{"frameIndex": 0, "labels": [{"category": "car", "box2d": '
-     '{"x1": 5, "y1": 5, "x2": 5, "y2": 9}}]}]'), ".json", "no area"),
-    ('[{"frameIndex": "x", "labels": []}]', ".json", "whole number"),
-    ("[" * 100_000 + "]" * 100_000, ".json", "nested too deeply"),
+     '{"x1": 5, "y1": 5, "x2": 5, "y2": 9}}]}]'), ".json", ImpossibleValueError, "frame 0"),
+    ('[{"frameIndex": "x", "labels": []}]', ".json", FormatError, "frame 0"),
+    ("[" * 100_000 + "]" * 100_000, ".json", FormatError, ""),  # nested too deeply to parse
 ])
-def test_non_finite_and_degenerate_boxes_are_input_errors(tmp_path, content, suffix, match):
+def test_non_finite_and_degenerate_boxes_are_input_errors(tmp_path, content, suffix, error,
+                                                          where):
     path = tmp_path / f"bad{suffix}"
     path.write_text(content)
-    with pytest.raises(InputError, match=match):
+    with pytest.raises(error, match=where):
         read_detections(path)
 
 
 def test_binary_detections_are_an_input_error(tmp_path):
     path = tmp_path / "det.csv"
     path.write_bytes(bytes(range(256)) * 8)
-    with pytest.raises(InputError, match="binary|UTF-8"):
+    with pytest.raises(FormatError):  # binary, not UTF-8 text
         read_detections(path)

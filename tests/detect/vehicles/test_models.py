@@ -11,7 +11,7 @@ import threading
 
 import pytest
 
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import FormatError, InputError, MissingInputError
 from vid2sim.detect.vehicles import models
 
 
@@ -51,12 +51,12 @@ def test_resolve_search_order(isolated, monkeypatch):
 
 
 def test_resolve_missing_names_the_fix(isolated):
-    with pytest.raises(InputError, match="models pull picodet-s") as err:
+    with pytest.raises(MissingInputError, match="models pull picodet-s") as err:
         models.resolve_model("picodet-s", isolated / "nowhere")
     assert models.MODEL_DIR_ENV in str(err.value)
-    with pytest.raises(InputError, match="not found"):
+    with pytest.raises(MissingInputError, match="absent.onnx"):
         models.resolve_model(str(isolated / "absent.onnx"))
-    with pytest.raises(InputError, match="unknown detector"):
+    with pytest.raises(FormatError, match="resnet"):  # not a detector's name
         models.resolve_model("resnet")
 
 

@@ -12,6 +12,7 @@ outcome records, which the driver writes into ``index.parquet``, ``index.csv`` a
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import logging
 import os
@@ -26,6 +27,7 @@ from vid2sim.app.batch import storage
 from vid2sim.app.batch.fleet import write_fleet_report
 from vid2sim.app.batch.hashing import HashCache
 from vid2sim.app.batch.index import (
+    SETTINGS_ROLE,
     RowOutcome,
     index_record,
     read_index,
@@ -50,10 +52,11 @@ from vid2sim.app.batch.worker import (
     attempts_dir,
     clean_stale,
     done_outcome,
+    settings_key,
     staging_owner,
 )
 from vid2sim.app.settings import Settings
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import FormatError, ImpossibleValueError, OutputError
 
 log = logging.getLogger(__name__)
 
@@ -136,69 +139,33 @@ def run_batch(manifest: str | os.PathLike, out_dir: str | os.PathLike, settings:
     report : callable, optional
         Receives one line per finished (built or failed) row.
     """
-    if engine not in ENGINES:
-        raise InputError(None, f"unknown engine '{engine}'", f"one of {', '.join(ENGINES)}")
-    if engine == "ray":
-        check_ray()  # before any work: one clear line when Ray is not installed
-    for option, value, least in (("--jobs", jobs, 1), ("--cpus-per-job", cpus_per_job, 1),
-                                 ("--max-retries", max_retries, 0)):
-        if value is not None and value < least:
-            raise InputError(None, f"{option} must be >= {least}, got {value}")
+    _check_options(engine, jobs, cpus_per_job, max_retries)
     rows = read_manifest(manifest)
     t0 = time.perf_counter()
     out = storage.location(out_dir)
     if storage.exists(out) and not storage.is_dir(out):
-        raise InputError(out, "is a file, not a folder", "give an output folder")
+        raise OutputError(out, "is a file, not a folder", "give an output folder")
     say = report or (lambda _msg: None)
     cache_path = storage.join(out, *HASH_CACHE)
     _clean_leftovers(out, rows)
     previous = read_index(out)
     cache = HashCache.load(cache_path)
-    outcomes = [RowOutcome(name=r.name, status="pending", line=r.line) for r in rows]
-    todo: list[int] = []
-    for i, row in enumerate(rows):
-        planned = plan_row(row, out, previous.get(row.name), cache, retry_failed)
-        if planned is None:
-            todo.append(i)
-        else:
-            outcomes[i] = planned
+    outcomes, todo = _plan(rows, out, previous, cache, retry_failed, settings)
     storage.makedirs(out)
     record = _Record(out, rows, outcomes, cache, cache_path)
     record.flush()
-    n_kept = len(rows) - len(todo)
-    n_skipped = sum(o.status == "skipped" for o in outcomes)
-    if n_skipped:
-        say(f"{n_skipped} of {len(rows)} rows already built from the same inputs: skipped")
-    if n_kept > n_skipped:
-        say(f"{n_kept - n_skipped} rows failed before: kept as failed (--retry-failed "
-            "rebuilds them)")
+    _say_kept(say, outcomes, len(rows) - len(todo))
 
-    if engine == "local":
-        jobs = jobs or 1
-        cpus = cpus_per_job or max(1, (os.cpu_count() or 1) // jobs)
-    else:
-        cpus = cpus_per_job or 1
+    jobs, cpus = _jobs_and_cpus(engine, jobs, cpus_per_job)
     settings = dataclasses.replace(settings, detector=dataclasses.replace(
         settings.detector, threads=cpus))
     tasks = [(i, RowTask(rows[i], settings, out,
                          cache.subset([storage.host_path(w) for w in rows[i].sources().values()])))
              for i in todo]
     try:
-        with tqdm(total=len(rows), initial=n_kept, unit="video", disable=not progress,
-                  dynamic_ncols=True) as bar:
-            def finished(i: int, outcome: RowOutcome) -> None:
-                record.finished(i, outcome)
-                if outcome.traceback:
-                    log.info("%s: %s", outcome.name, outcome.traceback.rstrip())
-                line = (f"{outcome.name}: {outcome.status} in {outcome.seconds or 0:.1f} s"
-                        + (f" ({outcome.attempts} attempts)" if outcome.attempts > 1 else "")
-                        + (f": {outcome.error}" if outcome.error else ""))
-                if progress:
-                    bar.write(line)
-                else:
-                    say(line)
-                bar.update(1)
-
+        with tqdm(total=len(rows), initial=len(rows) - len(todo), unit="video",
+                  disable=not progress, dynamic_ncols=True) as bar:
+            finished = _on_finished(record, bar, say, progress)
             if tasks and engine == "local":
                 run_local(tasks, jobs=jobs, max_retries=max_retries, finished=finished)
             elif tasks:
@@ -214,10 +181,80 @@ def run_batch(manifest: str | os.PathLike, out_dir: str | os.PathLike, settings:
                         engine=engine)
 
 
+def _check_options(engine: str, jobs: int | None, cpus_per_job: int | None,
+                   max_retries: int) -> None:
+    """The engine's name and the counts, before the manifest is read (and, for Ray, whether
+    it is installed: one clear line before any work)."""
+    if engine not in ENGINES:
+        raise FormatError(None, f"unknown engine '{engine}'", f"one of {', '.join(ENGINES)}")
+    if engine == "ray":
+        check_ray()
+    for option, value, least in (("--jobs", jobs, 1), ("--cpus-per-job", cpus_per_job, 1),
+                                 ("--max-retries", max_retries, 0)):
+        if value is not None and value < least:
+            raise ImpossibleValueError(None, f"{option} must be >= {least}, got {value}")
+
+
+def _plan(rows: list[BatchRow], out: Where, previous: dict[str, RowOutcome],
+          cache: HashCache, retry_failed: bool, settings: Settings
+          ) -> tuple[list[RowOutcome], list[int]]:
+    """Every row's outcome so far ("pending", or skipped / kept failed by :func:`plan_row`)
+    and the indices of the rows a worker must look at."""
+    outcomes = [RowOutcome(name=r.name, status="pending", line=r.line) for r in rows]
+    todo: list[int] = []
+    for i, row in enumerate(rows):
+        planned = plan_row(row, out, previous.get(row.name), cache, retry_failed, settings)
+        if planned is None:
+            todo.append(i)
+        else:
+            outcomes[i] = planned
+    return outcomes, todo
+
+
+def _say_kept(say: Callable[[str], None], outcomes: list[RowOutcome], n_kept: int) -> None:
+    """One line each for the rows skipped as built and the rows kept as failed."""
+    n_skipped = sum(o.status == "skipped" for o in outcomes)
+    if n_skipped:
+        say(f"{n_skipped} of {len(outcomes)} rows already built from the same inputs: skipped")
+    if n_kept > n_skipped:
+        say(f"{n_kept - n_skipped} rows failed before: kept as failed (--retry-failed "
+            "rebuilds them)")
+
+
+def _jobs_and_cpus(engine: str, jobs: int | None, cpus_per_job: int | None
+                   ) -> tuple[int | None, int]:
+    """Rows at once and CPUs per row: local, one row sharing the machine's cores unless told;
+    Ray, one CPU per row and as many rows as the cluster has slots (``jobs`` None)."""
+    if engine == "local":
+        jobs = jobs or 1
+        return jobs, cpus_per_job or max(1, (os.cpu_count() or 1) // jobs)
+    return jobs, cpus_per_job or 1
+
+
+def _on_finished(record: _Record, bar: tqdm, say: Callable[[str], None], progress: bool
+                 ) -> Callable[[int, RowOutcome], None]:
+    """What the engine calls as each row ends: record it, say one line, advance the bar."""
+    def finished(i: int, outcome: RowOutcome) -> None:
+        record.finished(i, outcome)
+        if outcome.traceback:
+            log.info("%s: %s", outcome.name, outcome.traceback.rstrip())
+        line = (f"{outcome.name}: {outcome.status} in {outcome.seconds or 0:.1f} s"
+                + (f" ({outcome.attempts} attempts)" if outcome.attempts > 1 else "")
+                + (f": {outcome.error}" if outcome.error else ""))
+        if progress:
+            bar.write(line)
+        else:
+            say(line)
+        bar.update(1)
+
+    return finished
+
+
 def plan_row(row: BatchRow, out: Where, before: RowOutcome | None, cache: HashCache,
-             retry_failed: bool) -> RowOutcome | None:
+             retry_failed: bool, settings: Settings | None = None) -> RowOutcome | None:
     """What to do with ``row`` without reading its inputs: a "skipped" or kept "failed"
-    outcome, or None when a worker must look at it (build it, or hash and compare)."""
+    outcome, or None when a worker must look at it (build it, or hash and compare). With
+    ``settings``, a row recorded with another settings tree counts as changed."""
     cached: dict[str, str] = {}
     for role, where in row.sources().items():
         try:
@@ -227,6 +264,11 @@ def plan_row(row: BatchRow, out: Where, before: RowOutcome | None, cache: HashCa
         if sha is not None:
             cached[role] = sha
     known = len(cached) == len(row.sources())
+    if settings is not None:
+        cached[SETTINGS_ROLE] = settings_key(settings)
+    elif before is not None:  # settings not asked about: compare the inputs alone
+        before = copy.copy(before)
+        before.sha256 = {k: v for k, v in before.sha256.items() if k != SETTINGS_ROLE}
     if before is not None and before.is_done() and known and before.sha256 == cached \
             and _built(out, row.name):
         outcome = RowOutcome(name=row.name, status="skipped", line=row.line)
@@ -244,7 +286,7 @@ def plan_row(row: BatchRow, out: Where, before: RowOutcome | None, cache: HashCa
     if known and (before is None or not before.sha256):
         # No usable record (a lost index, an index of an older version): the row folder's
         # own scenario.json says what it was built from; reading it reads no video.
-        return done_outcome(row, out, hashes=cached)
+        return done_outcome(row, out, hashes=cached, settings=settings)
     return None
 
 

@@ -21,7 +21,7 @@ from vid2sim.app.batch import storage
 from vid2sim.app.batch.index import STATUSES, read_index_records
 from vid2sim.app.batch.manifest import FLEET_HTML, INDEX_PARQUET
 from vid2sim.app.batch.storage import Where
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import MissingInputError
 from vid2sim.base.htmlpage import BASE_CSS, figure_png, png_base64
 
 #: Rows shown in the per-video table (failed rows first); the full list is index.csv. A
@@ -203,8 +203,8 @@ def write_fleet_report(out_dir: str | Where, path: str | Where | None = None) ->
     out = storage.location(out_dir)
     records = read_index_records(out)
     if not records:
-        raise InputError(out, "no batch index here (index.parquet or index.csv)",
-                         "give the --out folder of a `vid2sim batch` run")
+        raise MissingInputError(out, "no batch index here (index.parquet or index.csv)",
+                                "give the --out folder of a `vid2sim batch` run")
     target = storage.location(path) if path is not None else storage.join(out, FLEET_HTML)
     storage.write_bytes(target, render_fleet(records, str(out)).encode("utf-8"))
     return target

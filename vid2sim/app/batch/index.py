@@ -35,6 +35,9 @@ from vid2sim.app.batch.storage import Where
 #: Columns of ``batch.csv``.
 RESULT_COLUMNS = ("name", "status", "seconds", "duration_s", "distance_m", "actors",
                   "lead_share", "f1", "mean_iou", "peak_rss_mb", "error")
+#: The pseudo-input role under which a row's settings tree is hashed (a row built with other
+#: settings is built again).
+SETTINGS_ROLE = "settings"
 #: Row statuses: built in this run, built earlier from the same inputs, failed, not finished.
 STATUSES = ("ok", "skipped", "failed", "pending")
 
@@ -44,6 +47,7 @@ FIXED_COLUMNS: tuple[tuple[str, pa.DataType], ...] = (
     ("id", _STR), ("line", _INT), ("status", _STR), ("error", _STR), ("attempts", _INT),
     ("host", _STR), ("started_utc", _STR), ("seconds", _FLOAT), ("peak_rss_mb", _FLOAT),
     *[c for role in PATH_COLUMNS for c in ((role, _STR), (f"{role}_sha256", _STR))],
+    ("settings_sha256", _STR),
     *[(c, _FLOAT) for c in NUMBER_COLUMNS],
     ("duration_s", _FLOAT), ("distance_m", _FLOAT), ("actors", _INT), ("lead_share", _FLOAT),
     ("lead_range_min_m", _FLOAT), ("lead_range_median_m", _FLOAT), ("lead_range_max_m", _FLOAT),
@@ -135,6 +139,7 @@ def index_record(row: BatchRow, outcome: RowOutcome) -> dict:
     for role in PATH_COLUMNS:
         rec[role] = storage.host_path(sources[role]) if role in sources else None
         rec[f"{role}_sha256"] = outcome.sha256.get(role) if role in sources else None
+    rec["settings_sha256"] = outcome.sha256.get(SETTINGS_ROLE)
     rec.update(row.numbers())
     for name in FIGURES:
         rec[name] = getattr(outcome, name)
@@ -164,7 +169,7 @@ def outcome_from_record(rec: dict) -> RowOutcome:
                      started_utc=value("started_utc") or "")
     for name in FIGURES:
         setattr(out, name, value(name))
-    out.sha256 = {role: value(f"{role}_sha256") for role in PATH_COLUMNS
+    out.sha256 = {role: value(f"{role}_sha256") for role in (*PATH_COLUMNS, SETTINGS_ROLE)
                   if value(f"{role}_sha256")}
     out.stage_s = {k: value(k) for k in rec if k.startswith("stage_") and value(k) is not None}
     return out

@@ -17,7 +17,7 @@ from pathlib import Path
 from vid2sim.app.batch import storage
 from vid2sim.app.batch.storage import Where
 from vid2sim.app.inputs import INPUT_NUMBERS, INPUT_ROLES, Inputs
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import FormatError, InputError, MissingInputError
 
 # Manifest column -> label used in messages (the input roles of a build).
 PATH_COLUMNS = dict(INPUT_ROLES)
@@ -77,15 +77,11 @@ class BatchRow:
             elif isinstance(where, Path):
                 paths[role] = where
             else:
-                raise InputError(where, "a URL input needs a local copy to be built from")
+                raise MissingInputError(where, "a URL input needs a local copy to be built from")
         return Inputs(video=paths["video"], gps=paths.get("gps"), map=paths.get("map"),
                       camera=paths.get("camera"), detections=paths.get("detections"),
                       keyframes=paths.get("keyframes"), fps=self.fps,
                       gps_offset_s=self.gps_offset_s, ego_speed_mps=self.ego_speed_mps)
-
-    def input_paths(self) -> dict[str, Where]:
-        """Role -> location of the inputs ``build`` records (and hashes) in ``source.inputs``."""
-        return self.sources()
 
     def numbers(self) -> dict[str, float | None]:
         """The row's numbers by manifest column."""
@@ -102,17 +98,7 @@ def read_manifest(path: str | Path) -> list[BatchRow]:
     first few manifest lines.
     """
     where = storage.location(path)
-    text = storage.read_text(where)
-    reader = csv.DictReader(io.StringIO(text))
-    header = [h.strip() for h in (reader.fieldnames or [])]
-    if "video" not in header:
-        raise InputError(where, f"no 'video' column in the header ({','.join(header) or 'empty'})",
-                         "the first line must name the columns, e.g. video,name,gps")
-    unknown = [h for h in header if h not in MANIFEST_COLUMNS]
-    if unknown:
-        raise InputError(where, f"unknown column(s) {', '.join(unknown)}",
-                         f"known: {', '.join(MANIFEST_COLUMNS)}")
-    reader.fieldnames = header
+    reader = _csv_reader(where, storage.read_text(where))
     base = storage.parent(where)
     rows: list[BatchRow] = []
     problems: list[tuple[int, str]] = []
@@ -125,64 +111,106 @@ def read_manifest(path: str | Path) -> list[BatchRow]:
         if None in record:
             problems.append((line, "more cells than header columns"))
             continue
-        row_problems: list[str] = []
-        paths: dict[str, Where | None] = {}
-        for column, label in PATH_COLUMNS.items():
-            cell = cells.get(column, "")
-            if not cell:
-                paths[column] = None
-                if column == "video":
-                    row_problems.append("empty video")
-                continue
-            p = _resolve(cell, base)
-            if not storage.exists(p):
-                row_problems.append(f"no such {label} file {cell}")
-            paths[column] = p
-        numbers: dict[str, float | None] = {}
-        for column in NUMBER_COLUMNS:
-            cell = cells.get(column, "")
-            try:
-                numbers[column] = float(cell) if cell else None
-            except ValueError:
-                row_problems.append(f"{column} '{cell}' is not a number")
-                numbers[column] = None
-        if numbers["fps"] is not None and numbers["fps"] <= 0:
-            row_problems.append(f"fps must be > 0, got {numbers['fps']:g}")
-        if numbers["ego_speed_mps"] is not None and numbers["ego_speed_mps"] < 0:
-            row_problems.append(f"ego_speed_mps must be >= 0, got {numbers['ego_speed_mps']:g}")
-        name = cells.get("name", "")
-        if name:
-            name_problem = bad_name(name)
-            if name_problem:
-                row_problems.append(name_problem)
-            elif name in seen_names:
-                row_problems.append(f"name '{name}' already used on line {seen_names[name]}")
-            else:
-                seen_names[name] = line
-        if row_problems:
-            problems.append((line, "; ".join(row_problems)))
-            continue
-        row = BatchRow(line=line, name=name, video=paths["video"], gps=paths["gps"],
-                       map_path=paths["map"], camera_path=paths["camera"],
-                       detections=paths["detections"], keyframes=paths["keyframes"],
-                       fps=numbers["fps"], gps_offset_s=numbers["gps_offset_s"],
-                       ego_speed_mps=numbers["ego_speed_mps"] or 0.0)
-        try:
-            row.check_numbers()  # a single build's checks (finite, physical), before any build
-        except InputError as exc:
-            problems.append((line, exc.problem))
-            continue
-        rows.append(row)
+        row, problem = _row(line, cells, base, seen_names)
+        if problem is not None:
+            problems.append((line, problem))
+        else:
+            rows.append(row)
     if problems:
         shown = "; ".join(f"line {line}: {msg}" for line, msg in problems[:MAX_ROWS_IN_ERROR])
         more = (f"; and {len(problems) - MAX_ROWS_IN_ERROR} more"
                 if len(problems) > MAX_ROWS_IN_ERROR else "")
+        # One error for rows of every kind of problem: no one subclass names them all.
         raise InputError(where, f"{len(problems)} bad row(s): {shown}{more}",
                          "paths are relative to the manifest's folder; nothing was built")
     if not rows:
-        raise InputError(where, "no rows", "one line per video under the header")
+        raise FormatError(where, "no rows", "one line per video under the header")
     _name_unnamed(rows, set(seen_names))
     return rows
+
+
+def _csv_reader(where: Where, text: str) -> csv.DictReader:
+    """A reader of the manifest's rows under its checked header (a ``video`` column, no
+    unknown one; names stripped of spaces)."""
+    reader = csv.DictReader(io.StringIO(text))
+    header = [h.strip() for h in (reader.fieldnames or [])]
+    if "video" not in header:
+        raise FormatError(where, f"no 'video' column in the header ({','.join(header) or 'empty'})",
+                          "the first line must name the columns, e.g. video,name,gps")
+    unknown = [h for h in header if h not in MANIFEST_COLUMNS]
+    if unknown:
+        raise FormatError(where, f"unknown column(s) {', '.join(unknown)}",
+                          f"known: {', '.join(MANIFEST_COLUMNS)}")
+    reader.fieldnames = header
+    return reader
+
+
+def _row(line: int, cells: dict[str, str], base: Where, seen_names: dict[str, int]
+         ) -> tuple[BatchRow | None, str | None]:
+    """Manifest line ``line`` as a row, or the problems that keep it from being one (files
+    that do not exist, numbers that do not parse or are not physical, a bad or repeated
+    name); a good name is entered in ``seen_names``."""
+    paths, row_problems = _row_paths(cells, base)
+    numbers, number_problems = _row_numbers(cells)
+    row_problems += number_problems
+    name = cells.get("name", "")
+    if name:
+        name_problem = bad_name(name)
+        if name_problem:
+            row_problems.append(name_problem)
+        elif name in seen_names:
+            row_problems.append(f"name '{name}' already used on line {seen_names[name]}")
+        else:
+            seen_names[name] = line
+    if row_problems:
+        return None, "; ".join(row_problems)
+    row = BatchRow(line=line, name=name, video=paths["video"], gps=paths["gps"],
+                   map_path=paths["map"], camera_path=paths["camera"],
+                   detections=paths["detections"], keyframes=paths["keyframes"],
+                   fps=numbers["fps"], gps_offset_s=numbers["gps_offset_s"],
+                   ego_speed_mps=numbers["ego_speed_mps"] or 0.0)
+    try:
+        row.check_numbers()  # a single build's checks (finite, physical), before any build
+    except InputError as exc:
+        return None, exc.problem
+    return row, None
+
+
+def _row_paths(cells: dict[str, str], base: Where) -> tuple[dict[str, Where | None], list[str]]:
+    """The row's input locations (relative to ``base``) and the ones that do not exist."""
+    paths: dict[str, Where | None] = {}
+    problems: list[str] = []
+    for column, label in PATH_COLUMNS.items():
+        cell = cells.get(column, "")
+        if not cell:
+            paths[column] = None
+            if column == "video":
+                problems.append("empty video")
+            continue
+        p = _resolve(cell, base)
+        if not storage.exists(p):
+            problems.append(f"no such {label} file {cell}")
+        paths[column] = p
+    return paths, problems
+
+
+def _row_numbers(cells: dict[str, str]) -> tuple[dict[str, float | None], list[str]]:
+    """The row's numbers (None where empty) and the ones that do not parse or cannot be a
+    frame rate or a speed."""
+    numbers: dict[str, float | None] = {}
+    problems: list[str] = []
+    for column in NUMBER_COLUMNS:
+        cell = cells.get(column, "")
+        try:
+            numbers[column] = float(cell) if cell else None
+        except ValueError:
+            problems.append(f"{column} '{cell}' is not a number")
+            numbers[column] = None
+    if numbers["fps"] is not None and numbers["fps"] <= 0:
+        problems.append(f"fps must be > 0, got {numbers['fps']:g}")
+    if numbers["ego_speed_mps"] is not None and numbers["ego_speed_mps"] < 0:
+        problems.append(f"ego_speed_mps must be >= 0, got {numbers['ego_speed_mps']:g}")
+    return numbers, problems
 
 
 def _resolve(cell: str, base: Where) -> Where:

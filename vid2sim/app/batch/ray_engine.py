@@ -26,7 +26,7 @@ import cv2
 from vid2sim.app.batch.index import RowOutcome
 from vid2sim.app.batch.local import worker_died
 from vid2sim.app.batch.worker import RowTask, one_line, run_row
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import InconsistentInputError, InputError
 
 Finished = Callable[[int, RowOutcome], None]
 
@@ -148,8 +148,9 @@ def _check_fits(ray, cpus_per_job: int) -> None:
     largest = max((float(n.get("Resources", {}).get("CPU", 0.0)) for n in ray.nodes()
                    if n.get("Alive")), default=0.0)
     if cpus_per_job > largest:
-        raise InputError(None, f"--cpus-per-job {cpus_per_job} but the largest Ray node has "
-                         f"{largest:g} CPUs", "give at most that many CPUs per job")
+        raise InconsistentInputError(
+            None, f"--cpus-per-job {cpus_per_job} but the largest Ray node has "
+            f"{largest:g} CPUs", "give at most that many CPUs per job")
 
 
 def _window(ray, jobs: int | None, cpus_per_job: int) -> int:

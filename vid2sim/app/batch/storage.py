@@ -21,7 +21,7 @@ from pathlib import Path
 
 import fsspec
 
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import FormatError, InputError, MissingInputError
 from vid2sim.base.fileio import read_input_text, sha256_path, write_bytes_atomic
 
 Where = Path | str
@@ -111,13 +111,13 @@ def read_text(where: Where) -> str:
     try:
         data = fs.cat_file(path)
     except FileNotFoundError:
-        raise InputError(where, "no such file") from None
+        raise MissingInputError(where, "no such file") from None
     except OSError as exc:
-        raise InputError(where, f"cannot read: {exc}") from None
+        raise MissingInputError(where, f"cannot read: {exc}") from None
     try:
         return data.decode("utf-8").lstrip("\ufeff")
     except UnicodeDecodeError as exc:
-        raise InputError(where, f"not UTF-8 text (byte {exc.start})") from None
+        raise FormatError(where, f"not UTF-8 text (byte {exc.start})") from None
 
 
 def read_bytes(where: Where) -> bytes:

@@ -18,6 +18,7 @@ store the row is built in a local temporary folder and uploaded with ``scenario.
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import json
 import math
 import os
@@ -37,10 +38,11 @@ import numpy as np
 
 from vid2sim.app.batch import storage
 from vid2sim.app.batch.hashing import HashEntry, hash_inputs
-from vid2sim.app.batch.index import RowOutcome, stage_column
+from vid2sim.app.batch.index import SETTINGS_ROLE, RowOutcome, stage_column
 from vid2sim.app.batch.manifest import STATE_DIR, BatchRow
 from vid2sim.app.batch.storage import Where
 from vid2sim.app.settings import Settings
+from vid2sim.app.settings_file import settings_tree
 from vid2sim.base.errors import InputError
 from vid2sim.core import scenario as scenario_io
 from vid2sim.core.tables import read_tracks_csv
@@ -49,7 +51,7 @@ if TYPE_CHECKING:
     from vid2sim.app.build import BuildResult
 
 #: Closing speeds below this give no time to collision [m/s]: twice the lead range-rate
-#: RMSE measured on KITTI and on the composites (0.5-0.6 m/s, README "Measured figures"),
+#: RMSE measured on KITTI and on the composites (0.5-0.6 m/s, docs/measurements.md),
 #: so that a TTC is not made of range-rate noise alone.
 TTC_MIN_CLOSING_MPS = 1.0
 #: Where each attempt at a row leaves a marker (host, pid, start), under ``DIR``.
@@ -99,7 +101,9 @@ def run_row(task: RowTask) -> RowOutcome:
         with tempfile.TemporaryDirectory(prefix="vid2sim-row-") as tmp:
             local = _download_inputs(row, Path(tmp) / "inputs")
             outcome.sha256, outcome.hash_entries = hash_inputs(row.sources(), task.known, local)
-            done = done_outcome(row, task.out_dir, hashes=outcome.sha256)
+            done = done_outcome(row, task.out_dir, hashes=outcome.sha256,
+                                settings=task.settings)
+            outcome.sha256[SETTINGS_ROLE] = settings_key(task.settings)
             if done is not None:
                 _take_figures(outcome, done)
                 outcome.status = "skipped"
@@ -264,13 +268,21 @@ def _lead_motion(outcome: RowOutcome, tracks_csv: Path) -> None:
 # --------------------------------------------------------------------------- done check
 
 
-def done_outcome(row: BatchRow, out_dir: Where,
-                 hashes: dict[str, str] | None = None) -> RowOutcome | None:
+def settings_key(settings: Settings) -> str:
+    """sha256 of the settings tree a scenario records (``source.settings``): a batch row
+    built with other settings is built again."""
+    text = json.dumps(settings_tree(settings), sort_keys=True, default=str)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+def done_outcome(row: BatchRow, out_dir: Where, hashes: dict[str, str] | None = None,
+                 settings: Settings | None = None) -> RowOutcome | None:
     """A "skipped" outcome when ``out_dir/<name>`` holds a build of the row's current inputs.
 
-    A build counts as done when its ``scenario.json`` loads, its report is there, and
+    A build counts as done when its ``scenario.json`` loads, its report is there,
     ``source.inputs`` records the same roles with the same sha256 as the row's files now (a
-    file's name or folder may change; its content may not).
+    file's name or folder may change; its content may not) and, with ``settings``, its
+    ``source.settings`` is this settings tree.
 
     Parameters
     ----------
@@ -288,8 +300,13 @@ def done_outcome(row: BatchRow, out_dir: Where,
                                          scenario_path)
     except (InputError, ValueError, OSError):
         return None
+    if settings is not None and scenario.source.settings != json.loads(
+            json.dumps(settings_tree(settings), default=str)):
+        return None
     recorded = {(i.get("role"), i.get("sha256")) for i in scenario.source.inputs}
     sources = row.sources()
+    hashes = None if hashes is None else {k: v for k, v in hashes.items()
+                                          if k != SETTINGS_ROLE}
     if {role for role, _ in recorded} != set(sources):
         return None
     if hashes is None or set(hashes) != set(sources):

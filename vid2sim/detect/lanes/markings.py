@@ -269,35 +269,63 @@ class LaneMarkingDetector:
                        ) -> tuple[list[LaneBoundary], tuple[float, float] | None]:
         """Painted lines (Hough + fit), and the common (heading at x = 0, curvature) of the
         road's lines, None when no line was found."""
+        points = self._ridge_points(bevf)
+        if points is None:
+            return [], None
+        rows, x, y, w = points
+        offsets, headings = self._hough_candidates(x, y, w)
+        fitted, ys, ws = self._refine(rows, x, y, w, offsets, headings, self._x_ref)
+        if not fitted:
+            return [], None
+        # The road's direction: the confidence-weighted median heading of the lines at
+        # x_ref (where it is best measured); lines not parallel to it are not road lines.
+        cfg, x_ref = self.config, self._x_ref
+        conf = np.array([ln.confidence * ln.seen_m for ln in fitted])
+        h_ref = np.array([ln.heading_rad + ln.curvature_inv_m * x_ref for ln in fitted])
+        h0 = weighted_median(h_ref, conf)
+        keep = np.flatnonzero(np.abs(h_ref - h0) <= cfg.parallel_tolerance_rad)
+        if keep.size == 0:
+            return [], None
+        keep, coef, std = self._joint_fit(fitted, ys, ws, keep)
+        return (self._fitted_lines(fitted, keep, coef, std),
+                (float(np.median(coef[:, 1])), float(coef[0, 2])))
+
+    def _ridge_points(self, bevf: np.ndarray):
+        """One point per marking and bird's-eye row: lateral maxima of the ridge response
+        above the relative and absolute contrast thresholds, as ``(rows, x [m], y [m],
+        weight)``; None with fewer than 4."""
         cfg, grid = self.config, self.grid
         ridge = ridge_response(bevf, self._side_px)
         # Absolute contrast too: in near-black shade 12 % of almost nothing is noise.
         strong = (ridge >= cfg.min_relative_contrast) & self._valid
         strong &= ridge * np.maximum(cv2.blur(bevf, (5, 3)), 20.0) >= cfg.min_contrast
-        # One point per marking and row: lateral local maxima.
         peak = np.zeros_like(strong)
         peak[:, 1:-1] = (ridge[:, 1:-1] >= ridge[:, :-2]) & (ridge[:, 1:-1] > ridge[:, 2:])
         rows, cols = np.nonzero(strong & peak)
         if rows.size < 4:
-            return [], None
-        x, y = grid.x_m[rows], grid.y_m[cols]
+            return None
         w = np.minimum(ridge[rows, cols] / cfg.min_relative_contrast, 3.0)
-        x_ref = self._x_ref
-        # Straight-line votes from the near part only, where a bend is still nearly straight.
+        return rows, grid.x_m[rows], grid.y_m[cols], w
+
+    def _hough_candidates(self, x: np.ndarray, y: np.ndarray, w: np.ndarray
+                          ) -> tuple[np.ndarray, np.ndarray]:
+        """Candidate lines (offset at x_ref [m], heading [rad]) from straight-line votes of
+        the near points, where a bend is still nearly straight. Lines on a road are
+        parallel: the strongest line gives the heading of all, candidates are sought near
+        it, each needing votes worth ``min_seen_m`` of paint at twice the threshold
+        contrast and ``min_separation_m`` from a stronger one."""
+        cfg = self.config
         near_pts = x <= cfg.hough_far_m
         acc, headings, offsets = hough_lines(
-            x[near_pts], y[near_pts], w[near_pts], x_ref_m=x_ref, max_heading_rad=cfg.max_heading_rad,
-            heading_step_rad=cfg.heading_step_rad, half_width_m=cfg.half_width_m,
-            offset_bin_m=cfg.offset_bin_m)
+            x[near_pts], y[near_pts], w[near_pts], x_ref_m=self._x_ref,
+            max_heading_rad=cfg.max_heading_rad, heading_step_rad=cfg.heading_step_rad,
+            half_width_m=cfg.half_width_m, offset_bin_m=cfg.offset_bin_m)
         acc = cv2.blur(acc.astype(np.float32), (3, 3))
-        # Lines on a road are parallel: the strongest line gives the heading of all (at
-        # x_ref, curvature included); candidates are sought near it.
         h_top = int(np.unravel_index(np.argmax(acc), acc.shape)[0])
         band = max(1, round(cfg.parallel_tolerance_rad / cfg.heading_step_rad))
         sub = acc[max(0, h_top - band):h_top + band + 1]
         best = sub.max(axis=0)
         best_heading = headings[max(0, h_top - band) + sub.argmax(axis=0)]
-        # A line needs votes worth ``min_seen_m`` of paint at twice the threshold contrast.
         min_votes = max(2.0 * cfg.min_seen_m / cfg.longitudinal_step_m / 3.0,
                         cfg.min_relative_votes * float(best.max()))
         sep = round(cfg.min_separation_m / cfg.offset_bin_m)
@@ -307,22 +335,16 @@ class LaneMarkingDetector:
                 break
             if all(abs(j - k) > sep for k in candidates):
                 candidates.append(int(j))
-        fitted, ys, ws = self._refine(rows, x, y, w, offsets[candidates],
-                                      best_heading[candidates], x_ref)
-        if not fitted:
-            return [], None
-        # The road's direction: the confidence-weighted median heading of the lines at
-        # x_ref (where it is best measured); lines not parallel to it are not road lines.
-        conf = np.array([ln.confidence * ln.seen_m for ln in fitted])
-        h_ref = np.array([ln.heading_rad + ln.curvature_inv_m * x_ref for ln in fitted])
-        h0 = weighted_median(h_ref, conf)
-        keep = np.flatnonzero(np.abs(h_ref - h0) <= cfg.parallel_tolerance_rad)
-        if keep.size == 0:
-            return [], None
-        # Then all parallel lines are fitted together (one shape), near rows weighted up:
-        # a grid row's lateral error grows with distance (one pixel covers x / f metres).
-        # A line whose points stray from the joint shape is not a road line (a shadow's
-        # border, a crack, a car's edge): it is dropped and the rest fitted again.
+        return offsets[candidates], best_heading[candidates]
+
+    def _joint_fit(self, fitted: list[LaneBoundary], ys: np.ndarray, ws: np.ndarray,
+                   keep: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """All parallel lines fitted together (one shape), near rows weighted up: a grid
+        row's lateral error grows with distance (one pixel covers x / f metres). A line
+        whose points stray from the joint shape is not a road line (a shadow's border, a
+        crack, a car's edge): it is dropped and the rest fitted again (at most 3 times).
+        Returns the lines kept, their coefficients and offset spreads."""
+        cfg, grid = self.config, self.grid
         near = np.minimum(1.0, (cfg.near_weight_m / grid.x_m) ** 2)
         for attempt in range(3):
             guess = np.array([fitted[i].offset_m for i in keep])
@@ -341,6 +363,12 @@ class LaneMarkingDetector:
             if good.all() or not good.any() or attempt == 2:
                 break
             keep = keep[good]
+        return keep, coef, std
+
+    def _fitted_lines(self, fitted: list[LaneBoundary], keep: np.ndarray, coef: np.ndarray,
+                      std: np.ndarray) -> list[LaneBoundary]:
+        """The kept lines with the joint fit's shape, most confident first; of two
+        candidates that met on one marking the better one."""
         keep_coef = dict(zip(keep.tolist(), coef, strict=True))
         keep_std = dict(zip(keep.tolist(), std, strict=True))
         lines: list[LaneBoundary] = []
@@ -349,10 +377,10 @@ class LaneMarkingDetector:
             line = replace(fitted[i], offset_m=float(c[0]), heading_rad=float(c[1]),
                            curvature_inv_m=float(c[2]), curvature_rate_inv_m2=float(c[3]),
                            offset_std_m=float(max(sd, fitted[i].offset_std_m)))
-            # Two candidates on one marking meet in the joint fit: keep the better one.
-            if all(abs(line.offset_m - o.offset_m) >= cfg.min_separation_m for o in lines):
+            if all(abs(line.offset_m - o.offset_m) >= self.config.min_separation_m
+                   for o in lines):
                 lines.append(line)
-        return lines, (float(np.median(coef[:, 1])), float(coef[0, 2]))
+        return lines
 
     def _refine(self, rows: np.ndarray, x: np.ndarray, y: np.ndarray, w: np.ndarray,
                 a_ref: np.ndarray, heading: np.ndarray, x_ref: float

@@ -192,76 +192,9 @@ def lane_track(observations: list[LaneObservation], config: LaneTrackConfig | No
     # the heading does not explain (measurement biases, slope).
     rate_std = np.where(np.isfinite(v_raw), cfg.rate_drift_std_mps2, cfg.accel_std_mps2)
 
-    # ---- forward Kalman filter on (L, heading, free lateral rate) with gated association
-    x_f = np.full((n, 3), np.nan)
-    p_f = np.full((n, 3, 3), np.nan)
-    x_p = np.full((n, 3), np.nan)
-    p_p = np.full((n, 3, 3), np.nan)
-    f_all = np.zeros((n, 3, 3))
-    accepted = np.zeros(n, bool)
-    x = p = None
-    misses = 0
-    for i, obs in enumerate(observations):
-        w = float(width[i])
-        pairs, singles = _candidates(obs, w, cfg)
-        if x is not None:
-            dt = max(t[i] - t[i - 1], 1e-3)
-            f = np.array([[1.0, -v[i] * dt, dt], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
-            qr = rate_std[i] ** 2
-            q = np.diag([qr * dt ** 3 / 3.0, cfg.heading_rate_std_radps ** 2 * dt, qr * dt])
-            q[0, 2] = q[2, 0] = qr * dt ** 2 / 2.0
-            f_all[i] = f
-            x = f @ x
-            p = f @ p @ f.T + q
-        elif pairs:
-            # Start on the first pair of boundaries; the clip's first lane is lane 0.
-            c = min(pairs, key=lambda c: abs(_nearest(c.value_m, w, 0.0)))
-            x = np.array([_nearest(c.value_m, w, 0.0), c.heading_rad, 0.0])
-            p = np.diag([c.sigma_m ** 2 + (cfg.heading_std_rad * c.x_e_m) ** 2,
-                         cfg.heading_std_rad ** 2, 0.5 ** 2])
-        if x is None:
-            continue
-        x_p[i], p_p[i] = x, p
-        best = None
-        for group in (pairs, singles):
-            for c in group:
-                shift = _nearest(c.value_m, w, x[0]) - c.value_m
-                if abs(c.value_m + shift - x[0]) > cfg.gate_m:
-                    continue
-                innov = c.value_m + shift - x[0]
-                score = innov * innov / (p[0, 0] + c.sigma_m ** 2)
-                if best is None or score < best[0]:
-                    best = (score, c, shift)
-            if best is not None:
-                break  # a pair beats any single line
-        if best is None and (pairs or singles):
-            misses += 1
-            if misses >= cfg.reinit_after and pairs:
-                c = min(pairs, key=lambda c: c.sigma_m)
-                best = (0.0, c, _nearest(c.value_m, w, x[0]) - c.value_m)
-                p = np.diag([1.0, cfg.heading_std_rad ** 2, 0.5 ** 2])
-        if best is not None:
-            misses = 0
-            _, c, shift = best
-            # z = L - heading * x_e, and the heading itself.
-            h = np.array([[1.0, -c.x_e_m, 0.0], [0.0, 1.0, 0.0]])
-            z = np.array([c.z_m + shift, c.heading_rad])
-            r = np.diag([c.sigma_m ** 2, cfg.heading_std_rad ** 2])
-            s_mat = h @ p @ h.T + r
-            gain = p @ h.T @ np.linalg.inv(s_mat)
-            x = x + gain @ (z - h @ x)
-            p = (np.eye(3) - gain @ h) @ p
-            accepted[i] = True
-        x_f[i], p_f[i] = x, p
-
-    # ---- Rauch-Tung-Striebel smoother
-    x_s, p_s = x_f.copy(), p_f.copy()
-    for i in range(n - 2, -1, -1):
-        if not (np.isfinite(x_f[i, 0]) and np.isfinite(x_p[i + 1, 0])):
-            continue
-        c_mat = p_f[i] @ f_all[i + 1].T @ np.linalg.inv(p_p[i + 1])
-        x_s[i] = x_f[i] + c_mat @ (x_s[i + 1] - x_p[i + 1])
-        p_s[i] = p_f[i] + c_mat @ (p_s[i + 1] - p_p[i + 1]) @ c_mat.T
+    filt = _forward_filter(observations, t, width, v, rate_std, cfg)
+    x_s, p_s = _rts_smooth(filt)
+    accepted = filt.accepted
     lateral = x_s[:, 0].copy()
     std = np.sqrt(np.maximum(p_s[:, 0, 0], 0.0))
     # Far from any accepted measurement the filter only extrapolates: unknown.
@@ -283,6 +216,117 @@ def lane_track(observations: list[LaneObservation], config: LaneTrackConfig | No
         lane_width_m=width, heading_rad=heading, curvature_inv_m=curvature,
         left_kind=left_kind, right_kind=right_kind, lines_left=n_left, lines_right=n_right,
         lane_changes=changes, observations=list(observations))
+
+
+@dataclass(slots=True)
+class _Filtered:
+    """The forward pass of :func:`lane_track`'s Kalman filter on (lateral position L,
+    heading, free lateral rate): filtered and predicted states and covariances per
+    observation, the transition used to reach each, and which observations were accepted."""
+
+    x_f: np.ndarray
+    p_f: np.ndarray
+    x_p: np.ndarray
+    p_p: np.ndarray
+    f_all: np.ndarray
+    accepted: np.ndarray
+
+
+def _forward_filter(observations: list[LaneObservation], t: np.ndarray, width: np.ndarray,
+                    v: np.ndarray, rate_std: np.ndarray, cfg: LaneTrackConfig) -> _Filtered:
+    """Kalman filter over the observations with gated association of the measured lines
+    (a pair of boundaries beats any single line; after ``reinit_after`` misses the filter
+    restarts on the best pair)."""
+    n = len(observations)
+    out = _Filtered(np.full((n, 3), np.nan), np.full((n, 3, 3), np.nan),
+                    np.full((n, 3), np.nan), np.full((n, 3, 3), np.nan), np.zeros((n, 3, 3)),
+                    np.zeros(n, bool))
+    x = p = None
+    misses = 0
+    for i, obs in enumerate(observations):
+        w = float(width[i])
+        pairs, singles = _candidates(obs, w, cfg)
+        if x is not None:
+            dt = max(t[i] - t[i - 1], 1e-3)
+            out.f_all[i], q = _transition(dt, v[i], rate_std[i], cfg)
+            x = out.f_all[i] @ x
+            p = out.f_all[i] @ p @ out.f_all[i].T + q
+        elif pairs:
+            # Start on the first pair of boundaries; the clip's first lane is lane 0.
+            c = min(pairs, key=lambda c: abs(_nearest(c.value_m, w, 0.0)))
+            x = np.array([_nearest(c.value_m, w, 0.0), c.heading_rad, 0.0])
+            p = np.diag([c.sigma_m ** 2 + (cfg.heading_std_rad * c.x_e_m) ** 2,
+                         cfg.heading_std_rad ** 2, 0.5 ** 2])
+        if x is None:
+            continue
+        out.x_p[i], out.p_p[i] = x, p
+        best = _best_candidate(pairs, singles, x, p, w, cfg)
+        if best is None and (pairs or singles):
+            misses += 1
+            if misses >= cfg.reinit_after and pairs:
+                c = min(pairs, key=lambda c: c.sigma_m)
+                best = (0.0, c, _nearest(c.value_m, w, x[0]) - c.value_m)
+                p = np.diag([1.0, cfg.heading_std_rad ** 2, 0.5 ** 2])
+        if best is not None:
+            misses = 0
+            x, p = _update(x, p, best[1], best[2], cfg)
+            out.accepted[i] = True
+        out.x_f[i], out.p_f[i] = x, p
+    return out
+
+
+def _transition(dt: float, v: float, rate_std: float, cfg: LaneTrackConfig
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """State transition and process noise over ``dt``: the lateral position moves with
+    ``-v * heading`` and the free rate (white-noise acceleration of the rate, a random walk
+    of the heading)."""
+    f = np.array([[1.0, -v * dt, dt], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+    qr = rate_std ** 2
+    q = np.diag([qr * dt ** 3 / 3.0, cfg.heading_rate_std_radps ** 2 * dt, qr * dt])
+    q[0, 2] = q[2, 0] = qr * dt ** 2 / 2.0
+    return f, q
+
+
+def _best_candidate(pairs: list, singles: list, x: np.ndarray, p: np.ndarray, w: float,
+                    cfg: LaneTrackConfig):
+    """The measured line (shifted by whole lanes to the prediction) with the smallest
+    normalised innovation inside the gate, ``(score, candidate, shift)``; pairs first."""
+    best = None
+    for group in (pairs, singles):
+        for c in group:
+            shift = _nearest(c.value_m, w, x[0]) - c.value_m
+            if abs(c.value_m + shift - x[0]) > cfg.gate_m:
+                continue
+            innov = c.value_m + shift - x[0]
+            score = innov * innov / (p[0, 0] + c.sigma_m ** 2)
+            if best is None or score < best[0]:
+                best = (score, c, shift)
+        if best is not None:
+            break  # a pair beats any single line
+    return best
+
+
+def _update(x: np.ndarray, p: np.ndarray, c, shift: float, cfg: LaneTrackConfig
+            ) -> tuple[np.ndarray, np.ndarray]:
+    """Kalman update with one line: ``z = L - heading * x_e``, and the heading itself."""
+    h = np.array([[1.0, -c.x_e_m, 0.0], [0.0, 1.0, 0.0]])
+    z = np.array([c.z_m + shift, c.heading_rad])
+    r = np.diag([c.sigma_m ** 2, cfg.heading_std_rad ** 2])
+    s_mat = h @ p @ h.T + r
+    gain = p @ h.T @ np.linalg.inv(s_mat)
+    return x + gain @ (z - h @ x), (np.eye(3) - gain @ h) @ p
+
+
+def _rts_smooth(filt: _Filtered) -> tuple[np.ndarray, np.ndarray]:
+    """Rauch-Tung-Striebel smoother over the forward pass."""
+    x_s, p_s = filt.x_f.copy(), filt.p_f.copy()
+    for i in range(len(x_s) - 2, -1, -1):
+        if not (np.isfinite(filt.x_f[i, 0]) and np.isfinite(filt.x_p[i + 1, 0])):
+            continue
+        c_mat = filt.p_f[i] @ filt.f_all[i + 1].T @ np.linalg.inv(filt.p_p[i + 1])
+        x_s[i] = filt.x_f[i] + c_mat @ (x_s[i + 1] - filt.x_p[i + 1])
+        p_s[i] = filt.p_f[i] + c_mat @ (p_s[i + 1] - filt.p_p[i + 1]) @ c_mat.T
+    return x_s, p_s
 
 
 def _lanes(t: np.ndarray, lateral: np.ndarray, width: np.ndarray, hysteresis_m: float

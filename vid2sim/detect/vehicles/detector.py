@@ -31,7 +31,7 @@ from typing import Protocol, runtime_checkable
 import cv2
 import numpy as np
 
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import FormatError
 from vid2sim.core.boxes import cut_by_window, iou_matrix, nms, suppress_fragments
 from vid2sim.core.records import Detection
 from vid2sim.detect.vehicles import models
@@ -168,8 +168,8 @@ class OnnxDetector:
             self.session = ort.InferenceSession(str(self.model_path), sess_options=options,
                                                 providers=["CPUExecutionProvider"])
         except Exception as exc:  # onnxruntime raises its own Fail/InvalidGraph types
-            raise InputError(self.model_path, f"onnxruntime cannot load the model: {exc}",
-                             "is this an ONNX file of the chosen detector?") from exc
+            raise FormatError(self.model_path, f"onnxruntime cannot load the model: {exc}",
+                              "is this an ONNX file of the chosen detector?") from exc
         self.input_name = self.session.get_inputs()[0].name
         shape = self.session.get_inputs()[0].shape
         if isinstance(shape[2], int) and isinstance(shape[3], int):
@@ -479,12 +479,12 @@ def load_detector(name_or_path: str | Path = DEFAULT_DETECTOR, model_dir: Path |
             n_out = len(ort.InferenceSession(str(path), sess_options=options,
                                              providers=["CPUExecutionProvider"]).get_outputs())
         except Exception as exc:  # onnxruntime raises its own Fail/InvalidGraph types
-            raise InputError(path, f"onnxruntime cannot load the model: {exc}",
-                             "is this an ONNX file of a YOLOX or PicoDet export?") from exc
+            raise FormatError(path, f"onnxruntime cannot load the model: {exc}",
+                              "is this an ONNX file of a YOLOX or PicoDet export?") from exc
         # YOLOX exports one decoded-head tensor; PicoDet 4 score + 4 distance tensors
         kind = "yolox" if n_out == 1 else "picodet"
     if kind not in DETECTOR_CLASSES:
-        raise InputError(path, f"unknown decoder '{kind}'", "use yolox or picodet")
+        raise FormatError(path, f"unknown decoder '{kind}'", "use yolox or picodet")
     cls = DETECTOR_CLASSES[kind]
     if refine_max_boxes is None:
         refine_max_boxes = REFINE_MAX_BOXES if small_object_mode else 0

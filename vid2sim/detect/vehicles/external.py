@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import FormatError, ImpossibleValueError, MissingInputError
 from vid2sim.base.fileio import parse_json, read_input_text
 from vid2sim.core.boxes import iou_matrix, match
 from vid2sim.core.records import Detection, VehicleCategory
@@ -74,7 +74,7 @@ def read_detections(path: Path) -> dict[int, list[Detection]]:
     """
     path = Path(path)
     if not path.is_file():
-        raise InputError(path, "no such detections file")
+        raise MissingInputError(path, "no such detections file")
     text = read_input_text(path)
     try:
         if path.suffix.lower() == ".json":
@@ -84,41 +84,27 @@ def read_detections(path: Path) -> dict[int, list[Detection]]:
             return _read_vid2sim_text(text, path)
         return _read_mot_text(text, path)
     except csv.Error as exc:
-        raise InputError(path, f"not a readable CSV: {exc}") from None
-
-
-def read_vid2sim_csv(path: Path) -> dict[int, list[Detection]]:
-    """Read this project's own ``detections.csv`` (``vid2sim detect`` output; 0-based frames,
-    corner boxes [px]) back as per-frame detections, e.g. to re-track or re-range them."""
-    return _read_vid2sim_text(read_input_text(path), Path(path))
-
-
-def read_mot(path: Path) -> dict[int, list[Detection]]:
-    """Read a MOT-challenge file (see :func:`_read_mot_text` for the columns)."""
-    return _read_mot_text(read_input_text(path), Path(path))
-
-
-def read_scalabel(path: Path) -> dict[int, list[Detection]]:
-    """Read a Scalabel / BDD100K JSON (see :func:`_read_scalabel_text`)."""
-    return _read_scalabel_text(read_input_text(path), Path(path))
+        raise FormatError(path, f"not a readable CSV: {exc}") from None
 
 
 def _checked(path: Path, where: str, frame: int, box: tuple[float, float, float, float],
              score: float) -> None:
     """Raise :class:`InputError` for an imported box or score no detector could give."""
     if not 0 <= frame <= MAX_FRAME_INDEX:
-        raise InputError(path, f"{where}: frame {frame} is not a video frame number")
+        raise ImpossibleValueError(path, f"{where}: frame {frame} is not a video frame number")
     if not all(math.isfinite(v) for v in (*box, score)):
-        raise InputError(path, f"{where}: box {box} or score {score} is not a finite number",
-                         "every box needs finite pixel coordinates")
+        raise ImpossibleValueError(
+            path, f"{where}: box {box} or score {score} is not a finite number",
+            "every box needs finite pixel coordinates")
     x1, y1, x2, y2 = box
     if x2 <= x1 or y2 <= y1:
-        raise InputError(path, f"{where}: box {box} has no area (width {x2 - x1:g}, height "
-                         f"{y2 - y1:g} px)", "remove the row, or fix its size")
+        raise ImpossibleValueError(
+            path, f"{where}: box {box} has no area (width {x2 - x1:g}, height "
+            f"{y2 - y1:g} px)", "remove the row, or fix its size")
     if max(abs(v) for v in box) > MAX_BOX_COORD_PX:
-        raise InputError(path, f"{where}: box {box} lies beyond any frame")
+        raise ImpossibleValueError(path, f"{where}: box {box} lies beyond any frame")
     if not 0.0 <= score <= 1.0:
-        raise InputError(path, f"{where}: score {score:g} outside [0, 1]")
+        raise ImpossibleValueError(path, f"{where}: score {score:g} outside [0, 1]")
 
 
 def _read_vid2sim_text(text: str, path: Path) -> dict[int, list[Detection]]:
@@ -129,8 +115,8 @@ def _read_vid2sim_text(text: str, path: Path) -> dict[int, list[Detection]]:
             box = tuple(float(row[k]) for k in ("x1", "y1", "x2", "y2"))
             score = float(row["score"])
         except (KeyError, TypeError, ValueError, OverflowError) as exc:
-            raise InputError(path, f"line {n}: {exc}", "columns: frame,t_s,track_id,"
-                             "category,score,x1,y1,x2,y2") from None
+            raise FormatError(path, f"line {n}: {exc}", "columns: frame,t_s,track_id,"
+                              "category,score,x1,y1,x2,y2") from None
         category = _category(row.get("category") or "")
         if category is None:
             continue
@@ -163,9 +149,9 @@ def _read_mot_text(text: str, path: Path) -> dict[int, list[Detection]]:
         if n == 1 and not _is_number(row[0]):
             continue  # a header line
         if len(row) < 6:
-            raise InputError(path, f"line {n}: expected at least 6 columns "
-                             f"(frame,id,x,y,w,h[,score,...]), got {len(row)}",
-                             "is this a MOT-challenge file?")
+            raise FormatError(path, f"line {n}: expected at least 6 columns "
+                              f"(frame,id,x,y,w,h[,score,...]), got {len(row)}",
+                              "is this a MOT-challenge file?")
         klass = row[7] if len(row) > 7 else ""
         try:
             frame = int(float(row[0]))
@@ -174,10 +160,10 @@ def _read_mot_text(text: str, path: Path) -> dict[int, list[Detection]]:
             class_id = (int(float(klass)) if klass and _is_number(klass) and klass != "-1"
                         else None)
         except (ValueError, OverflowError) as exc:
-            raise InputError(path, f"line {n}: {exc}", "MOT columns must be numbers") from None
+            raise FormatError(path, f"line {n}: {exc}", "MOT columns must be numbers") from None
         if frame < 1:
-            raise InputError(path, f"line {n}: frame {frame} < 1",
-                             "MOT-challenge frames count from 1")
+            raise ImpossibleValueError(path, f"line {n}: frame {frame} < 1",
+                                       "MOT-challenge frames count from 1")
         category: VehicleCategory | None = _C.CAR
         if klass and not _is_number(klass):
             category = _category(klass)
@@ -209,8 +195,8 @@ def _read_scalabel_text(text: str, path: Path) -> dict[int, list[Detection]]:
     data = parse_json(text, path)
     frames = data.get("frames") if isinstance(data, dict) else data
     if not isinstance(frames, list):
-        raise InputError(path, "expected a list of frames or an object with 'frames'",
-                         "is this a Scalabel/BDD100K label file?")
+        raise FormatError(path, "expected a list of frames or an object with 'frames'",
+                          "is this a Scalabel/BDD100K label file?")
     has_index = all(isinstance(f, dict) and ("frameIndex" in f or "index" in f) for f in frames)
     if not has_index:
         frames = sorted(frames, key=lambda f: str(f.get("name", "")) if isinstance(f, dict)
@@ -218,16 +204,16 @@ def _read_scalabel_text(text: str, path: Path) -> dict[int, list[Detection]]:
     out: dict[int, list[Detection]] = {}
     for order, item in enumerate(frames):
         if not isinstance(item, dict):
-            raise InputError(path, f"frame {order} is not an object")
+            raise FormatError(path, f"frame {order} is not an object")
         try:
             index = (_whole(item.get("frameIndex", item.get("index", order))) if has_index
                      else order)
         except (TypeError, ValueError, OverflowError):
-            raise InputError(path, f"frame {order}: frameIndex/index is not a whole number"
-                             ) from None
+            raise FormatError(path, f"frame {order}: frameIndex/index is not a whole number"
+                              ) from None
         labels = item.get("labels") or []
         if not isinstance(labels, list):
-            raise InputError(path, f"frame {index}: labels must be a list")
+            raise FormatError(path, f"frame {index}: labels must be a list")
         dets = out.setdefault(index, [])
         for label in labels:
             box = label.get("box2d") if isinstance(label, dict) else None
@@ -238,8 +224,8 @@ def _read_scalabel_text(text: str, path: Path) -> dict[int, list[Detection]]:
                 x1, y1, x2, y2 = (_real(box[k]) for k in ("x1", "y1", "x2", "y2"))
                 score = _real(label.get("score", 1.0))
             except (KeyError, TypeError, ValueError, OverflowError):
-                raise InputError(path, f"frame {index}: box2d needs numbers x1, y1, x2, y2 "
-                                 "(and a numeric score)") from None
+                raise FormatError(path, f"frame {index}: box2d needs numbers x1, y1, x2, y2 "
+                                  "(and a numeric score)") from None
             _checked(path, f"frame {index}", index, (x1, y1, x2, y2), score)
             dets.append(Detection(box_px=(x1, y1, x2, y2), score=score, category=category))
     return out
@@ -299,13 +285,13 @@ def read_kitti_tracking_labels(path: Path) -> dict[int, list[KittiLabel]]:
     try:
         lines = Path(path).read_text(encoding="utf-8").splitlines()
     except FileNotFoundError:
-        raise InputError(path, "no such KITTI label file") from None
+        raise MissingInputError(path, "no such KITTI label file") from None
     for n, line in enumerate(lines, start=1):
         f = line.split()
         if not f:
             continue
         if len(f) < 17:
-            raise InputError(path, f"line {n}: expected 17 fields, got {len(f)}")
+            raise FormatError(path, f"line {n}: expected 17 fields, got {len(f)}")
         v = [float(x) for x in f[3:17]]
         out.setdefault(int(f[0]), []).append(KittiLabel(
             frame=int(f[0]), track_id=int(f[1]), type=f[2], truncated=v[0],

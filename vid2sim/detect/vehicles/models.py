@@ -10,7 +10,7 @@ import urllib.request
 from dataclasses import dataclass
 from pathlib import Path
 
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import FormatError, InputError, MissingInputError
 
 MODEL_DIR_ENV = "VID2SIM_MODEL_DIR"
 DEFAULT_DETECTOR = "yolox-nano"
@@ -88,8 +88,8 @@ def get_spec(name: str) -> ModelSpec:
     try:
         return MODELS[name]
     except KeyError:
-        raise InputError(None, f"unknown detector '{name}'",
-                         f"known: {', '.join(MODELS)}; or give a path to an .onnx file") from None
+        raise FormatError(None, f"unknown detector '{name}'",
+                          f"known: {', '.join(MODELS)}; or give a path to an .onnx file") from None
 
 
 def search_dirs(model_dir: Path | None = None) -> list[Path]:
@@ -136,7 +136,7 @@ def resolve_model(name_or_path: str | Path, model_dir: Path | None = None) -> Pa
         path = Path(text)
         if path.suffix.lower() == ".onnx" or os.sep in text or path.exists():
             if not path.is_file():
-                raise InputError(path, "detector weights file not found")
+                raise MissingInputError(path, "detector weights file not found")
             return path
         get_spec(text)  # raises with the list of known names
     spec = MODELS[text]
@@ -145,7 +145,7 @@ def resolve_model(name_or_path: str | Path, model_dir: Path | None = None) -> Pa
         candidate = folder / spec.filename
         if candidate.is_file():
             return candidate
-    raise InputError(
+    raise MissingInputError(
         None, f"weights for '{spec.name}' ({spec.filename}) not found in "
         + ", ".join(str(d) for d in dirs),
         f"run `vid2sim models pull {spec.name}` on a machine with internet, or set "

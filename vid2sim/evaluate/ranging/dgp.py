@@ -28,7 +28,12 @@ from pathlib import Path
 
 import numpy as np
 
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import (
+    FormatError,
+    ImpossibleValueError,
+    InconsistentInputError,
+    MissingInputError,
+)
 from vid2sim.base.fileio import read_input_text
 from vid2sim.core.camera import Camera, PitchSource
 
@@ -121,17 +126,18 @@ def _load_json(path: Path) -> object:
     try:
         return json.loads(text)
     except json.JSONDecodeError as exc:
-        raise InputError(path, f"not JSON: {exc.msg} at line {exc.lineno}") from None
+        raise FormatError(path, f"not JSON: {exc.msg} at line {exc.lineno}") from None
 
 
 def _num(value: object, path: Path, what: str, positive: bool = False) -> float:
     try:
         v = float(value)  # type: ignore[arg-type]
     except (TypeError, ValueError):
-        raise InputError(path, f"{what} is not a number: {value!r}") from None
+        raise FormatError(path, f"{what} is not a number: {value!r}") from None
     if not math.isfinite(v) or (positive and v <= 0):
-        raise InputError(path, f"{what} must be {'positive and ' if positive else ''}finite, "
-                         f"got {v}")
+        raise ImpossibleValueError(
+            path, f"{what} must be {'positive and ' if positive else ''}finite, "
+            f"got {v}")
     return v
 
 
@@ -140,7 +146,7 @@ def _ontology(path: Path) -> dict[int, str]:
     try:
         return {int(item["id"]): str(item["name"]) for item in doc["items"]}  # type: ignore
     except (KeyError, TypeError, ValueError):
-        raise InputError(path, "ontology lacks items with id and name") from None
+        raise FormatError(path, "ontology lacks items with id and name") from None
 
 
 def read_cuboids(path: Path, names: dict[int, str]) -> tuple[DgpCuboid, ...]:
@@ -167,10 +173,10 @@ def read_cuboids(path: Path, names: dict[int, str]) -> tuple[DgpCuboid, ...]:
                 occlusion=int(box.get("occlusion", 0)),
                 truncation=_num(box.get("truncation", 0.0), path, "truncation")))
     except (KeyError, TypeError) as exc:
-        raise InputError(path, f"a 3D box lacks {exc}", "is this a DGP bounding_box_3d file?"
-                         ) from None
+        raise FormatError(path, f"a 3D box lacks {exc}", "is this a DGP bounding_box_3d file?"
+                          ) from None
     except ValueError as exc:
-        raise InputError(path, str(exc)) from None
+        raise ImpossibleValueError(path, str(exc)) from None
     return tuple(out)
 
 
@@ -187,8 +193,8 @@ def read_boxes_2d(path: Path, names: dict[int, str]) -> tuple[DgpBox2d, ...]:
                                 names.get(int(a["class_id"]), f"class {a['class_id']}"),
                                 (x, y, x + w, y + h)))
     except (KeyError, TypeError) as exc:
-        raise InputError(path, f"a 2D box lacks {exc}", "is this a DGP bounding_box_2d file?"
-                         ) from None
+        raise FormatError(path, f"a 2D box lacks {exc}", "is this a DGP bounding_box_2d file?"
+                          ) from None
     return tuple(out)
 
 
@@ -196,7 +202,7 @@ def _timestamp_s(text: str, path: Path) -> float:
     try:
         return datetime.fromisoformat(text).timestamp()
     except (ValueError, AttributeError):
-        raise InputError(path, f"timestamp {text!r} is not ISO 8601") from None
+        raise FormatError(path, f"timestamp {text!r} is not ISO 8601") from None
 
 
 def read_dgp_scene(scene_dir: Path, camera: str = "CAMERA_01") -> list[DgpFrame]:
@@ -211,15 +217,15 @@ def read_dgp_scene(scene_dir: Path, camera: str = "CAMERA_01") -> list[DgpFrame]
     scene_dir = Path(scene_dir)
     scenes = sorted(scene_dir.glob("scene_*.json"))
     if len(scenes) != 1:
-        raise InputError(scene_dir, f"{len(scenes)} scene_*.json files (one expected)",
-                         "point at one DGP scene folder")
+        raise MissingInputError(scene_dir, f"{len(scenes)} scene_*.json files (one expected)",
+                                "point at one DGP scene folder")
     doc = _load_json(scenes[0])
     try:
         ontologies = doc["ontologies"]  # type: ignore[index]
         samples = doc["samples"]  # type: ignore[index]
         datums = {d["key"]: d for d in doc["data"]}  # type: ignore[index]
     except (KeyError, TypeError) as exc:
-        raise InputError(scenes[0], f"not a DGP scene: lacks {exc}") from None
+        raise FormatError(scenes[0], f"not a DGP scene: lacks {exc}") from None
     names = {k: _ontology(scene_dir / "ontology" / f"{v}.json") for k, v in ontologies.items()}
     frames: list[DgpFrame] = []
     for sample in samples:
@@ -234,8 +240,8 @@ def read_dgp_scene(scene_dir: Path, camera: str = "CAMERA_01") -> list[DgpFrame]
             ext_r = quaternion_to_matrix(*(_num(ext["rotation"][k], calib_path, f"rotation {k}")
                                            for k in ("qw", "qx", "qy", "qz")))
         except (KeyError, ValueError, TypeError, IndexError):
-            raise InputError(calib_path, f"no calibration of {camera}",
-                             "needs names, intrinsics and extrinsics per sensor") from None
+            raise FormatError(calib_path, f"no calibration of {camera}",
+                              "needs names, intrinsics and extrinsics per sensor") from None
         for key in sample["datum_keys"]:
             datum = datums.get(key)
             if datum is None or datum["id"]["name"] != camera or "image" not in datum["datum"]:
@@ -325,11 +331,13 @@ def ground_camera(frame: DgpFrame, max_range_m: float = GROUND_MAX_RANGE_M,
     bottoms = np.array([c.bottom_center_m() for c in frame.cuboids
                         if c.class_name in classes and 0 < c.center_m[2] < max_range_m])
     if len(bottoms) < 3:
-        raise InputError(frame.image, f"{len(bottoms)} cars within {max_range_m:g} m: too few "
-                         "to know the ground")
+        raise InconsistentInputError(
+            frame.image, f"{len(bottoms)} cars within {max_range_m:g} m: too few "
+            "to know the ground")
     normal, height, rms = fit_ground_plane(bottoms)
     if rms > GROUND_MAX_RMS_M:
-        raise InputError(frame.image, f"the cars' bottoms scatter {rms:.2f} m about a plane")
+        raise InconsistentInputError(
+            frame.image, f"the cars' bottoms scatter {rms:.2f} m about a plane")
     return camera_on_plane(frame, normal, height), rms, len(bottoms)
 
 

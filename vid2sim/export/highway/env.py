@@ -12,7 +12,7 @@ from highway_env import utils
 from highway_env.envs.common.abstract import AbstractEnv
 from highway_env.road.road import Road as HwRoad
 
-from vid2sim.base.errors import InputError
+from vid2sim.base.errors import MissingInputError
 from vid2sim.core import scenario as scenario_io
 from vid2sim.core.records import EGO_ID
 from vid2sim.core.scenario import Scenario
@@ -70,8 +70,8 @@ def _as_scenario(scenario: Scenario | str | Path | None) -> Scenario:
     if isinstance(scenario, Scenario):
         return scenario
     if scenario is None:
-        raise InputError(None, f"{ENV_ID} needs a scenario",
-                         f'gymnasium.make("{ENV_ID}", scenario="scenario.json")')
+        raise MissingInputError(None, f"{ENV_ID} needs a scenario",
+                                f'gymnasium.make("{ENV_ID}", scenario="scenario.json")')
     return scenario_io.load(scenario)
 
 

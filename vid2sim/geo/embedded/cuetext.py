@@ -51,11 +51,6 @@ class CueFix:
     clock_s: float | None = None
 
 
-def looks_like_telemetry(text: str) -> bool:
-    """Whether a cue's text carries a position in one of the layouts read here."""
-    return parse_cue(text) is not None
-
-
 def parse_cue(text: str) -> CueFix | None:
     """The fix one cue's text holds, or None (a cue without a position, or a position of
     0, 0: receivers without a lock write zeros).
