@@ -22,6 +22,7 @@ without any cache are printed separately.
     python benchmarks/bench_mapmatch.py --pipeline            # also smooth_ego + build_road
     python benchmarks/bench_mapmatch.py --leuven              # also leuvenmapmatching
     python benchmarks/bench_mapmatch.py --rates 1 --noise 5 --cli  # also vid2sim road, cold
+    python benchmarks/bench_mapmatch.py --road-set 24 --seed 30   # road.json, fresh processes
 
 leuvenmapmatching is not a dependency: ``pip install leuvenmapmatching`` for the comparison.
 """
@@ -111,7 +112,8 @@ def fmt(a: np.ndarray) -> str:
 
 def pipeline(pbf: Path, full: RoadNetwork, drives: list[SimulatedDrive]) -> None:
     """The same drives through ``smooth_ego`` + ``build_road`` (as ``vid2sim road`` runs): the
-    road's centerlines (whole matched pieces) against the true pieces, 5 m corridor."""
+    road's centerlines against the true pieces (whole) and the true driven stretch, 5 m
+    corridor."""
     from vid2sim.core.records import GpsFix, GpsTrace
     from vid2sim.geo.alongroute import join_xy
     from vid2sim.geo.roads import build_road
@@ -134,7 +136,7 @@ def pipeline(pbf: Path, full: RoadNetwork, drives: list[SimulatedDrive]) -> None
     print(f"road stage (smooth_ego + build_road, ego heading and speed used), mean/median/max:"
           f"\n  road centerline vs true pieces, whole:      {fmt(np.array(whole))}"
           f"\n  road centerline vs the true driven stretch: {fmt(np.array(driven))} (the road "
-          f"runs on to the ends of its first and last piece)"
+          f"runs one car length beyond the first and last fix)"
           f"\n  {np.median(per_km):.2f} s/km (median) incl. GPS smoothing and map load")
 
 
@@ -171,6 +173,110 @@ def cli(pbf: Path, repeats: int = 3) -> None:
     print(f"vid2sim road on the README sample ({km:.2f} km), a fresh process each time, best of "
           f"{repeats}: {best_wall:.2f} s wall, {best_cpu:.2f} s CPU = {best_wall / km:.2f} s/km "
           f"({best_cpu / km:.2f} CPU s/km), all included")
+
+
+# --------------------------------------------------------------------------- road set (CLI)
+
+#: the road-stage set: shorter drives (0.5-1.5 km) that start and end anywhere in the first
+#: and last 150 m of their path (across way pieces: a drive begins 80 m along a long street),
+#: 1 Hz, 5 m noise, 2 % outliers, every third standing 20 s
+ROAD_SET = {"min_length_m": 500.0, "max_length_m": 1500.0, "end_span_m": 150.0}
+
+
+def road_set_drives(net: RoadNetwork, seed: int, n: int) -> list[SimulatedDrive]:
+    return [simulate_drive(net, np.random.default_rng([seed, k]), noise_m=5.0, rate_hz=1.0,
+                           stop_s=20.0 if k % 3 == 0 else 0.0, ends_at_junctions=False,
+                           **ROAD_SET) for k in range(n)]
+
+
+def write_drive_csv(path: Path, d: SimulatedDrive) -> None:
+    lat, lon, _ = EnuFrame(ORIGIN).to_geodetic(np.column_stack([d.x_m, d.y_m]))
+    rows = [f"{1.7e9 + t:.3f},{a:.8f},{o:.8f}" for t, a, o in zip(d.t_s, lat, lon, strict=True)]
+    path.write_text("t,lat,lon\n" + "\n".join(rows) + "\n")
+
+
+def score_road_json(road: dict, full: RoadNetwork, d: SimulatedDrive) -> tuple[float, int]:
+    """RMF of road.json's centerlines against the true driven polyline (first to last fix,
+    5 m corridor), and the number of fixes whose matched way is the true one."""
+    o = road["origin"]
+    frame = EnuFrame(Origin(o["lat"], o["lon"], o["alt"]))
+    true = stretch_xy(full, d.route_edges, d.true_s_m[0], d.true_s_m[-1])
+    lat, lon, _ = EnuFrame(ORIGIN).to_geodetic(true)
+    true = frame.to_enu(lat, lon)[:, :2]
+    lines = [np.asarray(r["centerline"], float)[:, :2] for r in road["roads"]]
+    ways = np.array([-1 if m["osm_way_id"] is None else m["osm_way_id"]
+                     for m in road["matches"]])
+    return rmf_corridor(true, lines), int((ways == d.true_way_id).sum())
+
+
+def road_cli_set(pbf: Path, full: RoadNetwork, n: int, seed: int) -> None:
+    """``vid2sim road DRIVE.csv --map Helsinki.osm.pbf`` on the road set, one fresh process
+    per drive as a user runs it, the map cache empty at the start (the first process parses
+    the extract, the others read the parsed map from the disk cache); then the same drives
+    in one process with the map in memory (warm)."""
+    import json
+    import os
+    import resource
+    import subprocess
+    import sys
+    import tempfile
+
+    drives = road_set_drives(full, seed, n)
+    km = sum(d.length_m for d in drives) / 1000.0
+    rmf, on_way, cpu, wall = [], 0, [], []
+    with tempfile.TemporaryDirectory() as tmp:
+        env = {**os.environ, "VID2SIM_CACHE_DIR": str(Path(tmp) / "cache")}
+        for k, d in enumerate(drives):
+            csv, out = Path(tmp) / f"d{k:02d}.csv", Path(tmp) / f"d{k:02d}.road.json"
+            write_drive_csv(csv, d)
+            before = resource.getrusage(resource.RUSAGE_CHILDREN)
+            t0 = time.perf_counter()
+            subprocess.run([sys.executable, "-m", "vid2sim", "road", str(csv), "--map",
+                            str(pbf), "--out", str(out)], check=True, capture_output=True,
+                           env=env)
+            wall.append(time.perf_counter() - t0)
+            after = resource.getrusage(resource.RUSAGE_CHILDREN)
+            cpu.append(after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime)
+            r, ok = score_road_json(json.loads(out.read_text()), full, d)
+            rmf.append(r)
+            on_way += ok
+    n_fix = sum(d.t_s.size for d in drives)
+    per_km = np.array(cpu) / np.array([d.length_m / 1000.0 for d in drives])
+    print(f"road set: {n} drives (seed {seed}), {km:.1f} km, 1 Hz, 5 m noise, 2 % outliers; "
+          f"vid2sim road in a fresh process per drive:"
+          f"\n  road.json centerline vs the true driven polyline (5 m corridor), RMF mean / "
+          f"median / worst: {fmt(np.array(rmf))}; fixes on their true way {on_way / n_fix:.1%}"
+          f"\n  cold (cache empty at the start, map load included): {sum(cpu) / km:.3f} CPU s/km "
+          f"over the set ({sum(wall) / km:.3f} wall s/km, load {os.getloadavg()[0]:.1f}); first "
+          f"process (parses the map) {cpu[0]:.2f} CPU s, the others {np.median(cpu[1:]):.2f} CPU "
+          f"s median ({np.median(per_km[1:]):.3f} CPU s/km)")
+    warm_road_set(pbf, drives)
+
+
+def warm_road_set(pbf: Path, drives: list[SimulatedDrive]) -> None:
+    """The road set through smooth_ego + build_road in one process, the map in memory."""
+    from vid2sim.core.records import GpsFix, GpsTrace
+    from vid2sim.geo.roads import build_road
+    from vid2sim.geo.trace import smooth_ego
+
+    frame = EnuFrame(ORIGIN)
+    traces = []
+    for d in drives:
+        lat, lon, _ = frame.to_geodetic(np.column_stack([d.x_m, d.y_m]))
+        traces.append(GpsTrace([GpsFix(1.7e9 + t, a, o) for t, a, o in
+                                zip(d.t_s, lat, lon, strict=True)], "sim"))
+    load_network(pbf, ORIGIN)  # the map in memory
+    c0 = time.process_time()
+    c_match = 0.0
+    for trace in traces:
+        ego, _ = smooth_ego(trace)
+        c1 = time.process_time()
+        build_road(trace, ego, pbf, allow_download=False)
+        c_match += time.process_time() - c1
+    km = sum(d.length_m for d in drives) / 1000.0
+    print(f"  warm (one process, map in memory): {(time.process_time() - c0) / km:.3f} CPU s/km "
+          f"(smooth_ego + build_road), of which build_road (crop, match, road) "
+          f"{c_match / km:.3f}")
 
 
 # --------------------------------------------------------------------------- leuven
@@ -245,9 +351,15 @@ def main() -> None:
     ap.add_argument("--cli", action="store_true",
                     help="also time vid2sim road on the README sample in fresh processes")
     ap.add_argument("--worst", action="store_true", help="describe each cell's worst drive")
+    ap.add_argument("--road-set", type=int, default=0, metavar="N",
+                    help="only run N drives of the road set through vid2sim road (fresh "
+                    "processes, road.json scored against the true driven polyline)")
     args = ap.parse_args()
 
     pbf = helsinki_pbf()
+    if args.road_set:
+        road_cli_set(pbf, load_network(pbf, ORIGIN), args.road_set, args.seed)
+        return
     t0 = time.perf_counter()
     load_network(pbf, ORIGIN, use_cache=False)
     t_parse = time.perf_counter() - t0

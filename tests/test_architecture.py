@@ -13,6 +13,10 @@ from tests.conftest import REPO
 PACKAGE = REPO / "vid2sim"
 #: Largest module [lines]: above it a module holds more than one concern (issue 12).
 MAX_MODULE_LINES = 600
+#: Longest function [lines] before it should be named steps, and how many may still be
+#: longer (the ones whose steps share too much state to split cleanly yet).
+MAX_FUNCTION_LINES = 80
+MAX_LONG_FUNCTIONS = 10
 #: Where a vid2sim import inside a function is allowed, and why.
 LAZY_IMPORTS_ALLOWED = {
     # The CLI imports each command's application module when the command runs, so that
@@ -97,6 +101,17 @@ def test_no_module_is_too_long():
     long = {m: n for m, p in _modules().items()
             if (n := len(p.read_text(encoding="utf-8").splitlines())) > MAX_MODULE_LINES}
     assert not long, long
+
+
+def test_long_functions_are_few():
+    long = []
+    for m, p in _modules().items():
+        for node in ast.walk(ast.parse(p.read_text(encoding="utf-8"))):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                n = node.end_lineno - node.lineno + 1
+                if n > MAX_FUNCTION_LINES:
+                    long.append(f"{m}.{node.name} ({n} lines)")
+    assert len(long) <= MAX_LONG_FUNCTIONS, sorted(long)
 
 
 def test_no_import_cycle():

@@ -118,7 +118,7 @@ def test_usage_errors_exit_2_without_traceback(args, capsys):
 
 
 def test_internal_error_exit_1(monkeypatch, sample_gpx, tmp_path, capsys):
-    import vid2sim.app.commands as commands_mod
+    import vid2sim.app.gpsroad as commands_mod
 
     def boom(*a, **k):
         raise RuntimeError("simulated bug")

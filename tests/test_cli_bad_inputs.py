@@ -24,6 +24,7 @@ from vid2sim.base.errors import (
     ImpossibleValueError,
     InconsistentInputError,
     InputError,
+    MissingInputError,
     OutputError,
     ScenarioError,
 )
@@ -76,7 +77,9 @@ def gps_csv(n: int = 60, gap_after: int | None = None, gap_s: float = 0.0) -> st
     rows = ["t,lat,lon"]
     for i in range(n):
         t = T0 + i / FPS + (gap_s if gap_after is not None and i > gap_after else 0.0)
-        rows.append(f"{t:.2f},{60.17 + i * 9e-6:.7f},24.94")  # 1 m per fix north: 10 m/s
+        # 1 m per fix north, 10 m/s: across a gap the car drove on (a clock that jumps
+        # while the fixes stay 1 m apart is re-timed, not a gap)
+        rows.append(f"{t:.2f},{60.17 + (t - T0) * FPS * 9e-6:.7f},24.94")
     return "\n".join(rows) + "\n"
 
 
@@ -199,6 +202,23 @@ CASES = [
         "eval", str(w["scenario"]), "--keyframes",
         str(_write(t, "k.json", keyframes_json([5000, 99_999]))), "--video", str(w["video"]),
         "--out", str(o)]),
+    # tracklet keyframes: broken XML, calibration missing, a NaN pose
+    ("keyframes-tracklets-broken-xml", MissingInputError, lambda w, t, o, f: [
+        "eval", str(w["scenario"]), "--keyframes",
+        str(_write(t, "tracklet_labels.xml", "<boost_serialization><tracklets><count>1")),
+        "--out", str(o)]),
+    ("keyframes-tracklets-no-calibration", MissingInputError, lambda w, t, o, f: [
+        "build", str(w["video"]), "--detections", str(w["det"]), "--keyframes",
+        str(_write(t, "tracklet_labels.xml", _tracklets_xml("10.0"))), "--offline",
+        "--out", str(o)]),
+    ("keyframes-tracklets-nan-pose", ImpossibleValueError, lambda w, t, o, f: [
+        "eval", str(w["scenario"]), "--keyframes",
+        str(_write(t, "tracklet_labels.xml", _tracklets_xml("nan"))),
+        "--keyframe-calib", str(_kitti_calib(t)), "--out", str(o)]),
+    ("keyframes-tracklets-calib-folder-missing", MissingInputError, lambda w, t, o, f: [
+        "eval", str(w["scenario"]), "--keyframes",
+        str(_write(t, "tracklet_labels.xml", _tracklets_xml("10.0"))),
+        "--keyframe-calib", str(t / "nowhere"), "--out", str(o)]),
     # frames: a folder of images of different sizes
     ("frames-mixed-sizes", InconsistentInputError, lambda w, t, o, f: [
         "detect", str(_mixed_folder(t)), "--detections", str(w["det"]), "--out", str(f)]),
@@ -229,6 +249,25 @@ CASES = [
         "eval", str(w["scenario"]), "--keyframes",
         str(_write(t, "k.json", "[" * 100_000 + "]" * 100_000)), "--out", str(o)]),
 ]
+
+
+def _tracklets_xml(tx: str) -> str:
+    """A KITTI tracklet file with one car and one pose at ``tx`` metres ahead."""
+    pose = (f"<item><tx>{tx}</tx><ty>0</ty><tz>-1.7</tz><rx>0</rx><ry>0</ry><rz>0</rz>"
+            "<state>1</state><occlusion>0</occlusion><truncation>0</truncation></item>")
+    return ("<?xml version='1.0'?><boost_serialization><tracklets><count>1</count><item>"
+            "<objectType>Car</objectType><h>1.5</h><w>1.8</w><l>4.0</l>"
+            f"<first_frame>0</first_frame><poses><count>1</count>{pose}</poses></item>"
+            "</tracklets></boost_serialization>")
+
+
+def _kitti_calib(tmp: Path) -> Path:
+    folder = tmp / "calib"
+    folder.mkdir(exist_ok=True)
+    _write(folder, "calib_velo_to_cam.txt", "R: 0 -1 0 0 0 -1 1 0 0\nT: 0 0 0\n")
+    _write(folder, "calib_cam_to_cam.txt", "R_rect_00: 1 0 0 0 1 0 0 0 1\n"
+           "P_rect_00: 200 0 160 0 0 200 90 0 0 0 1 0\n")
+    return folder
 
 
 def _sparse(path: Path, size: int) -> Path:

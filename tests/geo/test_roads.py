@@ -12,6 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from tests.geo.test_osm import NODES, ORIGIN, WAYS, osm_xml
+from vid2sim.base.defaults import EGO_LENGTH_M
 from vid2sim.base.errors import FormatError, InconsistentInputError
 from vid2sim.cli import main
 from vid2sim.core.enu import EnuFrame
@@ -157,7 +158,13 @@ def test_build_road_straight_two_way(town_map):
     assert road.name == "Main" and road.highway == "residential"
     steps = np.hypot(*np.diff(road.centerline, axis=0).T)
     assert steps.max() <= 1.0 + 1e-9 and steps.min() > 0.5
-    np.testing.assert_allclose(road.centerline[[0, -1]], [[-300, 0], [300, 0]], atol=0.05)
+    # the road runs from one car length before the first fix (x -280) to one beyond the last
+    # (x 270), not from the ways' ends (x -300 and 300): the car was never seen there
+    np.testing.assert_allclose(road.centerline[[0, -1], 1], 0.0, atol=0.05)
+    # (the ends of a smoothed 3 m-noise trace lie within about 4 m of the truth)
+    assert road.centerline[0, 0] == pytest.approx(-280.0 - EGO_LENGTH_M, abs=4.0)
+    assert road.centerline[-1, 0] == pytest.approx(270.0 + EGO_LENGTH_M, abs=4.0)
+    assert res.stats["route_length_m"] == pytest.approx(550.0 + 2 * EGO_LENGTH_M, abs=5.0)
     assert _max_turn_rad(road.centerline) < 1e-3  # one straight line through the join
     assert np.all(res.ego_lane == 0)  # 4.5 m right of the middle: the outer lane
     np.testing.assert_allclose(res.ego_offset_m, -4.5, atol=0.01)
@@ -323,3 +330,21 @@ def test_lane_numbering_is_stated_once_and_printed(town_map):
     trace, ego = _trace_and_ego([(-280, 0), (280, 0)], offset_m=-4.5)
     text = format_summary(build_road(trace, ego, town_map, allow_download=False))
     assert LANE_NUMBERING in text and "rightmost" in LANE_NUMBERING
+
+
+def test_cover_points_runs_the_road_on_along_its_route(town_map):
+    """The road stage cuts the road a car length beyond the fixes (x 270 on Main, 300 m
+    long); a vehicle seen 20 m further ahead makes the scenario's road run on along Main to
+    it, one beside another street does not."""
+    from vid2sim.geo.roads import cover_points
+
+    trace, ego = _trace_and_ego([(-280, 0), (280, 0)], offset_m=-4.5)
+    res = build_road(trace, ego, town_map, allow_download=False)
+    ahead = np.array([[290.0, -3.0]])
+    (road,) = cover_points(res, res.roads, ahead, reach_m=5.0)
+    assert road.centerline[-1, 0] == pytest.approx(295.0, abs=0.5)
+    assert road.centerline[0, 0] == pytest.approx(res.roads[0].centerline[0, 0])
+    (same,) = cover_points(res, res.roads, np.array([[0.0, 150.0]]), reach_m=5.0)
+    np.testing.assert_array_equal(same.centerline, res.roads[0].centerline)
+    (capped,) = cover_points(res, res.roads, np.array([[310.0, 0.0]]), reach_m=5.0)
+    assert capped.centerline[-1, 0] == pytest.approx(300.0, abs=0.5)  # the route ends there

@@ -13,7 +13,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from vid2sim.app.commands import run_trace
+from vid2sim.app.gpsroad import run_trace
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.settings import Settings
 from vid2sim.base.errors import ImpossibleValueError, InconsistentInputError

@@ -19,14 +19,14 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
 from vid2sim import __version__
-from vid2sim.app.commands import match_road
 from vid2sim.app.figures import stage_figures
+from vid2sim.app.gpsroad import match_road
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.loaders import (
     load_boxes,
@@ -42,6 +42,7 @@ from vid2sim.app.rendering import REPLAY_NAME, render_into_build
 from vid2sim.app.settings import Settings
 from vid2sim.app.settings_file import changed_settings, settings_tree
 from vid2sim.app.tracking import detect_and_range_with, lead_summary
+from vid2sim.base.defaults import EGO_LENGTH_M
 from vid2sim.base.errors import InconsistentInputError
 from vid2sim.base.fileio import staged_folder, write_text_atomic
 from vid2sim.core import scenario as scenario_io
@@ -51,6 +52,7 @@ from vid2sim.core.scenario import Event, Source, dumps_canonical
 from vid2sim.core.tables import write_tracks_csv
 from vid2sim.detect.assign import relane
 from vid2sim.detect.lanes.track import lane_track
+from vid2sim.detect.ranging import EgoPath
 from vid2sim.evaluate.frames import sample_frame_figures
 from vid2sim.evaluate.replay import run_eval
 from vid2sim.evaluate.report import write_report
@@ -152,6 +154,19 @@ def clip_ego_to_video(ego: EgoTrack, duration_s: float) -> tuple[EgoTrack, list[
     return EgoTrack(**fields_), warnings
 
 
+def _road_under_the_actors(scenario, road_result):
+    """The scenario with its map road run on along the matched route under the vehicles the
+    camera saw ahead of the first or beyond the last fix (the road stage cuts the road a car
+    length beyond the fixes; a replay needs road under every vehicle it replays)."""
+    if road_result is None or not scenario.actors:
+        return scenario
+    xy = np.vstack([np.column_stack((a.trajectory.x, a.trajectory.y))
+                    for a in scenario.actors])
+    reach = max(a.length_m for a in scenario.actors) / 2.0 + EGO_LENGTH_M
+    return replace(scenario, roads=geo_roads.cover_points(road_result, list(scenario.roads), xy,
+                                                          reach))
+
+
 def path_length_m(ego: EgoTrack) -> float:
     """Length of the ego's path [m]."""
     return float(np.hypot(np.diff(ego.x_m), np.diff(ego.y_m)).sum()) if len(ego.t_s) > 1 else 0.0
@@ -229,7 +244,8 @@ def build(inputs: Inputs, out_dir: Path, settings: Settings | None = None,
     inputs, gps_notes = with_embedded_gps(inputs)
     notes.extend([*(extra_notes or []), *gps_notes])
     if inputs.keyframes is not None:
-        load_keyframes_for(inputs.keyframes, video, info, inputs.fps)
+        load_keyframes_for(inputs.keyframes, video, info, inputs.fps,
+                           inputs.keyframe_calib, inputs.keyframe_rate_hz)
     # The detector (or imported boxes) before any long work: missing weights fail fast.
     detector, imported, boxes_label = load_boxes(inputs, settings)
     # The output folder last of the checks, first of the work: a read-only or full disk
@@ -300,7 +316,10 @@ def _write_outputs(staging: Path, out_dir: Path, inputs: Inputs, settings: Setti
                                 # differ between identical builds
                                 scenario_label=str(out_dir / "scenario.json"),
                                 # actors drawn with the outlines the ranging read
-                                outlines=settings.ranging.outlines)
+                                # (as cuboids against tracklet keyframes)
+                                outlines=settings.ranging.outlines,
+                                keyframe_calib=inputs.keyframe_calib,
+                                keyframe_rate_hz=inputs.keyframe_rate_hz)
         files["metrics"] = Path("metrics.json")
     else:
         # Nothing scores the scene: show sampled frames with what the build saw beside the
@@ -316,7 +335,8 @@ def _write_outputs(staging: Path, out_dir: Path, inputs: Inputs, settings: Setti
     files["report"] = Path("report.html")
     if settings.render_replay:
         # the replay of the whole clip, put into the report written above
-        keyframes = (load_keyframes_for(inputs.keyframes, video, info, inputs.fps)
+        keyframes = (load_keyframes_for(inputs.keyframes, video, info, inputs.fps,
+                                        inputs.keyframe_calib, inputs.keyframe_rate_hz)
                      if inputs.keyframes is not None else [])
         stages.run("replay video", render_into_build, staging, scenario, camera_used,
                    ranging.boxes, ranging.lanes, video, info, keyframes, inputs.fps,
@@ -338,10 +358,11 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
     ego, roads, road_result, trace, ego_noise_m = _ego_and_road(inputs, settings,
                                                                 video_duration_s, notes, stages)
 
-    # ---- detect, track, range
+    # ---- detect, track, range (with GPS the ego's own motion ranges the standing vehicles)
+    ego_path = EgoPath.from_track(ego, ego_noise_m) if inputs.gps is not None else None
     ranging, camera, ranging_notes = stages.run(
         "detect, track and range", detect_and_range_with, settings, inputs, video, camera,
-        detector, imported, assign_lanes=inputs.gps is None)
+        detector, imported, assign_lanes=inputs.gps is None, ego_path=ego_path)
     notes.extend(ranging_notes)
     notes.extend(ranging.warnings)
     notes.append(Note.estimate(
@@ -375,11 +396,15 @@ def _build_into(staging: Path, out_dir: Path, inputs: Inputs, settings: Settings
     scenario, assemble_warnings = stages.run("assemble scenario", assemble_scenario, ego, roads,
                                              ranging.boxes, camera_used, source=source,
                                              config=settings.assemble,
-                                             ego_noise_m=ego_noise_m)
+                                             ego_noise_m=ego_noise_m,
+                                             standing_tracks=ranging.standing_tracks,
+                                             ground_m_by_track={
+                                                 t: g[0] for t, g in
+                                                 ranging.ground_m_by_track.items()})
     warnings.extend(assemble_warnings)
     # ---- the street: the road's lanes from the video (and map), parked cars on their strip
-    scene = stages.run("road cross-section", lay_out_scene, scenario, lateral,
-                       settings.layout_config())
+    scene = stages.run("road cross-section", lay_out_scene, _road_under_the_actors(
+        scenario, road_result), lateral, settings.layout_config())
     scenario = scene.scenario
     warnings.extend(notes_of(scene.notes, NoteKind.WARNING))
     scenario.source.assumptions.extend(str(n) for n in scene.notes

@@ -1,6 +1,6 @@
-"""The single-stage commands ``trace``, ``road``, ``export`` and ``eval``: slices of ``build``
-(``detect`` and ``track`` are in :mod:`vid2sim.app.tracking`, which loads only the detection
-stack).
+"""The single-stage commands ``export`` and ``eval``: slices of ``build`` (``trace`` and
+``road`` are in :mod:`vid2sim.app.gpsroad`, which loads only the GPS and map stack; ``detect``
+and ``track`` in :mod:`vid2sim.app.tracking`, which loads only the detection stack).
 
 Each takes the run's :class:`~vid2sim.app.inputs.Inputs` and
 :class:`~vid2sim.app.settings.Settings` (or the scenario it works on), loads what it needs
@@ -16,20 +16,15 @@ from pathlib import Path
 
 import numpy as np
 
-from vid2sim.app.inputs import Inputs
-from vid2sim.app.loaders import load_keyframes_for, load_trace, smooth_trace
-from vid2sim.app.settings import Settings
+from vid2sim.app.loaders import load_keyframes_for
 from vid2sim.base.errors import FormatError
 from vid2sim.base.fileio import (
-    check_output_file,
     check_output_folder,
     staged_folder,
     write_bytes_atomic,
     write_text_atomic,
 )
 from vid2sim.core import scenario as scenario_io
-from vid2sim.core.scenario import dumps_canonical
-from vid2sim.core.tables import write_ego_csv
 from vid2sim.core.videofile import video_info
 from vid2sim.evaluate.replay import run_eval
 from vid2sim.export import FORMATS, replay_script
@@ -42,47 +37,6 @@ from vid2sim.export.commonroad import (
     write_commonroad,
 )
 from vid2sim.export.openscenario import write_openscenario
-from vid2sim.geo import roads as geo_roads
-from vid2sim.geo import trace as geo_trace
-
-# --------------------------------------------------------------------------- trace, road
-
-
-def run_trace(inputs: Inputs, out_path: Path, settings: Settings | None = None) -> str:
-    """``vid2sim trace``: read the GPS trace, smooth it, write ``ego.csv``; the summary."""
-    settings = settings or Settings()
-    inputs.check()
-    check_output_file(out_path)
-    trace = load_trace(inputs)
-    ego, stats = smooth_trace(trace, inputs, settings)
-    write_ego_csv(ego, out_path)
-    return geo_trace.format_summary(stats, out_path)
-
-
-def match_road(trace, ego, inputs: Inputs, settings: Settings):
-    """The road stage on the run's GPS time base (shared by ``road`` and ``build``)."""
-    return geo_roads.build_road(
-        trace, ego, inputs.map, allow_download=settings.allow_download,
-        cache_dir=settings.osm_cache_dir, gps_offset_s=inputs.gps_offset_s,
-        config=settings.matching)
-
-
-def run_road(inputs: Inputs, out_path: Path, settings: Settings | None = None,
-             plot_path: Path | None = None) -> str:
-    """``vid2sim road``: match the trace to OpenStreetMap, write ``road.json`` (and a PNG)."""
-    settings = settings or Settings()
-    inputs.check()
-    check_output_file(out_path)
-    if plot_path is not None:
-        check_output_file(plot_path)
-    trace = load_trace(inputs)
-    ego, _ = smooth_trace(trace, inputs, settings)
-    result = match_road(trace, ego, inputs, settings)
-    write_text_atomic(out_path, dumps_canonical(geo_roads.road_json(result)))
-    if plot_path is not None:
-        geo_roads.plot_road(result, trace, ego, plot_path)
-    return geo_roads.format_summary(result, Path(out_path))
-
 
 # --------------------------------------------------------------------------- export, eval
 
@@ -169,19 +123,25 @@ def _highway_preview_png(sc) -> bytes:
 
 def run_eval_command(scenario_path: Path, keyframes_path: Path, out_dir: Path, *,
                      video: Path | None = None, fps: float | None = None,
-                     use_env: bool = True) -> str:
+                     use_env: bool = True, keyframe_calib: Path | None = None,
+                     keyframe_rate_hz: float | None = None) -> str:
     """``vid2sim eval``: replay a scenario at annotated keyframes, score it, write
     ``metrics.json``, ``keyframes/`` and ``report.html`` into ``out_dir`` (staged); the summary.
 
     With a video, keyframes beyond its frames are an input error before any replay.
+    ``keyframe_calib`` / ``keyframe_rate_hz``: for KITTI tracklet keyframes, the drive's
+    calibration folder and the keyframes a second.
     """
     out_dir = Path(out_dir)
     check_output_folder(out_dir)
     scenario_io.load(scenario_path)  # the scenario's own errors before the keyframes'
     if video is not None:
         info = video_info(Path(video), fps=fps)
-        load_keyframes_for(Path(keyframes_path), Path(video), info, fps)
+        load_keyframes_for(Path(keyframes_path), Path(video), info, fps, keyframe_calib,
+                           keyframe_rate_hz)
     with staged_folder(out_dir, EVAL_OUTPUTS) as staging:
         _, summary = run_eval(scenario_path, keyframes_path, video=video, out_dir=staging,
-                              fps=fps, use_env=use_env, scenario_label=str(scenario_path))
+                              fps=fps, use_env=use_env, scenario_label=str(scenario_path),
+                              keyframe_calib=keyframe_calib,
+                              keyframe_rate_hz=keyframe_rate_hz)
     return summary.replace(str(staging), str(out_dir))

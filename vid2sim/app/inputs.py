@@ -18,6 +18,9 @@ INPUT_ROLES: tuple[tuple[str, str], ...] = (
 #: The numbers that come with the inputs (manifest columns too).
 INPUT_NUMBERS: tuple[str, ...] = ("fps", "gps_offset_s", "ego_speed_mps")
 
+#: Options of tracklet keyframes, recorded only when given.
+KEYFRAME_OPTIONS: tuple[str, ...] = ("keyframe_calib", "keyframe_rate_hz")
+
 #: Fastest ego speed a user may assume without GPS [m/s] (250 km/h: beyond it the value is
 #: a unit mistake, e.g. km/h given as m/s).
 MAX_EGO_SPEED_MPS = 70.0
@@ -41,6 +44,10 @@ class Inputs:
     :param gps_offset_s: video time of the first GPS fix [s]: the GPS time base of every stage
         (trajectory and map matching alike); None = the file's own clock
     :param ego_speed_mps: the ego's assumed constant speed without GPS [m/s]
+    :param keyframe_calib: KITTI tracklet keyframes only: the folder of the drive's
+        ``calib_velo_to_cam.txt`` and ``calib_cam_to_cam.txt`` (default: the XML's folder)
+    :param keyframe_rate_hz: KITTI tracklet keyframes only: keyframes a second (default:
+        every frame)
     """
 
     video: Path | None = None
@@ -52,6 +59,8 @@ class Inputs:
     fps: float | None = None
     gps_offset_s: float | None = None
     ego_speed_mps: float = 0.0
+    keyframe_calib: Path | None = None
+    keyframe_rate_hz: float | None = None
 
     def paths(self) -> dict[str, Path]:
         """Role -> path of the inputs given, in :data:`INPUT_ROLES` order."""
@@ -83,6 +92,13 @@ class Inputs:
         if not 0 <= self.ego_speed_mps <= MAX_EGO_SPEED_MPS:
             raise ImpossibleValueError(None, f"ego speed must be 0-{MAX_EGO_SPEED_MPS:g} m/s, got "
                                        f"{self.ego_speed_mps:g}", "the unit is m/s")
+        if self.keyframe_calib is not None and not Path(self.keyframe_calib).is_dir():
+            raise MissingInputError(self.keyframe_calib, "no such folder",
+                                    "the folder of calib_velo_to_cam.txt and calib_cam_to_cam.txt")
+        if self.keyframe_rate_hz is not None and not (
+                math.isfinite(self.keyframe_rate_hz) and self.keyframe_rate_hz > 0):
+            raise ImpossibleValueError(None, f"keyframe rate must be a positive number of "
+                                       f"keyframes a second, got {self.keyframe_rate_hz:g}")
         if self.gps_offset_s is not None and abs(self.gps_offset_s) > MAX_GPS_OFFSET_S:
             raise ImpossibleValueError(
                 None, f"GPS offset {self.gps_offset_s:g} s is more than a day",
@@ -101,7 +117,7 @@ class Inputs:
         out: dict = {}
         for f in fields(self):
             value = getattr(self, f.name)
-            if f.name == "video":
+            if f.name == "video" or (f.name in KEYFRAME_OPTIONS and value is None):
                 continue
             out[f.name] = Path(value).name if isinstance(value, Path) else value
         return out

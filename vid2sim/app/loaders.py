@@ -9,17 +9,15 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from vid2sim.app.gpsinputs import load_trace, smooth_trace  # noqa: F401 - the GPS inputs
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.settings import Settings
 from vid2sim.base.errors import InconsistentInputError, MissingInputError
 from vid2sim.core.camera import Camera, fit_camera_to_frames, load_camera
 from vid2sim.core.records import (
     Detection,
-    EgoTrack,
-    GpsTrace,
     Keyframe,
     Note,
-    TraceStats,
     VideoInfo,
 )
 from vid2sim.core.videofile import image_files
@@ -28,8 +26,6 @@ from vid2sim.detect.vehicles.external import read_detections
 from vid2sim.detect.vehicles.models import resolve_model
 from vid2sim.detect.video import video_info
 from vid2sim.evaluate.annotations import read_keyframes
-from vid2sim.geo.readers import read_gps
-from vid2sim.geo.trace import smooth_ego
 
 
 def need_video(inputs: Inputs) -> Path:
@@ -105,22 +101,9 @@ def load_boxes(inputs: Inputs, settings: Settings
     return detector, None, label
 
 
-def load_trace(inputs: Inputs) -> GpsTrace:
-    """The GPS trace of ``inputs.gps`` (format detected from the content)."""
-    if inputs.gps is None:
-        raise MissingInputError(None, "no GPS trace given")
-    return read_gps(Path(inputs.gps))
-
-
-def smooth_trace(trace: GpsTrace, inputs: Inputs, settings: Settings
-                 ) -> tuple[EgoTrack, TraceStats]:
-    """The ego trajectory of a trace on the run's GPS time base (``inputs.gps_offset_s``)."""
-    return smooth_ego(trace, rate_hz=settings.rate_hz, gps_offset_s=inputs.gps_offset_s,
-                      params=settings.trace)
-
-
 def load_keyframes_for(keyframes: Path, video: Path, info: VideoInfo,
-                       fps: float | None = None) -> list[Keyframe]:
+                       fps: float | None = None, calib_dir: Path | None = None,
+                       rate_hz: float | None = None) -> list[Keyframe]:
     """The annotated keyframes on the video's frames, checked against the video.
 
     Frame numbers and times are read as the evaluation reads them (an image folder's frames
@@ -135,7 +118,8 @@ def load_keyframes_for(keyframes: Path, video: Path, info: VideoInfo,
     """
     rate = float(fps or info.fps)
     names = [p.name for p in image_files(video)] if Path(video).is_dir() else None
-    frames = read_keyframes(keyframes, fps=rate, frame_names=names)
+    frames = read_keyframes(keyframes, fps=rate, frame_names=names, calib_dir=calib_dir,
+                            rate_hz=rate_hz, image_size_px=(info.width, info.height))
     if not frames:
         raise InconsistentInputError(
             keyframes, "no annotated keyframe matches a frame of the video "

@@ -108,16 +108,17 @@ def lead_summary(result: RangingResult, n_frames: int) -> dict[str, float]:
 
 
 def detect_and_range_with(settings: Settings, inputs: Inputs, video: Path, camera, detector,
-                          imported, assign_lanes: bool = True):
+                          imported, assign_lanes: bool = True, ego_path=None):
     """The detection stage (:func:`vid2sim.detect.pipeline.detect_and_range`) with every one
-    of its settings from the run's tree: what ``track`` and ``build`` run."""
+    of its settings from the run's tree: what ``track`` and ``build`` run (``build`` with
+    GPS gives the ego's path: standing vehicles are ranged from its motion)."""
     return detect_and_range(
         video, camera, detector=detector, detections=imported,
         detect_every=settings.detector.detect_every, fps=inputs.fps,
         progress=settings.progress, config=settings.ranging,
         tracker_config=settings.tracker_config(), schedule=settings.schedule_config(),
         assign_lanes=assign_lanes, flow=settings.flow, markings=settings.markings,
-        lane_config=settings.lanes, rail=settings.rail)
+        lane_config=settings.lanes, rail=settings.rail, ego_path=ego_path)
 
 
 def run_track(inputs: Inputs, out_path: Path, settings: Settings | None = None,

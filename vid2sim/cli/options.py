@@ -116,6 +116,22 @@ def frame_source_options(fn):
     return fn
 
 
+def tracklet_options(fn):
+    """How KITTI raw tracklets become keyframes (``--keyframes tracklet_labels.xml``)."""
+    options = [
+        click.option("--keyframe-calib", "keyframe_calib", type=EXISTING_PATH, default=None,
+                     help="KITTI tracklet keyframes: the folder of the drive's "
+                          "calib_velo_to_cam.txt and calib_cam_to_cam.txt (default: the "
+                          "XML's folder)."),
+        click.option("--keyframe-rate", "keyframe_rate_hz",
+                     type=click.FloatRange(min=0, min_open=True), default=None,
+                     help="KITTI tracklet keyframes a second, e.g. 1 (default: every frame)."),
+    ]
+    for option in reversed(options):
+        fn = option(fn)
+    return fn
+
+
 _CONFIG_KEY = "vid2sim.config"
 
 

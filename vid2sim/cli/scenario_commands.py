@@ -18,6 +18,7 @@ from vid2sim.cli.options import (
     frame_source_options,
     settings_from,
     show_progress,
+    tracklet_options,
 )
 from vid2sim.detect.vehicles.models import DEFAULT_DETECTOR
 
@@ -27,23 +28,27 @@ from vid2sim.detect.vehicles.models import DEFAULT_DETECTOR
 @cli.command("eval")
 @click.argument("scenario_file", type=EXISTING_PATH)
 @click.option("--keyframes", "keyframes_path", type=EXISTING_PATH, required=True,
-              help="Annotated keyframes: Scalabel/BDD100K JSON, KITTI label_02 or CVAT XML.")
+              help="Annotated keyframes: Scalabel/BDD100K JSON, KITTI label_02, CVAT XML or "
+                   "KITTI raw tracklet_labels.xml.")
 @click.option("--video", type=EXISTING_PATH, default=None,
               help="The video (file or image folder) for overlays and frame-name matching.")
 @click.option("--fps", type=click.FloatRange(min=0.01, min_open=False), default=None,
               help="Video frame rate [frames/s] (default: the video's own, KITTI 10).")
 @click.option("--no-env", is_flag=True, help="Interpolate trajectories instead of replaying "
               "the scenario in the vid2sim/Replay-v0 environment.")
+@tracklet_options
 @click.option("--out", "out_dir", type=EXISTING_PATH, required=True,
               help="Output folder: metrics.json, keyframes/*.png, report.html.")
 def eval_(scenario_file: Path, keyframes_path: Path, video: Path | None, fps: float | None,
-          no_env: bool, out_dir: Path) -> None:
+          no_env: bool, keyframe_calib: Path | None, keyframe_rate_hz: float | None,
+          out_dir: Path) -> None:
     """Replay SCENARIO_FILE at annotated keyframes and score its vehicles by IoU."""
     from vid2sim.app.commands import run_eval_command
 
     check_out_dir(out_dir)
     echo(run_eval_command(scenario_file, keyframes_path, out_dir, video=video, fps=fps,
-                          use_env=not no_env))
+                          use_env=not no_env, keyframe_calib=keyframe_calib,
+                          keyframe_rate_hz=keyframe_rate_hz))
 
 
 # --------------------------------------------------------------------------- export
@@ -175,8 +180,9 @@ def render(build_dir: Path, video: Path | None, t_from: float | None, t_to: floa
 @detector_options
 @frame_source_options
 @click.option("--keyframes", type=EXISTING_PATH, default=None,
-              help="Annotated keyframes (Scalabel/BDD100K JSON, KITTI label_02, CVAT XML): "
-                   "replay evaluation and metrics.json.")
+              help="Annotated keyframes (Scalabel/BDD100K JSON, KITTI label_02, CVAT XML, "
+                   "KITTI raw tracklet_labels.xml): replay evaluation and metrics.json.")
+@tracklet_options
 @click.option("--ego-speed", "ego_speed_mps", type=click.FloatRange(min=0), default=0.0,
               show_default=True, help="Ego speed without --gps [m/s].")
 @click.option("--gps-offset", "gps_offset_s", type=float, default=None,
@@ -190,6 +196,7 @@ def render(build_dir: Path, video: Path | None, t_from: float | None, t_to: floa
 @config_option
 def build(videos: tuple[Path, ...], gps: Path | None, map_path: Path | None, camera_path: Path | None,
           detections_path: Path | None, fps: float | None, keyframes: Path | None,
+          keyframe_calib: Path | None, keyframe_rate_hz: float | None,
           ego_speed_mps: float, gps_offset_s: float | None, offline: bool,
           render_replay: bool, out_dir: Path, **detector) -> None:
     """Build a scenario from one video (or the consecutive segments of one drive, given as
@@ -201,7 +208,8 @@ def build(videos: tuple[Path, ...], gps: Path | None, map_path: Path | None, cam
     check_out_dir(out_dir)
     inputs = Inputs(video=videos[0], gps=gps, map=map_path, camera=camera_path,
                     detections=detections_path, keyframes=keyframes, fps=fps,
-                    gps_offset_s=gps_offset_s, ego_speed_mps=ego_speed_mps)
+                    gps_offset_s=gps_offset_s, ego_speed_mps=ego_speed_mps,
+                    keyframe_calib=keyframe_calib, keyframe_rate_hz=keyframe_rate_hz)
     result = build_drive(list(videos), inputs, out_dir,
                          settings_from(**detector, allow_download=not offline,
                                        render_replay=render_replay), report=echo)

@@ -37,7 +37,7 @@ from vid2sim.cli.options import (
 def trace(gps_file: Path, rate_hz: float, gps_offset_s: float | None, out_path: Path) -> None:
     """Read a GPS trace (GPX, NMEA, BDD100K JSON, KITTI OXTS, CSV) and write the smoothed
     ego trajectory."""
-    from vid2sim.app.commands import run_trace
+    from vid2sim.app.gpsroad import run_trace
 
     check_out_file(out_path, "ego.csv")
     echo(run_trace(Inputs(gps=gps_file, gps_offset_s=gps_offset_s), out_path,
@@ -66,7 +66,7 @@ def trace(gps_file: Path, rate_hz: float, gps_offset_s: float | None, out_path: 
 def road(gps_file: Path, map_path: Path | None, out_path: Path, plot_path: Path | None,
          gps_offset_s: float | None, no_download: bool, cache_dir: Path | None) -> None:
     """Match a GPS trace to OpenStreetMap and write the driven road with its lanes."""
-    from vid2sim.app.commands import run_road
+    from vid2sim.app.gpsroad import run_road
 
     check_out_file(out_path, "road.json")
     if plot_path is not None:

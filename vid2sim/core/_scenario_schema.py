@@ -61,6 +61,14 @@ MAX_EVENTS = 100_000
 EVENT_TIME_TOLERANCE_S = 0.5
 
 
+#: Largest |ground height| of an actor off the ego's road plane [m]: kerbs, banks and crowns
+#: reach a metre; beyond it a value is no road surface.
+MAX_GROUND_M = 5.0
+#: What found a static actor standing: the ranging's fit from the ego's motion, the
+#: assembly's hold of a slow track, or the road layout's of a slow one off the lanes.
+STATIC_BY = ("ranging", "assembly", "road layout")
+
+
 def _require(d: Any, key: str, kind: type | tuple[type, ...], where: str, path) -> Any:
     if not isinstance(d, dict) or key not in d:
         raise ScenarioError(path, f"{where}{key}", "missing")
@@ -249,6 +257,10 @@ def _validate_actors(actors: list, n_points: int, path) -> None:
                                 f"(one of {', '.join(VEHICLE_CATEGORIES)})")
         if "static" in actor:
             _require(actor, "static", bool, w, path)
+        if "ground_m" in actor:
+            _number(actor, "ground_m", w, path, -MAX_GROUND_M, MAX_GROUND_M)
+        if "static_by" in actor and actor["static_by"] not in STATIC_BY:
+            raise ScenarioError(path, f"{w}static_by", f"must be one of {', '.join(STATIC_BY)}")
         _validate_box(actor, w, path)
         traj = _require(actor, "trajectory", list, w, path)
         if n_points + len(traj) > MAX_TRAJECTORY_POINTS:

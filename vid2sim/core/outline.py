@@ -262,12 +262,13 @@ def vehicle_points(center_veh_m: np.ndarray, length_m: float, width_m: float, he
 
 def outline_boxes(camera: Camera, range_m: np.ndarray, lateral_m: np.ndarray,
                   width_m: np.ndarray, height_m: np.ndarray, length_m: np.ndarray,
-                  shape_rows: np.ndarray, yaw_rad: np.ndarray | float = 0.0
-                  ) -> np.ndarray:
+                  shape_rows: np.ndarray, yaw_rad: np.ndarray | float = 0.0,
+                  z_m: np.ndarray | float = 0.0) -> np.ndarray:
     """(N, 4) pixel boxes (u1, v1, u2, v2) spanned by the vehicles' outlines (unclipped; NaN
-    where a point lies behind the camera); ``shape_rows`` from :func:`shape_matrix`."""
+    where a point lies behind the camera); ``shape_rows`` from :func:`shape_matrix`; ``z_m``
+    the height of the ground each vehicle stands on above the ego's road plane [m]."""
     pts = place_points(outline_points(width_m, height_m, length_m, shape_rows), range_m,
-                       lateral_m, length_m, yaw_rad)
+                       lateral_m, length_m, yaw_rad, z_m)
     n, p, _ = pts.shape
     if any(camera.dist):
         uv, _ = camera.project(pts.reshape(-1, 3))

@@ -25,7 +25,6 @@ from vid2sim.core.vocabulary import (  # noqa: F401  part of the records' vocabu
 
 # --------------------------------------------------------------------------- notes
 
-
 class NoteKind(str, Enum):
     """What a line for the user is."""
 
@@ -463,7 +462,8 @@ class RangingResult:
     :param horizon_y_px: image row of the road's vanishing line used for ranging [px]
     :param horizon_source: "lane markings", "vehicle consistency" or "camera file"
     :param width_m_by_track: estimated width of each track's vehicle [m]
-    :param warnings: :class:`Note` lines (warnings, and estimates such as the horizon's)
+    :param warnings: :class:`Note` lines (warnings, estimates); ground_m_by_track: (height
+        over the ego's road, spread [m], source) per track
     """
 
     boxes: list[RangedBox]
@@ -474,12 +474,12 @@ class RangingResult:
     warnings: list[str] = field(default_factory=list)
     #: the ego lane measured from the lane markings while the frames streamed, if it was
     lanes: LaneTrack | None = None
-    #: tracks that may never be the lead whatever their lane (trams on their own track bed,
-    #: :mod:`vid2sim.detect.rail`); every later lane assignment keeps them out
+    #: tracks never the lead whatever their lane (trams on their own bed, detect.rail)
     never_lead_tracks: frozenset[int] = frozenset()
-    #: the time of every frame the detection streamed (0-based index -> s, the container's
-    #: clock; skipped frames absent), when it was recorded
+    #: every streamed frame's time (index -> s, the container's clock; skipped frames absent)
     frame_times_s: dict[int, float] | None = None
+    ground_m_by_track: dict[int, tuple[float, float, str]] = field(default_factory=dict)
+    standing_tracks: frozenset[int] = frozenset()  # ranged from the ego's own motion
 
 
 #: What an event is (scenario.json's ``events``, :mod:`vid2sim.core.scenario`).
@@ -597,3 +597,4 @@ class RoadResult:
     warnings: list[str] = field(default_factory=list)
     #: ENU polylines [m] of the drivable OSM ways near the trace, for pictures only
     map_polylines: list = field(default_factory=list)
+    route_lines: list = field(default_factory=list)  # per road (route [m], span): cover_points

@@ -11,7 +11,13 @@ Every exporter and evaluator reads this file; the field names are a contract:
   driving lanes of ``lane_width_m`` centred on the centerline
 - ``ego``: ``{length_m, width_m, height_m, trajectory}``
 - ``actors``: ``[{id, category, length_m, width_m, height_m, trajectory}]``, and
-  ``static: true`` for a vehicle that stood still (parked) and is replayed standing
+  ``static: true`` for a vehicle that stood still (parked) and is replayed standing, with
+  ``static_by``: ``"ranging"`` (the ranging fitted its track as one standing vehicle seen
+  from the ego's measured motion), ``"assembly"`` (its world speed stayed below a share of
+  the ego's: the assembly's hold of a monocular range's scale error) or ``"road layout"``
+  (off the driving lanes and slower than the ego: held by the road's cross-section); and
+  ``ground_m``: the height of the ground the vehicle stands on above the ego's road plane
+  (the ranging's measurement; absent: 0)
 - trajectories: ``[{t, x, y, heading, speed}]`` with ``t`` seconds from the video's first
   frame, ``x``/``y`` ENU metres, ``heading`` radians counter-clockwise from east, ``speed`` m/s
 - ``camera``: the camera record (see :mod:`vid2sim.core.camera`)
@@ -50,6 +56,7 @@ from vid2sim.core._scenario_schema import (  # noqa: F401  the schema's limits, 
     MAX_SCENARIO_BYTES,
     MAX_TRAJECTORY_POINTS,
     SCHEMA,
+    STATIC_BY,
     VERSION,
     validate,
 )
@@ -182,7 +189,9 @@ class Ego:
 @dataclass(slots=True)
 class Actor:
     """A recorded vehicle. ``static``: it stood still (a parked car) and is replayed
-    standing where it was seen."""
+    standing where it was seen; ``static_by``: what found it standing (:data:`STATIC_BY`);
+    ``ground_m``: the height of the ground it stands on above the ego's road plane [m] (the
+    ranging's)."""
 
     id: str
     category: VehicleCategory
@@ -191,6 +200,8 @@ class Actor:
     height_m: float
     trajectory: Trajectory
     static: bool = False
+    static_by: str | None = None
+    ground_m: float = 0.0
 
     def __post_init__(self) -> None:
         self.category = VehicleCategory(self.category)  # a ValueError for an unknown one
@@ -201,6 +212,10 @@ class Actor:
                "trajectory": self.trajectory.to_json()}
         if self.static:
             out["static"] = True
+            if self.static_by:
+                out["static_by"] = self.static_by
+        if self.ground_m:
+            out["ground_m"] = self.ground_m
         return out
 
 
@@ -316,7 +331,8 @@ def from_json(data: dict[str, Any], path: str | Path | None = None) -> Scenario:
             Actor(str(a["id"]), VehicleCategory(a["category"]), float(a["length_m"]),
                   float(a["width_m"]),
                   float(a["height_m"]), Trajectory.from_json(a["trajectory"]),
-                  static=bool(a.get("static", False)))
+                  static=bool(a.get("static", False)), static_by=a.get("static_by"),
+                  ground_m=float(a.get("ground_m", 0.0)))
             for a in data["actors"]
         ],
         camera=dict(data["camera"]),

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from vid2sim.base.errors import ImpossibleValueError, InconsistentInputError
-from vid2sim.core.camera import Camera
+from vid2sim.core.camera import Camera, PitchSource
 from vid2sim.core.records import (
     Detection,
     Frame,
@@ -33,6 +33,7 @@ from vid2sim.detect.lanes.track import LaneTrackConfig, track_lanes
 from vid2sim.detect.lanes.vanishing import HorizonEstimator, yaw_for_vanishing_column
 from vid2sim.detect.rail import RailConfig, find_rail_tracks, keep_trams_from_lead, relabel
 from vid2sim.detect.ranging import (
+    EgoPath,
     RangingConfig,
     choose_horizon,
     pitch_for_horizon,
@@ -321,7 +322,8 @@ def detect_and_range(video: Path, camera: Camera, *, detector, detections=None,
                      schedule: ScheduleConfig | None = None, stats: dict | None = None,
                      lane_every: int | None = None, assign_lanes: bool = True,
                      flow: FlowConfig | None = None, markings: LaneMarkingConfig | None = None,
-                     lane_config: LaneTrackConfig | None = None, rail: RailConfig | None = None
+                     lane_config: LaneTrackConfig | None = None, rail: RailConfig | None = None,
+                     ego_path: EgoPath | None = None
                      ) -> tuple[RangingResult, Camera, list[Note]]:
     """Detect (or import), track and range every vehicle of a video: the shared core of
     ``vid2sim track`` and ``vid2sim build``.
@@ -357,6 +359,11 @@ def detect_and_range(video: Path, camera: Camera, *, detector, detections=None,
     flow, markings, lane_config, rail : optional
         The optical flow between keyframes, the lane-marking measurement, the lane track and
         the tram search settings (their classes' defaults otherwise).
+    ego_path : EgoPath, optional
+        The ego's trajectory (``vid2sim build`` with GPS): standing vehicles are then ranged
+        from the ego's own motion (:mod:`vid2sim.detect.ranging.surface`). Its direction of
+        travel starts from the camera file's axis (the body's, when the lane markings turned
+        the camera towards their vanishing point) and is refined from the standing vehicles.
 
     Returns
     -------
@@ -387,7 +394,8 @@ def detect_and_range(video: Path, camera: Camera, *, detector, detections=None,
     lanes = track_lanes(lanes_seen.observations, math.radians(camera.yaw_deg - yaw_before),
                         lane_config)
     config = config or RangingConfig()
-    result = _range_with_trams(boxes, camera, config, lanes, lanes_seen.horizon, rail, notes)
+    result = _range_with_trams(boxes, camera, config, lanes, lanes_seen.horizon, rail, notes,
+                               ego_path, yaw_before)
     # A fast video is ranged on its analysed frames, its other frames filled after.
     result.boxes = fill_between(result.boxes, frame_times, step)
     result.frame_times_s = frame_times
@@ -434,19 +442,25 @@ def _yaw_from_lanes(camera: Camera, horizon: HorizonEstimator, notes: list[Note]
 
 def _range_with_trams(boxes: list[TrackedBox], camera: Camera, config: RangingConfig,
                       lanes: LaneTrack, horizon: HorizonEstimator, rail: RailConfig | None,
-                      notes: list[Note]) -> RangingResult:
+                      notes: list[Note], ego_path: EgoPath | None,
+                      yaw_before: float) -> RangingResult:
     """Trams first (the detector's, and tall vehicles beyond the kerb), at the pitch the
     ranging will estimate, so that each is ranged once with the tram's size; then every
-    track ranged, trams kept from the lead."""
+    track ranged (standing vehicles from the ego's motion, with ``ego_path``: its travel
+    along the camera file's axis, ``yaw_before``, when a camera file states the mounting),
+    trams kept from the lead."""
     chosen = choose_horizon(boxes, camera, config, horizon.rows_px)
     rail_tracks = find_rail_tracks(boxes, lanes, camera.with_pitch(
         pitch_for_horizon(camera, chosen[0])), rail)
     if rail_tracks.relabelled:
         # the trams' sizes change the vehicles' horizon: ranging chooses it again
         boxes, chosen = relabel(boxes, rail_tracks.relabelled), None
+    if ego_path is not None and camera.pitch_source is not PitchSource.DEFAULT:
+        # a camera file states the mounting: the body (and its travel) lies along its axis
+        ego_path = replace(ego_path, travel_yaw_rad=math.radians(camera.yaw_deg - yaw_before))
     result = range_tracks(boxes, camera, horizon_hints_px=horizon.rows_px,
                           horizon_hint_frames=horizon.frames, config=config, lanes=lanes,
-                          horizon=chosen)
+                          horizon=chosen, ego_path=ego_path)
     result, rail_notes = keep_trams_from_lead(result, rail_tracks)
     notes.extend(rail_notes)
     return result

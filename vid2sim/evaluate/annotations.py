@@ -1,4 +1,5 @@
-"""Read annotated keyframes (Scalabel/BDD100K JSON, KITTI tracking label_02, CVAT for video XML).
+"""Read annotated keyframes (Scalabel/BDD100K JSON, KITTI tracking label_02, CVAT for video XML,
+KITTI raw tracklet XML).
 
 Every reader returns :class:`~vid2sim.core.records.Keyframe` records on the scenario clock
 (seconds from the video's first frame) holding vehicle boxes and ignore regions only.
@@ -40,6 +41,7 @@ from vid2sim.base.errors import (
 )
 from vid2sim.base.fileio import check_input_size, parse_json
 from vid2sim.core.records import AnnotatedBox, Keyframe, VehicleCategory
+from vid2sim.evaluate.tracklet_keyframes import is_tracklet_xml, read_tracklet_keyframes
 
 log = logging.getLogger(__name__)
 
@@ -80,13 +82,16 @@ def normalise_category(name: str) -> tuple[VehicleCategory | str, bool] | None:
 
 def read_keyframes(path: str | Path, *, fps: float | None = None,
                    frame_names: list[str] | None = None,
-                   labelled_only: bool = False) -> list[Keyframe]:
+                   labelled_only: bool = False, calib_dir: Path | None = None,
+                   rate_hz: float | None = None,
+                   image_size_px: tuple[int, int] | None = None) -> list[Keyframe]:
     """Read annotated keyframes; the format is detected from the file's content.
 
     Parameters
     ----------
     path : str or Path
-        Scalabel/BDD100K JSON, KITTI tracking ``label_02/SSSS.txt`` or CVAT for video XML.
+        Scalabel/BDD100K JSON, KITTI tracking ``label_02/SSSS.txt``, CVAT for video XML or
+        a KITTI raw ``tracklet_labels.xml`` (:mod:`vid2sim.evaluate.tracklet_keyframes`).
     fps : float, optional
         Video frame rate [frames/s] that turns frame numbers into ``t_s``. Needed for frame
         numbers in Scalabel and CVAT files; KITTI defaults to 10 (its camera rate).
@@ -95,6 +100,13 @@ def read_keyframes(path: str | Path, *, fps: float | None = None,
         are matched to them by name (see the module docstring) and others dropped.
     labelled_only : bool
         Keep only frames carrying at least one vehicle box (not just ignore regions).
+    calib_dir : Path, optional
+        Tracklets only: the folder of the drive's ``calib_velo_to_cam.txt`` and
+        ``calib_cam_to_cam.txt`` (default: the XML's own folder).
+    rate_hz : float, optional
+        Tracklets only: keyframes a second (default: every frame).
+    image_size_px : (int, int), optional
+        Tracklets only: the video's frame size, to which the projected boxes are clipped.
 
     Returns
     -------
@@ -124,13 +136,18 @@ def read_keyframes(path: str | Path, *, fps: float | None = None,
     head = text.lstrip()[:1]
     if head in ("[", "{"):
         frames = _read_scalabel(text, path, fps, frame_names)
+    elif head == "<" and is_tracklet_xml(text):
+        frames = read_tracklet_keyframes(text, path, fps=KITTI_FPS if fps is None else fps,
+                                         calib_dir=calib_dir, rate_hz=rate_hz,
+                                         image_size_px=image_size_px)
     elif head == "<":
         frames = _read_cvat(text, path, fps, frame_names)
     elif head and head[0].isdigit():
         frames = _read_kitti(text, path, fps, frame_names)
     else:
         raise FormatError(path, "unknown annotation format",
-                          "expected Scalabel/BDD100K JSON, KITTI label_02 text or CVAT XML")
+                          "expected Scalabel/BDD100K JSON, KITTI label_02 text, CVAT XML or KITTI "
+                          "tracklet XML")
     if labelled_only:
         frames = [k for k in frames if any(not b.ignore for b in k.boxes)]
     frames.sort(key=lambda k: (k.t_s, k.name))

@@ -50,6 +50,11 @@ from vid2sim.evaluate.annotations import describe, read_keyframes
 from vid2sim.evaluate.metrics import score_keyframes
 from vid2sim.evaluate.projection import NEAR_PLANE_M, BoxView, project_box_clipped  # noqa: F401
 from vid2sim.evaluate.report import write_report
+from vid2sim.evaluate.tracklet_keyframes import (
+    CUBOID_PROJECTION,
+    OUTLINE_PROJECTION,
+    is_tracklet_file,
+)
 
 log = logging.getLogger(__name__)
 
@@ -190,7 +195,8 @@ def boxes_at(scenario: Scenario, camera: Camera, ego: tuple[float, float, float]
             continue
         ax, ay, ah = actors[a.id]
         dx, dy = ax - ex, ay - ey
-        center = np.array([c * dx + s * dy, -s * dx + c * dy, 0.0])
+        # on the ground it stands on (the ranging measured it beside the ego's road plane)
+        center = np.array([c * dx + s * dy, -s * dx + c * dy, a.ground_m])
         view = project_box_clipped(camera, center, a.length_m, a.width_m, a.height_m, ah - eh,
                                    outline=outlines and outlines.get(a.category, CAR_SHAPE))
         if view is not None:
@@ -302,7 +308,9 @@ def run_eval(scenario_path: str | Path, keyframes_path: str | Path, *, video: Pa
              extra_figures: list[tuple[str, bytes | Path]] | None = None,
              extra_warnings: list[str] | None = None, report_inputs: dict | None = None,
              scenario_label: str | None = None,
-             outlines: dict[str, OutlineShape] | None = CLASS_SHAPES) -> tuple[dict, str]:
+             outlines: dict[str, OutlineShape] | None = CLASS_SHAPES,
+             keyframe_calib: Path | None = None,
+             keyframe_rate_hz: float | None = None) -> tuple[dict, str]:
     """Replay a scenario at its annotated keyframes and score it.
 
     Writes ``out_dir/metrics.json``, ``out_dir/keyframes/*.png`` (overlays) and
@@ -333,6 +341,12 @@ def run_eval(scenario_path: str | Path, keyframes_path: str | Path, *, video: Pa
         final path here), default ``scenario_path``.
     outlines : dict, optional
         Per-category vehicle outlines to project (see :func:`replay_boxes`); None: 3D boxes.
+        Against KITTI tracklet keyframes (projected lidar cuboids) the vehicles are always
+        projected as 3D boxes, cuboid hull against cuboid hull; ``metrics["projection"]``
+        says which projection was used.
+    keyframe_calib, keyframe_rate_hz : optional
+        Tracklet keyframes only: calibration folder and keyframes a second (see
+        :func:`vid2sim.evaluate.annotations.read_keyframes`).
 
     Returns
     -------
@@ -345,7 +359,11 @@ def run_eval(scenario_path: str | Path, keyframes_path: str | Path, *, video: Pa
     warnings: list[str] = []  # this stage's, in metrics.json and the summary
     camera, frame_names, video_fps = _camera_and_frames(scenario, scenario_path, video, warnings)
     rate = _frame_rate(fps, video_fps, scenario, video, warnings)
-    keyframes = _keyframes_on_the_clock(keyframes_path, rate, frame_names, scenario, warnings)
+    keyframes = _keyframes_on_the_clock(keyframes_path, rate, frame_names, scenario, warnings,
+                                        camera, keyframe_calib, keyframe_rate_hz)
+    cuboids = is_tracklet_file(keyframes_path)
+    if cuboids:  # lidar cuboids are scored against the replay's cuboids
+        outlines = None
     env_used = use_env and _env_available()
     if use_env and not env_used:
         warnings.append(f"{ENV_ID} not available: vehicle poses interpolated from the "
@@ -354,6 +372,8 @@ def run_eval(scenario_path: str | Path, keyframes_path: str | Path, *, video: Pa
     boxes = replay_boxes(scenario, times, use_env=env_used, camera=camera, outlines=outlines)
     metrics = score_keyframes(keyframes, boxes)
     metrics["replay"] = "gymnasium " + ENV_ID if env_used else "trajectory interpolation"
+    metrics["projection"] = (CUBOID_PROJECTION if outlines is None and cuboids else
+                             "3D box hull" if outlines is None else OUTLINE_PROJECTION)
     metrics["inputs"] = {"scenario": scenario_label or str(scenario_path),
                          "keyframes": str(keyframes_path),
                          "video": str(video) if video is not None else None, "fps": rate}
@@ -397,10 +417,15 @@ def _frame_rate(fps: float | None, video_fps: float | None, scenario: Scenario,
 
 def _keyframes_on_the_clock(keyframes_path: Path, rate: float | None,
                             frame_names: list[str] | None, scenario: Scenario,
-                            warnings: list[str]) -> list[Keyframe]:
+                            warnings: list[str], camera: Camera, calib_dir: Path | None,
+                            rate_hz: float | None) -> list[Keyframe]:
     """The annotated keyframes, each with its video frame (timestamps give times, the rate
-    the frame to seek); those outside the scenario's time span noted in ``warnings``."""
-    keyframes = read_keyframes(keyframes_path, fps=rate, frame_names=frame_names)
+    the frame to seek); those outside the scenario's time span noted in ``warnings``.
+    A tracklet file's cuboids are projected through ``calib_dir``'s calibration into the
+    camera's image, sampled at ``rate_hz``."""
+    keyframes = read_keyframes(keyframes_path, fps=rate, frame_names=frame_names,
+                               calib_dir=calib_dir, rate_hz=rate_hz,
+                               image_size_px=(camera.image_width, camera.image_height))
     if rate is not None:
         for k in keyframes:
             if k.frame is None:
@@ -464,6 +489,7 @@ def _summary(m: dict, keyframes: list[Keyframe], out_dir: Path) -> str:
          f"  recall {_fmt(m['recall'])}  F1 {_fmt(m['f1'])}  mean IoU {_fmt(m['mean_iou'])}"),
         (f"reference: TP {ref['tp']}  FP {ref['fp']}  FN {ref['fn']}  precision "
          f"{_fmt(ref['precision'])}  recall {_fmt(ref['recall'])}  F1 {_fmt(ref['f1'])}"),
+        f"projection: {m.get('projection', 'n/a')}",
     ]
     if rng["pairs"]:
         lines.append(f"range error: {rng['pairs']} pairs, mean |e| {rng['mean_abs_m']:.2f} m, "

@@ -302,6 +302,9 @@ def _metrics_html(m: dict) -> str:
                    f"<td>{_num(ref.get('precision'))}</td><td>{_num(ref.get('recall'))}</td>"
                    f"<td>{_num(ref.get('f1'))}</td><td>{_num(ref.get('mean_iou'))}</td></tr>")
     out.append("</table>")
+    if m.get("projection"):
+        out.append(f"<p class='small'>Simulated vehicles projected as: "
+                   f"{_e(m['projection'])}; replay: {_e(m.get('replay', ''))}.</p>")
     if rng.get("pairs"):
         out.append("<table><tr><th class='l'>range error (simulated - annotated)</th>"
                    "<th>pairs</th><th>mean |e| [m]</th><th>median |e| [m]</th><th>RMSE [m]</th>"

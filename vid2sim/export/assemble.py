@@ -321,7 +321,8 @@ def _dimensions(rows: list[RangedBox], cfg: AssembleConfig, warnings: list[str],
 def _actor_from_rows(rows: list[RangedBox], actor_id: str, ego: EgoTrack, cfg: AssembleConfig,
                      warnings: list[str], roads: list[Road] | RoadAxis | None = None,
                      ego_heading_unwrapped: np.ndarray | None = None,
-                     hold_static: bool = False) -> Actor:
+                     hold_static: bool = False, standing: bool = False,
+                     ground_m: float = 0.0) -> Actor:
     category, length, width, height = _dimensions(rows, cfg, warnings, actor_id)
     t = np.array([r.t_s for r in rows], float)
     xe, ye, he = _ego_pose_at(ego, t, ego_heading_unwrapped)
@@ -332,7 +333,9 @@ def _actor_from_rows(rows: list[RangedBox], actor_id: str, ego: EgoTrack, cfg: A
     y = ye + np.sin(he) * fwd + np.cos(he) * lft
     xs, vx = local_linear_smooth(t, x, cfg.smooth_sigma_s)
     ys, vy = local_linear_smooth(t, y, cfg.smooth_sigma_s)
-    if hold_static and is_static(np.hypot(vx, vy), np.interp(t, ego.t_s, ego.speed_mps), cfg):
+    held = (hold_static and not standing
+            and is_static(np.hypot(vx, vy), np.interp(t, ego.t_s, ego.speed_mps), cfg))
+    if standing or held:
         # Held still where it was seen best (see the module docstring).
         wts = 1.0 / np.maximum(np.array([r.range_std_m for r in rows], float), 0.1) ** 2
         wts = np.where(np.isfinite(wts), wts, 0.0) + 1e-12
@@ -345,7 +348,8 @@ def _actor_from_rows(rows: list[RangedBox], actor_id: str, ego: EgoTrack, cfg: A
         heading = np.full_like(xs, float(he[0]))
         return Actor(id=actor_id, category=category, length_m=length, width_m=width,
                      height_m=height, trajectory=Trajectory(t, xs, ys, heading, np.zeros_like(t)),
-                     static=True)
+                     static=True, static_by="ranging" if standing else "assembly",
+                     ground_m=ground_m)
     if roads and cfg.max_yaw_from_road_deg < 180.0:
         axis = roads if isinstance(roads, RoadAxis) else RoadAxis(roads)
         heading = heading_along_road(vx, vy, axis.heading_at(xs, ys), cfg)
@@ -353,18 +357,25 @@ def _actor_from_rows(rows: list[RangedBox], actor_id: str, ego: EgoTrack, cfg: A
         heading = heading_from_motion(vx, vy, he, cfg.stationary_speed_mps)
     speed = np.hypot(vx, vy)
     return Actor(id=actor_id, category=category, length_m=length, width_m=width,
-                 height_m=height, trajectory=Trajectory(t, xs, ys, heading, speed))
+                 height_m=height, trajectory=Trajectory(t, xs, ys, heading, speed),
+                 ground_m=ground_m)
 
 
 def actors_from_tracks(tracks: list[RangedBox], ego: EgoTrack,
                        config: AssembleConfig | None = None, roads: list[Road] | None = None,
-                       ego_noise_m: float | None = None) -> tuple[list[Actor], list[str]]:
+                       ego_noise_m: float | None = None,
+                       standing_tracks: frozenset[int] = frozenset(),
+                       ground_m_by_track: dict[int, float] | None = None
+                       ) -> tuple[list[Actor], list[str]]:
     """World trajectories of tracked vehicles (see the module docstring); also warnings.
 
     With ``roads``, headings are regularised by the road axis (:func:`heading_along_road`);
-    without, they are the plain direction of motion (:func:`heading_from_motion`). Static
-    vehicles are held still only when the ego trajectory's position noise ``ego_noise_m`` is
-    known and at most ``static_max_ego_noise_m``."""
+    without, they are the plain direction of motion (:func:`heading_from_motion`). Tracks the
+    ranging fitted as standing vehicles from the ego's motion (``standing_tracks``) stand
+    still (``static_by`` "ranging"); the others are held still by the speed rule only when
+    the ego trajectory's position noise ``ego_noise_m`` is known and at most
+    ``static_max_ego_noise_m`` (``static_by`` "assembly"). ``ground_m_by_track``: the height
+    of the ground under each track above the ego's road (the ranging's), kept per actor."""
     cfg = config or AssembleConfig()
     hold = ego_noise_m is not None and ego_noise_m <= cfg.static_max_ego_noise_m
     warnings: list[str] = []
@@ -392,8 +403,10 @@ def actors_from_tracks(tracks: list[RangedBox], ego: EgoTrack,
             if rows[0].t_s < t_lo - 0.5 or rows[-1].t_s > t_hi + 0.5:
                 warnings.append(f"track {actor_id}: seen outside the ego trajectory's time span "
                                 f"[{t_lo:.1f}, {t_hi:.1f}] s; ego pose held at the ends")
-            actors.append(_actor_from_rows(rows, actor_id, ego, cfg, warnings, axis,
-                                           ego_heading, hold))
+            actors.append(_actor_from_rows(
+                rows, actor_id, ego, cfg, warnings, axis, ego_heading, hold,
+                track_id in standing_tracks, round(float((ground_m_by_track or {}).get(
+                    track_id, 0.0)), 3)))
     if n_short:
         warnings.append(f"{n_short} track pieces seen for less than {cfg.min_seen_s:g} s dropped")
     return actors, warnings
@@ -413,7 +426,10 @@ def ego_from_track(ego: EgoTrack, config: AssembleConfig | None = None) -> Ego:
 def assemble_scenario(ego: EgoTrack, roads: list[Road], tracks: list[RangedBox] | None,
                       camera: Camera, *, source: Source,
                       config: AssembleConfig | None = None,
-                      ego_noise_m: float | None = None) -> tuple[Scenario, list[str]]:
+                      ego_noise_m: float | None = None,
+                      standing_tracks: frozenset[int] = frozenset(),
+                      ground_m_by_track: dict[int, float] | None = None
+                      ) -> tuple[Scenario, list[str]]:
     """Build the scenario from the pipeline's records.
 
     Parameters
@@ -432,6 +448,11 @@ def assemble_scenario(ego: EgoTrack, roads: list[Road], tracks: list[RangedBox] 
     ego_noise_m : float, optional
         One-sigma position noise of the ego trajectory [m] (None: unknown, e.g. no GPS);
         static vehicles are held still only below ``config.static_max_ego_noise_m``.
+    standing_tracks : frozenset of int
+        Tracks the ranging fitted as standing vehicles from the ego's own motion
+        (:attr:`vid2sim.core.records.RangingResult.standing_tracks`): replayed standing.
+    ground_m_by_track : dict, optional
+        Track id -> height of the ground it stands on above the ego's road [m].
 
     Returns
     -------
@@ -456,7 +477,8 @@ def assemble_scenario(ego: EgoTrack, roads: list[Road], tracks: list[RangedBox] 
         warnings.append(note)
     actors: list[Actor] = []
     if tracks:
-        actors, track_warnings = actors_from_tracks(tracks, ego, cfg, roads, ego_noise_m)
+        actors, track_warnings = actors_from_tracks(tracks, ego, cfg, roads, ego_noise_m,
+                                                    standing_tracks, ground_m_by_track)
         warnings.extend(track_warnings)
         assumptions.append(
             f"actor dimensions from class priors {sorted(str(c) for c in cfg.class_priors_m)} (length, height) "

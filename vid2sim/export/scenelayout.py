@@ -284,8 +284,9 @@ def lay_out_scene(scenario: Scenario, lateral: EgoLateral | None,
     # cross-section again with them (they may line a strip or fill a car park)
     held = off_road_standing(scenario.actors, offsets, inference.section, ego_speed_at, cfg)
     if held:
-        scenario = replace(scenario, actors=[replace(a, static=True) if a.id in held else a
-                                             for a in scenario.actors])
+        scenario = replace(scenario, actors=[
+            replace(a, static=True, static_by="road layout") if a.id in held else a
+            for a in scenario.actors])
         vehicles = standing_vehicles(scenario.actors, offsets, ego_speed_at, cfg)
         inference = infer_cross_section(lines, vehicles, width, ego_lane, anchor, prior,
                                         road.highway, cfg.cross_section)

@@ -1,5 +1,6 @@
 """Positions along a matched route: the along-route smoother, trimming a route to its fixes,
-signed lateral offsets from a polyline and joining edge geometries."""
+signed lateral offsets from a polyline, cutting a polyline to a span and joining edge
+geometries."""
 
 from __future__ import annotations
 
@@ -92,6 +93,23 @@ def trim_route(net: RoadNetwork, piece: list[int], s_m: np.ndarray, min_cover_m:
         last -= 1
     last = max(last, first)
     return piece[first:last + 1], s_m - starts[first]
+
+
+def sub_polyline(xy_m: np.ndarray, start_m: float, end_m: float) -> np.ndarray:
+    """The part of a polyline from arc length ``start_m`` to ``end_m`` (clamped to the line),
+    its two ends interpolated on the line; a single point where the part has no length."""
+    xy = np.asarray(xy_m, float).reshape(-1, 2)
+    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
+    start = float(np.clip(start_m, 0.0, s[-1]))
+    end = float(np.clip(end_m, start, s[-1]))
+
+    def at(v: float) -> np.ndarray:
+        return np.array([np.interp(v, s, xy[:, 0]), np.interp(v, s, xy[:, 1])])
+
+    if end <= start:
+        return at(start)[None, :]
+    inner = xy[(s > start) & (s < end)]
+    return np.vstack([at(start), inner, at(end)])
 
 
 def join_xy(net: RoadNetwork, edges: list[int]) -> np.ndarray:

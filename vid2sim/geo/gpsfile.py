@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
-import itertools
 import math
 from dataclasses import replace
 from pathlib import Path
+
+import numpy as np
 
 from vid2sim.base.errors import (
     FormatError,
@@ -15,6 +16,7 @@ from vid2sim.base.errors import (
 )
 from vid2sim.base.fileio import check_input_size
 from vid2sim.core.records import GpsFix, GpsTrace
+from vid2sim.geo.clockcheck import local_xy, repair_clock
 
 KNOTS_TO_MPS = 1852.0 / 3600.0
 # A receiver's user-equivalent range error: horizontal one-sigma accuracy ~ HDOP x UERE.
@@ -42,7 +44,9 @@ ALTITUDE_RANGE_M = (-1000.0, 10000.0)
 def finish_trace(fixes: list[GpsFix], fmt: str, path: Path, n_skipped: int = 0,
             warnings: list[str] | None = None,
             video_start_utc_s: float | None = None) -> GpsTrace:
-    """Validate ranges, sort by time, drop duplicate times, and wrap into a GpsTrace."""
+    """Validate ranges, put the fixes on one clock in time order (late records sorted in, a
+    jumping clock re-timed, one fix per time: :mod:`vid2sim.geo.clockcheck`), wrap into a
+    GpsTrace."""
     warnings = list(warnings or [])
     if not fixes:
         raise FormatError(path, f"no usable GPS fixes in this {fmt} file"
@@ -61,31 +65,32 @@ def finish_trace(fixes: list[GpsFix], fmt: str, path: Path, n_skipped: int = 0,
                              "year 2286)", "times are seconds (or ms, ISO 8601) since the epoch")
     fixes = [f if f.alt_m is None or ALTITUDE_RANGE_M[0] <= f.alt_m <= ALTITUDE_RANGE_M[1]
              else replace(f, alt_m=None) for f in fixes]
-    times = [f.t_utc_s for f in fixes]
-    if any(b < a for a, b in itertools.pairwise(times)):
-        warnings.append("fixes were not in time order; sorted them by time")
-        fixes = sorted(fixes, key=lambda f: f.t_utc_s)
-    unique: list[GpsFix] = [fixes[0]]
-    n_dup = 0
-    for f in fixes[1:]:
-        # Loggers repeat a fix (same time) when the receiver has no new one; keep the first.
-        if f.t_utc_s <= unique[-1].t_utc_s:
-            n_dup += 1
-            continue
-        unique.append(f)
-    if n_dup:
-        warnings.append(f"dropped {n_dup} fixes repeating an earlier time")
+    fixes, n_dup = _on_one_clock(fixes, path, warnings)
     if video_start_utc_s is not None and not (math.isfinite(video_start_utc_s)
                                               and abs(video_start_utc_s) <= MAX_FIX_TIME_S):
         raise ImpossibleValueError(path, f"the video start time {video_start_utc_s:g} s is not a time",
                          "times are seconds (or ms) since the epoch")
-    span_s = unique[-1].t_utc_s - unique[0].t_utc_s
+    span_s = fixes[-1].t_utc_s - fixes[0].t_utc_s
     if span_s > MAX_TRACE_SPAN_S:
         raise InconsistentInputError(path, f"the fixes span {span_s / 3600:.1f} h, more than the "
                          f"{MAX_TRACE_SPAN_S / 3600:.0f} h of one drive",
                          "cut the log to the drive of the video")
-    return GpsTrace(fixes=unique, format=fmt, path=path, video_start_utc_s=video_start_utc_s,
+    return GpsTrace(fixes=fixes, format=fmt, path=path, video_start_utc_s=video_start_utc_s,
                     n_skipped=n_skipped + n_dup, warnings=warnings)
+
+
+def _on_one_clock(fixes: list[GpsFix], path: Path, warnings: list[str]
+                  ) -> tuple[list[GpsFix], int]:
+    """The fixes in time order on one consistent clock (:func:`vid2sim.geo.clockcheck.repair_clock`:
+    records written late are sorted in, a clock that jumped is re-timed, one fix per time
+    stamp), with the repair's warnings appended; and how many fixes were dropped."""
+    t = np.array([f.t_utc_s for f in fixes], float)
+    xy = local_xy(np.array([f.lat_deg for f in fixes]), np.array([f.lon_deg for f in fixes]))
+    rep = repair_clock(t, xy, path)
+    warnings.extend(rep.warnings)
+    kept = [fixes[i] if fixes[i].t_utc_s == tt else replace(fixes[i], t_utc_s=tt)
+            for i, tt in zip(rep.keep.tolist(), rep.t_s.tolist(), strict=True)]
+    return kept, len(fixes) - len(kept)
 
 
 def read_text(path: Path) -> str:

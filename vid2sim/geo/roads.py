@@ -15,218 +15,43 @@ from __future__ import annotations
 
 import logging
 import math
-import re
 from collections import Counter
+from dataclasses import replace
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
-from vid2sim.base.defaults import LANE_WIDTH_M
 from vid2sim.base.errors import InconsistentInputError
 from vid2sim.base.fileio import atomic_open
 from vid2sim.core.enu import EnuFrame
-from vid2sim.core.lanelayout import (
-    BACKWARD,
-    DRIVING,
-    FORWARD,
-    PARKING,
-    SHOULDER,
-    CrossSection,
-    LaneSpec,
-)
 from vid2sim.core.polyline import resample_polyline
 from vid2sim.core.records import EgoTrack, GpsTrace, RoadResult
-from vid2sim.core.scenario import MAX_LANES, Road
-from vid2sim.geo.alongroute import signed_offsets
-from vid2sim.geo.mapmatch import MatchConfig, MatchResult, match
+from vid2sim.core.scenario import Road
+from vid2sim.geo.alongroute import signed_offsets, sub_polyline
+from vid2sim.geo.mapmatch import MatchConfig, MatchResult, match, merge_ways
 from vid2sim.geo.osm import RoadNetwork, download_network, format_bbox, load_network
+from vid2sim.geo.osmlanes import (  # noqa: F401 - the lanes of a road, read here too
+    DEFAULT_LANE_WIDTH_M,
+    LANE_DEFAULTS,
+    LANE_WIDTH_RANGE_M,
+    cross_section_from_tags,
+    lanes_from_tags,
+    with_driving_width,
+)
 from vid2sim.geo.trace import video_t0_utc
 
 log = logging.getLogger(__name__)
 
-#: Defaults where OSM has no ``lanes`` / ``width`` tag, per ``highway`` value:
-#: (lanes of a two-way road, lanes of a one-way road, lane width [m]). Lane counts follow the
-#: OSM wiki's assumptions (Key:lanes: two-way roads 2, one-way roads 1, motorways and trunks
-#: 2 per direction); widths are typical European design values (motorway 3.75 m, urban main
-#: roads 3.25-3.5 m, residential 3.0 m, service and living streets 2.75-3.0 m).
-LANE_DEFAULTS: dict[str, tuple[int, int, float]] = {
-    "motorway": (4, 2, 3.75),
-    "motorway_link": (2, 1, 3.5),
-    "trunk": (4, 2, 3.5),
-    "trunk_link": (2, 1, 3.5),
-    "primary": (2, 1, 3.5),
-    "primary_link": (2, 1, 3.5),
-    "secondary": (2, 1, 3.25),
-    "secondary_link": (2, 1, 3.25),
-    "tertiary": (2, 1, 3.25),
-    "tertiary_link": (2, 1, 3.25),
-    "unclassified": (2, 1, 3.0),
-    "residential": (2, 1, 3.0),
-    "living_street": (1, 1, 2.75),
-    "service": (1, 1, 3.0),
-    "road": (2, 1, 3.0),
-}
 #: The project's lane numbering (stated here once; every lane index in vid2sim follows it):
 #: lane 0 is the rightmost lane in the direction of travel, and indices count leftwards.
 LANE_NUMBERING = "lane 0 = rightmost in the direction of travel, counting leftwards"
-#: lane width of a road derived from the trajectory, and of unknown highway types [m]
-DEFAULT_LANE_WIDTH_M = LANE_WIDTH_M  # the project's default (vid2sim.base.defaults)
-#: lane widths outside this range in a ``width`` tag are taken as tagging errors [m]
-LANE_WIDTH_RANGE_M = (2.5, 4.5)
 #: centerline sample spacing, at most [m]
 CENTERLINE_STEP_M = 1.0
 #: margin around the trace's bounding box when cropping the map [m]
 MAP_MARGIN_M = 300.0
 #: a fix is heading-informative when the ego moves at least this fast [m/s]
 _HEADING_MIN_SPEED_MPS = 2.0
-
-
-# --------------------------------------------------------------------------- lanes
-
-
-def _number(text: str | None) -> float | None:
-    """First number in an OSM value ('7', '7.5 m', '3;2' -> 3), None if none."""
-    if not text:
-        return None
-    m = re.search(r"\d+(?:\.\d+)?", str(text))
-    return float(m.group()) if m else None
-
-
-def lanes_from_tags(tags: dict[str, str], along_way: bool = True) -> tuple[int, int, float]:
-    """Lanes of a carriageway from its OSM tags.
-
-    Parameters
-    ----------
-    tags : OSM way tags (``highway``, ``lanes``, ``lanes:forward``, ``lanes:backward``,
-        ``width``, ``oneway``)
-    along_way : travel follows the way's node order (else ``lanes:backward`` applies)
-
-    Returns
-    -------
-    (lanes_total, lanes_in_travel_direction, lane_width_m)
-    """
-    highway = tags.get("highway", "")
-    two_way_default, one_way_default, width_default = LANE_DEFAULTS.get(
-        highway, (2, 1, DEFAULT_LANE_WIDTH_M))
-    oneway = tags.get("oneway", "") in ("yes", "true", "1", "-1", "reverse") or (
-        tags.get("junction") in ("roundabout", "circular") and tags.get("oneway") != "no")
-    # A lane count beyond any carriageway's (a tag typo, "lanes=99") is taken as no tag.
-    lanes, fwd, bwd = (v if v is None or v <= MAX_LANES else None for v in (
-        _number(tags.get("lanes")), _number(tags.get("lanes:forward")),
-        _number(tags.get("lanes:backward"))))
-    if oneway:
-        total = int(lanes) if lanes and lanes >= 1 else one_way_default
-        forward = total
-    else:
-        if lanes and lanes >= 1:
-            total = int(lanes)
-        elif fwd and bwd:
-            total = int(fwd + bwd)
-        else:
-            total = two_way_default
-        mine = fwd if along_way else bwd
-        if mine and 1 <= mine <= total:
-            forward = int(mine)
-        else:
-            # split evenly; an odd middle lane (turn lane, or one shared lane) counts for both
-            forward = max(1, math.ceil(total / 2)) if total > 1 else 1
-    width = _number(tags.get("width"))
-    lane_width = width_default
-    if width and total:
-        per_lane = width / total
-        if LANE_WIDTH_RANGE_M[0] <= per_lane <= LANE_WIDTH_RANGE_M[1]:
-            lane_width = per_lane
-    return total, forward, float(lane_width)
-
-
-#: Width of a parking lane by how the cars stand [m] (RASt 06, the German street design
-#: guideline, 6.1.5: parallel parking 2.00 m, at least 1.80 m, 2.50 m beside a bus route;
-#: diagonal bays 4.15-4.50 m deep; perpendicular bays 5.00 m). ``parking:*:width`` wins.
-PARKING_WIDTH_M = {"parallel": 2.3, "diagonal": 4.5, "perpendicular": 5.0}
-#: Tag values (``parking:lane:<side>`` of the older scheme, ``parking:<side>`` of the 2022
-#: one) that put standing cars beside the driving lanes; others (``no``, ``no_parking``,
-#: ``no_stopping``, ``separate``, ``fire_lane``) do not.
-PARKING_ON_ROAD = {"parallel", "diagonal", "perpendicular", "marked", "yes", "lane",
-                   "street_side", "on_kerb", "half_on_kerb", "shoulder"}
-#: Width of a shoulder without a ``shoulder:width`` tag [m]: the hard shoulder of German
-#: motorways (RAA 2008: 2.50-3.00 m) and of rural roads (1.5 m) by road class.
-SHOULDER_WIDTH_M = {"motorway": 2.5, "motorway_link": 2.5, "trunk": 2.5}
-SHOULDER_WIDTH_OTHER_M = 1.5
-
-
-def _side_value(tags: dict[str, str], prefix: str, side: str) -> str | None:
-    """The tag ``<prefix>:<side>``, or ``<prefix>:both``."""
-    for key in (f"{prefix}:{side}", f"{prefix}:both"):
-        if tags.get(key):
-            return str(tags[key]).strip().lower()
-    return None
-
-
-def _parking_side(tags: dict[str, str], side: str) -> float | None:
-    """Width of the parking lane on one side of the way (``left``/``right`` of its node
-    order) from ``parking:lane:*`` or ``parking:*`` tags [m], None without one."""
-    old = _side_value(tags, "parking:lane", side)
-    new = _side_value(tags, "parking", side)
-    value = old or new
-    if value is None or value not in PARKING_ON_ROAD:
-        return None
-    orientation = (value if value in PARKING_WIDTH_M else
-                   _side_value(tags, "parking", f"{side}:orientation") or "parallel")
-    width = (_number(tags.get(f"parking:{side}:width") or tags.get(f"parking:lane:{side}:width")
-                     or tags.get("parking:both:width")))
-    if width and 1.5 <= width <= 12.0:
-        return float(width)
-    return PARKING_WIDTH_M.get(orientation, PARKING_WIDTH_M["parallel"])
-
-
-def _shoulder_sides(tags: dict[str, str]) -> set[str]:
-    value = str(tags.get("shoulder", "")).strip().lower()
-    sides = {"both": {"left", "right"}, "yes": {"right"}, "right": {"right"},
-             "left": {"left"}}.get(value, set())
-    sides |= {s for s in ("left", "right") if tags.get(f"shoulder:{s}") == "yes"}
-    return sides
-
-
-def cross_section_from_tags(tags: dict[str, str], along_way: bool = True) -> CrossSection:
-    """A carriageway's lanes from its OSM tags, rightmost first in the travel direction.
-
-    Driving lanes come from :func:`lanes_from_tags` (``lanes``, ``lanes:forward``,
-    ``lanes:backward``, ``width``, ``oneway``): on a two-way road the travel direction's
-    lanes lie right of the centerline (the way's geometry) and the others left of it, the
-    rule by which :func:`vid2sim.geo.lateral.fuse_lateral` places the ego; a one-way road's
-    lanes are centred on it. Parking lanes (``parking:lane:<side>``, ``parking:<side>`` with
-    its ``:orientation`` and ``:width``) and shoulders (``shoulder``, ``shoulder:width``) go
-    outside the driving lanes on their side; a way drawn against the travel direction has
-    its sides swapped. Parked cars face the way of the driving lane beside them.
-    """
-    total, forward, width = lanes_from_tags(tags, along_way)
-    backward = total - forward
-    oneway = backward <= 0 or tags.get("oneway", "") in ("yes", "true", "1", "-1", "reverse")
-    if oneway:
-        forward, backward = total, 0
-    right_edge = -forward * width if backward else -total * width / 2.0
-    lanes = [LaneSpec(DRIVING, FORWARD, width) for _ in range(forward)]
-    lanes += [LaneSpec(DRIVING, BACKWARD, width) for _ in range(backward)]
-    # sides in the travel direction: a way drawn against it has its left on our right
-    right, left = ("right", "left") if along_way else ("left", "right")
-    shoulder_w = _number(tags.get("shoulder:width"))
-    shoulder_w = (shoulder_w if shoulder_w and 0.5 <= shoulder_w <= 5.0 else
-                  SHOULDER_WIDTH_M.get(tags.get("highway", ""), SHOULDER_WIDTH_OTHER_M))
-    shoulders = _shoulder_sides(tags)
-    left_dir = BACKWARD if backward else FORWARD
-    park_right, park_left = _parking_side(tags, right), _parking_side(tags, left)
-    outer_right: list[LaneSpec] = []
-    if park_right:
-        outer_right.append(LaneSpec(PARKING, FORWARD, park_right))
-    if right in shoulders:
-        outer_right.append(LaneSpec(SHOULDER, FORWARD, shoulder_w))
-    outer_left: list[LaneSpec] = []
-    if park_left:
-        outer_left.append(LaneSpec(PARKING, left_dir, park_left))
-    if left in shoulders:
-        outer_left.append(LaneSpec(SHOULDER, left_dir, shoulder_w))
-    right_edge -= sum(lane.width_m for lane in outer_right)
-    return CrossSection(right_edge, tuple(outer_right[::-1] + lanes + outer_left))
 
 
 # --------------------------------------------------------------------------- geometry
@@ -292,11 +117,68 @@ def _ego_headings(ego: EgoTrack, t_s: np.ndarray) -> np.ndarray:
     return np.where(inside & (speed >= _HEADING_MIN_SPEED_MPS), heading, np.nan)
 
 
-def _osm_road(net: RoadNetwork, res: MatchResult, piece: int) -> tuple[Road, int, list[str]]:
+def driven_span(res: MatchResult, piece: int, length_m: float, margin_m: float
+                ) -> tuple[float, float]:
+    """Along route piece ``piece`` [m]: from ``margin_m`` before the projection of its first
+    matched fix to ``margin_m`` beyond that of its last, within the piece (at least
+    ``2 margin_m`` long where the piece is)."""
+    s = res.fix_route_s_m[(res.fix_piece == piece) & np.isfinite(res.fix_route_s_m)]
+    if not s.size:
+        return 0.0, length_m
+    start, end = max(float(s.min()) - margin_m, 0.0), min(float(s.max()) + margin_m, length_m)
+    if end - start < 2.0 * margin_m:  # one fix, or the car stood still: a car length each way
+        mid = float(np.clip((start + end) / 2.0, margin_m, max(length_m - margin_m, margin_m)))
+        start, end = max(mid - margin_m, 0.0), min(mid + margin_m, length_m)
+    return start, end
+
+
+def cover_points(result: RoadResult, roads: list[Road], xy_m: np.ndarray, reach_m: float,
+                 near_m: float = 15.0) -> list[Road]:
+    """The roads of a map-matched ``result`` run on along their matched route
+    (``result.route_lines``: each road's whole route polyline [m] and the span of it the road
+    covers [m]) until every
+    point within ``near_m`` of it (vehicles the camera saw ahead of the first or beyond the
+    last fix) lies ``reach_m`` inside them; roads without a route, or already covering the
+    points, are returned as they are. Only the centerline changes."""
+    pts = np.asarray(xy_m, float).reshape(-1, 2)
+    out = list(roads)
+    if not pts.size or result.source != "osm":
+        return out
+    for k, (line, (start, end)) in enumerate(result.route_lines):
+        if k >= len(out):
+            break
+        s, off = signed_offsets(line, pts)
+        on = np.abs(off) <= near_m
+        if not on.any():
+            continue
+        length = float(np.hypot(*np.diff(line, axis=0).T).sum())
+        lo = max(min(start, float(s[on].min()) - reach_m), 0.0)
+        hi = min(max(end, float(s[on].max()) + reach_m), length)
+        if lo < start - 1e-6 or hi > end + 1e-6:
+            out[k] = replace(out[k], centerline=resample_polyline(sub_polyline(line, lo, hi),
+                                                                  CENTERLINE_STEP_M))
+    return out
+
+
+def _osm_road(net: RoadNetwork, res: MatchResult, piece: int, margin_m: float
+              ) -> tuple[Road, int, float, list[str]]:
+    """The road of one matched route piece, cut to the driven span (:func:`driven_span`):
+    the road, its lanes in the travel direction, where the span starts along the piece [m]
+    and warnings. Lanes, width, name and highway class are those of the ways the span runs
+    on, weighed by the length driven on each."""
     edges = res.route_edges[piece]
+    whole = net.edge_length_m[edges]
+    ends = np.cumsum(whole)
+    start, end = driven_span(res, piece, float(ends[-1]), margin_m)
+    centerline = resample_polyline(sub_polyline(join_route(net, edges), start, end),
+                                   CENTERLINE_STEP_M)
+    driven = np.minimum(ends, end) - np.maximum(ends - whole, start)
+    inside = driven > 0.0
+    if not inside.any():  # a route of zero-length pieces
+        inside[:] = True
+    edges = [e for e, k in zip(edges, inside, strict=True) if k]
+    lengths = np.maximum(driven[inside], 1e-3)
     warnings: list[str] = []
-    centerline = resample_polyline(join_route(net, edges))
-    lengths = net.edge_length_m[edges]
     per_edge = [lanes_from_tags(net.edge_tags[e], bool(net.edge_along_way[e])) for e in edges]
     lanes = int(_weighted_mode([p[0] for p in per_edge], lengths))
     forward = int(_weighted_mode([p[1] for p in per_edge if p[0] == lanes],
@@ -314,28 +196,11 @@ def _osm_road(net: RoadNetwork, res: MatchResult, piece: int) -> tuple[Road, int
     section = with_driving_width(section, round(width, 3))
     names = [net.edge_tags[e].get("name", "") for e in edges]
     highways = [net.edge_tags[e].get("highway", "") for e in edges]
-    ways: list[int] = []
-    for e in edges:
-        if not ways or ways[-1] != int(net.edge_way_id[e]):
-            ways.append(int(net.edge_way_id[e]))
     road = Road(id=f"road{piece}", name=_weighted_mode(names, lengths),
-                highway=_weighted_mode(highways, lengths), source="osm", osm_way_ids=ways,
-                lanes=lanes, lane_width_m=round(width, 3), centerline=centerline,
-                cross_section=section)
-    return road, forward, warnings
-
-
-def with_driving_width(section: CrossSection, width_m: float) -> CrossSection:
-    """The cross-section with every driving lane ``width_m`` wide, laid out by the rule of
-    :func:`cross_section_from_tags` (two-way: the travel direction's lanes right of the
-    centerline; one-way: centred on it)."""
-    lanes = tuple(LaneSpec(lane.type, lane.direction, width_m) if lane.type == DRIVING
-                  else lane for lane in section.lanes)
-    forward = len(section.indices(DRIVING, FORWARD))
-    backward = len(section.indices(DRIVING, BACKWARD))
-    first = next(i for i, lane in enumerate(lanes) if lane.type == DRIVING)
-    edge = -forward * width_m if backward else -(forward + backward) * width_m / 2.0
-    return CrossSection(edge - sum(lane.width_m for lane in lanes[:first]), lanes)
+                highway=_weighted_mode(highways, lengths), source="osm",
+                osm_way_ids=merge_ways([], [edges], net.edge_way_id), lanes=lanes,
+                lane_width_m=round(width, 3), centerline=centerline, cross_section=section)
+    return road, forward, start, warnings
 
 
 def trajectory_road(ego: EgoTrack) -> Road:
@@ -355,6 +220,33 @@ def trajectory_road(ego: EgoTrack) -> Road:
                 lanes=1, lane_width_m=DEFAULT_LANE_WIDTH_M, centerline=line)
 
 
+#: length of the straight extensions of a road's ends that ego offsets are measured on [m]
+_END_TANGENT_M = 50.0
+#: an ego sample is projected onto the road within this of where its fixes put it [m] (the
+#: smoothed ego and the matched positions agree within a few metres; the window only keeps a
+#: road that passes a place twice from taking the other pass)
+_EGO_WINDOW_M = 20.0
+
+
+def _with_end_tangents(line: np.ndarray) -> np.ndarray:
+    """The polyline with a straight ``_END_TANGENT_M`` added before its start and after its
+    end, along its first and last segments."""
+    a, b = line[1] - line[0], line[-1] - line[-2]
+    a, b = a / max(float(np.hypot(*a)), 1e-9), b / max(float(np.hypot(*b)), 1e-9)
+    return np.vstack([line[0] - _END_TANGENT_M * a, line, line[-1] + _END_TANGENT_M * b])
+
+
+class _Fixes(NamedTuple):
+    """The trace's fixes in file order: lat/lon [deg], video-clock times [s], ENU [m] in the
+    ego's frame, and the box the map is cropped to [deg]."""
+
+    lat: np.ndarray
+    lon: np.ndarray
+    t_s: np.ndarray
+    xy: np.ndarray
+    bbox: tuple[float, float, float, float]
+
+
 def build_road(trace: GpsTrace, ego: EgoTrack, map_path: Path | None, *,
                gps_offset_s: float | None = None, allow_download: bool = True,
                cache_dir: Path | None = None, config: MatchConfig | None = None) -> RoadResult:
@@ -371,75 +263,104 @@ def build_road(trace: GpsTrace, ego: EgoTrack, map_path: Path | None, *,
         :func:`vid2sim.geo.mapcache.default_cache_dir`)
     gps_offset_s : video time of the earliest fix [s] (``--gps-offset``); None: the file's
         clock (:func:`fix_times_s`, the rule of the ego smoother)
-    config : matcher tuning
+    config : matcher tuning (and how far the road runs beyond the first and last fix)
 
     Raises
     ------
     InputError
         unreadable/empty map, no drivable roads, or the trace outside the map (both boxes).
     """
+    cfg = config or MatchConfig()
+    fixes = _fixes_in_frame(trace, ego, gps_offset_s)
+    net, warnings = _network_for(map_path, fixes.bbox, ego, allow_download, cache_dir)
+    if net is None:
+        return _trajectory_result(trace, ego, fixes.xy, fixes.t_s, warnings)
+    res = _match_fixes(net, trace, ego, fixes, map_path, cfg)
+    warnings.extend(res.warnings)
+    if res.matched_share < 0.5:
+        warnings.append(f"only {res.matched_share:.0%} of the fixes matched a road")
+    return _osm_result(net, res, ego, fixes, cfg.route_margin_m, warnings)
+
+
+def _fixes_in_frame(trace: GpsTrace, ego: EgoTrack, gps_offset_s: float | None) -> _Fixes:
     fixes = trace.fixes
     if not fixes:
         raise InconsistentInputError(trace.path, "no GPS fixes")
     lat = np.array([f.lat_deg for f in fixes])
     lon = np.array([f.lon_deg for f in fixes])
-    t_fix = fix_times_s(trace, gps_offset_s)
     xy = EnuFrame(ego.origin).to_enu(lat, lon)[:, :2]
-    bbox = _trace_bbox(lat, lon, MAP_MARGIN_M)
-    warnings: list[str] = []
+    return _Fixes(lat, lon, fix_times_s(trace, gps_offset_s), xy,
+                  _trace_bbox(lat, lon, MAP_MARGIN_M))
 
-    net: RoadNetwork | None = None
+
+def _network_for(map_path: Path | None, bbox: tuple[float, float, float, float], ego: EgoTrack,
+                 allow_download: bool, cache_dir: Path | None
+                 ) -> tuple[RoadNetwork | None, list[str]]:
+    """The drivable network around the trace: from the map file, else downloaded, else None
+    (with a warning saying why the road follows the trajectory)."""
     if map_path is not None:
-        net = load_network(map_path, ego.origin, bbox_lonlat=bbox, cache_dir=cache_dir)
-    elif allow_download:
-        net = download_network(bbox, ego.origin, cache_dir=cache_dir)
-        if net is None:
-            warnings.append("no map given and OpenStreetMap could not be reached: the road "
-                            "follows the smoothed trajectory (default lane width)")
-    else:
-        warnings.append("no map given (downloads disabled): the road follows the smoothed "
-                        "trajectory (default lane width)")
-
+        return load_network(map_path, ego.origin, bbox_lonlat=bbox, cache_dir=cache_dir), []
+    if not allow_download:
+        return None, [("no map given (downloads disabled): the road follows the smoothed "
+                       "trajectory (default lane width)")]
+    net = download_network(bbox, ego.origin, cache_dir=cache_dir)
     if net is None:
-        return _trajectory_result(trace, ego, xy, t_fix, warnings)
+        return None, [("no map given and OpenStreetMap could not be reached: the road follows "
+                       "the smoothed trajectory (default lane width)")]
+    return net, []
 
-    accuracy = np.array([np.nan if f.accuracy_m is None else f.accuracy_m for f in fixes])
+
+def _match_fixes(net: RoadNetwork, trace: GpsTrace, ego: EgoTrack, fixes: _Fixes,
+                 map_path: Path | None, cfg: MatchConfig) -> MatchResult:
+    """The fixes matched with the ego's heading and speed; an error when none is near a
+    road of the map."""
+    accuracy = np.array([np.nan if f.accuracy_m is None else f.accuracy_m
+                         for f in trace.fixes])
+    t_fix = fixes.t_s
     speed = np.interp(t_fix, ego.t_s, ego.speed_mps) if len(ego.t_s) else None
-    res = match(net, xy[:, 0], xy[:, 1], t_fix, heading_rad=_ego_headings(ego, t_fix),
-                accuracy_m=accuracy, speed_mps=speed, config=config)
+    res = match(net, fixes.xy[:, 0], fixes.xy[:, 1], t_fix,
+                heading_rad=_ego_headings(ego, t_fix), accuracy_m=accuracy, speed_mps=speed,
+                config=cfg)
     if not res.route_edges or res.matched_share == 0.0:
-        raise InconsistentInputError(map_path, f"no fix lies near a drivable road of this map: the trace "
-                         f"({format_bbox(_trace_bbox(lat, lon, 0.0))}) and the map's roads "
-                         f"({format_bbox(net.bbox_lonlat)}) do not overlap",
-                         "pass a map that covers the drive")
-    warnings.extend(res.warnings)
-    if res.matched_share < 0.5:
-        warnings.append(f"only {res.matched_share:.0%} of the fixes matched a road")
+        raise InconsistentInputError(
+            map_path, f"no fix lies near a drivable road of this map: the trace "
+            f"({format_bbox(_trace_bbox(fixes.lat, fixes.lon, 0.0))}) and the map's roads "
+            f"({format_bbox(net.bbox_lonlat)}) do not overlap", "pass a map that covers the drive")
+    return res
 
-    roads, forwards = [], []
+
+def _osm_result(net: RoadNetwork, res: MatchResult, ego: EgoTrack, fixes: _Fixes,
+                margin_m: float, warnings: list[str]) -> RoadResult:
+    """Roads of the matched route pieces, the ego's lane on the main one, each fix's match."""
+    roads, forwards, starts, lines, spans = [], [], [], [], []
     for k in range(len(res.route_edges)):
-        road, forward, w = _osm_road(net, res, k)
+        road, forward, start, w = _osm_road(net, res, k, margin_m)
         roads.append(road)
         forwards.append(forward)
+        starts.append(start)
+        lines.append(join_route(net, res.route_edges[k]))
+        spans.append((start, start + float(np.hypot(*np.diff(road.centerline, axis=0).T).sum())))
         warnings.extend(w)
     # ego lane: offsets to the road of the matched piece, searched near the expected place
     main = int(np.argmax([r.centerline.shape[0] for r in roads]))
     ego_xy = np.column_stack([ego.x_m, ego.y_m])
     on_main = res.fix_piece == main
-    expected = (np.interp(ego.t_s, t_fix[on_main], res.fix_route_s_m[on_main])
-                if on_main.sum() >= 2 else None)
-    _, ego_off = signed_offsets(roads[main].centerline, ego_xy, expected)
+    expected = (np.interp(ego.t_s, fixes.t_s[on_main], res.fix_route_s_m[on_main] - starts[main])
+                + _END_TANGENT_M if on_main.sum() >= 2 else None)
+    # the road ends a car length beyond the first and last fix: ego samples past an end
+    # (GPS noise) take their offset from the end's tangent, not from the end point
+    _, ego_off = signed_offsets(_with_end_tangents(roads[main].centerline), ego_xy, expected,
+                                _EGO_WINDOW_M)
     ego_lane = lane_index(ego_off, roads[main].lanes, forwards[main], roads[main].lane_width_m)
-
     matches = [
         {"t": float(t), "osm_way_id": int(w) if w >= 0 else None,
          "offset_m": float(o) if np.isfinite(o) else None}
-        for t, w, o in zip(t_fix, res.fix_way_id, res.fix_offset_m, strict=True)
+        for t, w, o in zip(fixes.t_s, res.fix_way_id, res.fix_offset_m, strict=True)
     ]
     ways = res.way_sequence()
-    route_length = float(sum(net.edge_length_m[p].sum() for p in res.route_edges))
+    route_length = float(sum(np.hypot(*np.diff(r.centerline, axis=0).T).sum() for r in roads))
     stats = {
-        "fixes": len(fixes), "matched_share": res.matched_share,
+        "fixes": len(fixes.t_s), "matched_share": res.matched_share,
         "outlier_fixes": int(res.fix_outlier.sum()), "route_length_m": route_length,
         "ways": len(ways), "lanes": roads[main].lanes, "lanes_forward": forwards[main],
         "lane_width_m": roads[main].lane_width_m, "source": "osm", "map": net.source,
@@ -449,7 +370,8 @@ def build_road(trace: GpsTrace, ego: EgoTrack, map_path: Path | None, *,
                       ego_lane=ego_lane, ego_offset_m=ego_off, source="osm",
                       lanes_forward=forwards[main], stats=stats, warnings=warnings,
                       map_polylines=[net.edge_xy[i] for i in range(net.n_edges)
-                                     if net.edge_twin[i] < i])
+                                     if net.edge_twin[i] < i],
+                      route_lines=list(zip(lines, spans, strict=True)))
 
 
 def _trajectory_result(trace: GpsTrace, ego: EgoTrack, fix_xy: np.ndarray, t_fix: np.ndarray,

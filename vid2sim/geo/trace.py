@@ -21,6 +21,7 @@ Pipeline of :func:`smooth_ego` (all in the local ENU frame, metres and seconds):
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -97,77 +98,137 @@ def smooth_ego(trace: GpsTrace, rate_hz: float = EGO_RATE_HZ, gps_offset_s: floa
     path = trace.path
     if not (rate_hz > 0 and math.isfinite(rate_hz)):
         raise ImpossibleValueError(path, f"output rate {rate_hz} Hz must be > 0")
-    n_in = len(trace.fixes)
-    if n_in < 2:
-        raise InconsistentInputError(path, f"{n_in} GPS fix(es); a trajectory needs at least two",
-                         "is the log long enough?")
+    fx = _fix_arrays(trace)
     warnings = list(trace.warnings)
-    fx = trace.fixes
-    t_utc = np.array([f.t_utc_s for f in fx], float)
-    lat = np.array([f.lat_deg for f in fx], float)
-    lon = np.array([f.lon_deg for f in fx], float)
-    alt = np.array([np.nan if f.alt_m is None else f.alt_m for f in fx], float)
-    spd = np.array([np.nan if f.speed_mps is None else f.speed_mps for f in fx], float)
-    crs = np.array([np.nan if f.course_deg is None else f.course_deg for f in fx], float)
-    acc = np.array([np.nan if f.accuracy_m is None else f.accuracy_m for f in fx], float)
-    order = np.argsort(t_utc, kind="stable")
-    if np.any(order != np.arange(n_in)):
-        t_utc, lat, lon, alt, spd, crs, acc = (a[order] for a in (t_utc, lat, lon, alt, spd, crs, acc))
-    if np.any(np.diff(t_utc) <= 0):
-        raise InconsistentInputError(path, "fix times do not increase strictly", "duplicate timestamps?")
 
     # ---- 1. time alignment
     t0_utc, alignment = video_t0_utc(trace, gps_offset_s)
     if gps_offset_s is None and trace.video_start_utc_s is not None \
-            and not (t_utc[0] - 3600 <= t0_utc <= t_utc[-1] + 3600):
+            and not (fx.t_utc[0] - 3600 <= t0_utc <= fx.t_utc[-1] + 3600):
         warnings.append("the file's video start is more than an hour outside the fixes; "
                         "check the clock or pass --gps-offset")
-    t = t_utc - t0_utc
-
-    too_fast = spd > p.v_max_mps
+    t = fx.t_utc - t0_utc
+    too_fast = fx.spd > p.v_max_mps
     if np.any(too_fast):
         warnings.append(f"ignored {int(too_fast.sum())} reported speeds above {p.v_max_mps} m/s")
-        spd[too_fast] = np.nan
+        fx.spd[too_fast] = np.nan
 
-    # ---- 2. gross outliers (speed gating), in a provisional frame at the median fix
-    med = Origin(float(np.median(lat)), float(np.median(lon)), 0.0)
-    enu = EnuFrame(med).to_enu(lat, lon, np.nan_to_num(alt, nan=0.0))
-    # The noise is capped here: fixes of two different places look like enormous noise, and
-    # a gate that wide would accept them all.
-    sigma_rough = min(_noise_estimate(t, enu[:, :2], np.ones(n_in, bool), p.min_noise_m),
-                      p.max_noise_m)
-    sig_chain = np.minimum(_sigmas(acc, sigma_rough, p.min_noise_m), p.max_noise_m)
-    keep = _consistent_chain(t, enu[:, :2], sig_chain, p.v_max_mps)
-    _check_one_drive(t, enu[:, :2], keep, p, path)
-
-    # ---- ENU frame at the origin (first accepted fix by default)
+    # ---- 2. gross outliers (speed gating), then the ENU frame at the origin
+    keep = _gross_outliers(t, fx, p, path)
     if origin is None:
         i0 = int(np.flatnonzero(keep)[0])
-        origin = Origin(float(lat[i0]), float(lon[i0]), 0.0 if np.isnan(alt[i0]) else float(alt[i0]))
+        origin = Origin(float(fx.lat[i0]), float(fx.lon[i0]),
+                        0.0 if np.isnan(fx.alt[i0]) else float(fx.alt[i0]))
     frame = EnuFrame(origin)
-    alt_filled = np.where(np.isnan(alt), origin.alt, alt)
-    enu = frame.to_enu(lat, lon, alt_filled)
-    xy = enu[:, :2]
+    enu = frame.to_enu(fx.lat, fx.lon, np.where(np.isnan(fx.alt), origin.alt, fx.alt))
 
-    # ---- 3. position noise
-    noise_m = p.noise_m or _noise_estimate(t, xy, keep, p.min_noise_m)
-    sig = _sigmas(acc, noise_m, p.min_noise_m, keep)
+    # ---- 3. position noise; 4. smoothing with jump gating; 5. stops
+    noise_m = p.noise_m or _noise_estimate(t, enu[:, :2], keep, p.min_noise_m)
+    meas = _measurements(t, enu[:, :2], fx, noise_m, keep, p)
+    used, segments = _reject_jumps(meas, keep, p, path)
+    xs, stop_spans = _smooth_with_stops(meas, used, segments, p)
 
+    # ---- 6. resample
+    ego, long_gaps, more = _resample(meas, enu, fx.alt, used, xs, stop_spans, frame, rate_hz,
+                                     p, path)
+    warnings.extend(more)
+    stats = _summary(trace, t, used, long_gaps, stop_spans, ego, warnings, alignment, t0_utc,
+                     noise_m, rate_hz, p)
+    return ego, stats
+
+
+@dataclass(slots=True)
+class _FixArrays:
+    """The fixes as arrays in time order (NaN where a field is absent)."""
+
+    t_utc: np.ndarray
+    lat: np.ndarray
+    lon: np.ndarray
+    alt: np.ndarray
+    spd: np.ndarray
+    crs: np.ndarray
+    acc: np.ndarray
+
+
+def _fix_arrays(trace: GpsTrace) -> _FixArrays:
+    n_in = len(trace.fixes)
+    if n_in < 2:
+        raise InconsistentInputError(trace.path, f"{n_in} GPS fix(es); a trajectory needs at least two",
+                         "is the log long enough?")
+    fx = trace.fixes
+
+    def col(get) -> np.ndarray:
+        return np.array([np.nan if get(f) is None else get(f) for f in fx], float)
+
+    arrays = _FixArrays(col(lambda f: f.t_utc_s), col(lambda f: f.lat_deg),
+                        col(lambda f: f.lon_deg), col(lambda f: f.alt_m),
+                        col(lambda f: f.speed_mps), col(lambda f: f.course_deg),
+                        col(lambda f: f.accuracy_m))
+    order = np.argsort(arrays.t_utc, kind="stable")
+    if np.any(order != np.arange(n_in)):
+        arrays = _FixArrays(*(getattr(arrays, k)[order] for k in _FixArrays.__slots__))
+    if np.any(np.diff(arrays.t_utc) <= 0):
+        raise InconsistentInputError(trace.path, "fix times do not increase strictly", "duplicate timestamps?")
+    return arrays
+
+
+def _gross_outliers(t: np.ndarray, fx: _FixArrays, p: TraceParams, path) -> np.ndarray:
+    """The fixes of the longest physically possible chain (speed gating), found in a
+    provisional frame at the median fix; an error when they cannot be one drive."""
+    med = Origin(float(np.median(fx.lat)), float(np.median(fx.lon)), 0.0)
+    enu = EnuFrame(med).to_enu(fx.lat, fx.lon, np.nan_to_num(fx.alt, nan=0.0))
+    # The noise is capped here: fixes of two different places look like enormous noise, and
+    # a gate that wide would accept them all.
+    sigma_rough = min(_noise_estimate(t, enu[:, :2], np.ones(t.size, bool), p.min_noise_m),
+                      p.max_noise_m)
+    sig_chain = np.minimum(_sigmas(fx.acc, sigma_rough, p.min_noise_m), p.max_noise_m)
+    keep = _consistent_chain(t, enu[:, :2], sig_chain, p.v_max_mps)
+    _check_one_drive(t, enu[:, :2], keep, p, path)
+    return keep
+
+
+@dataclass(slots=True)
+class _Measurements:
+    """What the smoother fuses, per fix: time [s], ENU position [m], its noise [m], the
+    reported speed [m/s] and velocity (ENU components, where the course means something),
+    and the fixes at which a reported (Doppler) speed says "stopped"."""
+
+    t: np.ndarray
+    xy: np.ndarray
+    sig: np.ndarray
+    spd: np.ndarray
+    vel: np.ndarray
+    crs_ok: np.ndarray
+    crs: np.ndarray
+    stops: np.ndarray
+
+
+def _measurements(t: np.ndarray, xy: np.ndarray, fx: _FixArrays, noise_m: float,
+                  keep: np.ndarray, p: TraceParams) -> _Measurements:
+    sig = _sigmas(fx.acc, noise_m, p.min_noise_m, keep)
     # Reported velocity as ENU components; course is meaningless when nearly stopped.
-    crs_ok = ~np.isnan(crs) & ~np.isnan(spd) & (spd >= 1.0)
-    heading_rep = np.deg2rad(90.0 - crs)  # clockwise from north -> CCW from east
-    vel_meas = np.column_stack((spd * np.cos(heading_rep), spd * np.sin(heading_rep)))
+    crs_ok = ~np.isnan(fx.crs) & ~np.isnan(fx.spd) & (fx.spd >= 1.0)
+    heading_rep = np.deg2rad(90.0 - fx.crs)  # clockwise from north -> CCW from east
+    vel = np.column_stack((fx.spd * np.cos(heading_rep), fx.spd * np.sin(heading_rep)))
+    return _Measurements(t, xy, sig, fx.spd, vel, crs_ok, fx.crs,
+                         doppler_stops(t, fx.spd, keep, p))
 
-    # ---- 4. smooth each segment (split at long gaps), drop fixes far from the smoothed track,
-    # smooth again
-    stops_fix = doppler_stops(t, spd, keep, p)
-    segments = _segments(t, keep, p.segment_gap_s)
+
+def _smooth_part(m: _Measurements, used: np.ndarray, stopped: np.ndarray, p: TraceParams):
+    return _smooth_segment(m.t, m.xy, m.sig, m.spd, m.vel, m.crs_ok, used, stopped, p)
+
+
+def _reject_jumps(m: _Measurements, keep: np.ndarray, p: TraceParams, path
+                  ) -> tuple[np.ndarray, list[np.ndarray]]:
+    """Smooth each segment (split at long gaps), drop fixes far from the smoothed track,
+    smooth again (up to four times); the fixes used and the segments."""
+    segments = _segments(m.t, keep, p.segment_gap_s)
     used = keep.copy()
     for seg in segments:
         for _ in range(4):
-            xs = _smooth_segment(t, xy, sig, spd, vel_meas, crs_ok, used & seg, stops_fix, p)
-            resid = np.hypot(*(xy - xs[:, :2]).T)
-            far = resid > np.maximum(p.gate_sigma * sig, p.gate_floor_m)
+            xs = _smooth_part(m, used & seg, m.stops, p)
+            resid = np.hypot(*(m.xy - xs[:, :2]).T)
+            far = resid > np.maximum(p.gate_sigma * m.sig, p.gate_floor_m)
             new_used = used.copy()
             new_used[seg] = keep[seg] & ~far[seg]
             if np.array_equal(new_used, used) or new_used[seg].sum() < 1:
@@ -176,19 +237,30 @@ def smooth_ego(trace: GpsTrace, rate_hz: float = EGO_RATE_HZ, gps_offset_s: floa
     if used.sum() < 2:
         raise InconsistentInputError(path, "fewer than two fixes survive outlier rejection",
                          "the trace is too noisy to use")
+    return used, segments
 
-    # ---- 5. stops from positions; final smoothing with zero-velocity updates
-    stops_fix = stops_fix | position_stops(t, xy, sig, spd, used, p)
-    xs = np.zeros((n_in, 6))
+
+def _smooth_with_stops(m: _Measurements, used: np.ndarray, segments: list[np.ndarray],
+                       p: TraceParams) -> tuple[np.ndarray, list[tuple[float, float]]]:
+    """Stops from positions, the final smoothing with zero-velocity updates in them; the
+    smoothed states and the stops' (start, end) times."""
+    stops_fix = m.stops | position_stops(m.t, m.xy, m.sig, m.spd, used, p)
+    xs = np.zeros((m.t.size, 6))
     for seg in segments:
-        part = _smooth_segment(t, xy, sig, spd, vel_meas, crs_ok, used & seg, stops_fix, p)
-        xs[seg] = part[seg]
+        xs[seg] = _smooth_part(m, used & seg, stops_fix, p)[seg]
     # Spans over the used fixes only: a rejected fix inside a stop must not split it.
-    stop_spans = spans(t[used], stops_fix[used], p.stop_min_s)
+    return xs, spans(m.t[used], stops_fix[used], p.stop_min_s)
 
-    # ---- 6. resample: cubic Hermite inside segments, a straight line at constant speed
-    # across the gaps between them (no motion is invented where there are no fixes)
-    tu, xu = t[used], xs[used]
+
+def _resample(m: _Measurements, enu: np.ndarray, alt: np.ndarray, used: np.ndarray,
+              xs: np.ndarray, stop_spans: list[tuple[float, float]], frame: EnuFrame,
+              rate_hz: float, p: TraceParams, path
+              ) -> tuple[EgoTrack, list[tuple[float, float, float]], list[str]]:
+    """The ego at ``rate_hz``: cubic Hermite inside segments, a straight line at constant
+    speed across the gaps between them (no motion is invented where there are no fixes),
+    standing still in the stops; the gaps bridged and warnings."""
+    warnings: list[str] = []
+    tu, xu = m.t[used], xs[used]
     k0, k1 = math.ceil(tu[0] * rate_hz - 1e-9), math.floor(tu[-1] * rate_hz + 1e-9)
     if k1 < k0:
         raise InconsistentInputError(path, f"fixes span {tu[-1] - tu[0]:.3f} s, less than one sample at "
@@ -202,29 +274,34 @@ def smooth_ego(trace: GpsTrace, rate_hz: float = EGO_RATE_HZ, gps_offset_s: floa
     speed = np.hypot(vel[:, 0], vel[:, 1])
     stopped = np.zeros(len(tg), bool)
     for a, b in stop_spans:
-        m = (tg >= a) & (tg <= b)
-        if m.any():
-            stopped |= m
-            pos[m] = pos[m].mean(axis=0)  # one place for the whole stop: no creeping
+        inside = (tg >= a) & (tg <= b)
+        if inside.any():
+            stopped |= inside
+            pos[inside] = pos[inside].mean(axis=0)  # one place for the whole stop: no creeping
     speed[stopped] = 0.0
-    heading = held_heading(vel, speed, stopped, p.heading_min_speed_mps, crs)
+    heading = held_heading(vel, speed, stopped, p.heading_min_speed_mps, m.crs)
     if heading is None:
         heading = np.zeros(len(tg))
         warnings.append("the vehicle never moves: heading set to 0 (east)")
     else:
         stop_headings(heading, pos, stopped)
-
     z = np.interp(tg, tu, median3(enu[used, 2]))
     lat_g, lon_g, _ = frame.to_geodetic(np.column_stack((pos, z)))
     has_alt = bool(np.any(~np.isnan(alt)))
-    ego = EgoTrack(origin=origin, t_s=tg, x_m=pos[:, 0], y_m=pos[:, 1], heading_rad=heading,
-                   speed_mps=speed, lat_deg=np.asarray(lat_g), lon_deg=np.asarray(lon_g),
-                   z_m=z if has_alt else None)
+    ego = EgoTrack(origin=frame.origin, t_s=tg, x_m=pos[:, 0], y_m=pos[:, 1],
+                   heading_rad=heading, speed_mps=speed, lat_deg=np.asarray(lat_g),
+                   lon_deg=np.asarray(lon_g), z_m=z if has_alt else None)
+    return ego, long_gaps, warnings
 
-    # ---- summary
+
+def _summary(trace: GpsTrace, t: np.ndarray, used: np.ndarray,
+             long_gaps: list[tuple[float, float, float]], stop_spans: list[tuple[float, float]],
+             ego: EgoTrack, warnings: list[str], alignment: str, t0_utc: float, noise_m: float,
+             rate_hz: float, p: TraceParams) -> TraceStats:
+    """The run's summary: gaps, stops, rejected fixes and the assumptions made."""
+    tu = t[used]
     dt_used = np.diff(tu)
-    gap_mask = dt_used > p.gap_s
-    gaps = [(float(tu[i]), float(dt_used[i])) for i in np.flatnonzero(gap_mask)]
+    gaps = [(float(tu[i]), float(dt_used[i])) for i in np.flatnonzero(dt_used > p.gap_s)]
     assumptions = []
     for start_s, length_s, chord_m in long_gaps:
         text = (f"GPS gap of {length_s:.0f} s at t={start_s:.1f} s: the ego is placed on the "
@@ -232,22 +309,23 @@ def smooth_ego(trace: GpsTrace, rate_hz: float = EGO_RATE_HZ, gps_offset_s: floa
                 f"{chord_m / length_s:.1f} m/s ({chord_m:.0f} m)")
         warnings.append(text)
         assumptions.append(text)
+    n_in = t.size
     n_rejected = int(n_in - used.sum())
     if n_rejected:
         warnings.append(f"rejected {n_rejected} outlier fixes")
+    tg = ego.t_s
     if tg[0] > 0.5 or tg[-1] < 0:
         warnings.append(f"the trajectory starts at video time {tg[0]:.1f} s: the GPS does not "
                         "cover the start of the video")
-    stats = TraceStats(
+    return TraceStats(
         format=trace.format, n_fixes=n_in, n_rejected=n_rejected, n_skipped=trace.n_skipped,
         duration_s=float(t[-1] - t[0]),
-        distance_m=float(np.hypot(np.diff(pos[:, 0]), np.diff(pos[:, 1])).sum()),
-        speed_mean_mps=float(speed.mean()), speed_max_mps=float(speed.max()),
+        distance_m=float(np.hypot(np.diff(ego.x_m), np.diff(ego.y_m)).sum()),
+        speed_mean_mps=float(ego.speed_mps.mean()), speed_max_mps=float(ego.speed_mps.max()),
         gaps=gaps, stationary=[(float(a), float(b)) for a, b in stop_spans],
         warnings=warnings, time_alignment=alignment, t0_utc_s=float(t0_utc),
         first_fix_t_s=float(t[0]), noise_m=float(noise_m), rate_hz=float(rate_hz),
         n_samples=len(tg), assumptions=assumptions)
-    return ego, stats
 
 
 def format_summary(stats: TraceStats, out_path: str | Path | None = None) -> str:

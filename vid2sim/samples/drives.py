@@ -58,14 +58,21 @@ def simulate_drive(net: RoadNetwork, rng: np.random.Generator, *, min_length_m: 
                    rate_hz: float = 1.0, random_phase: bool = True,
                    ends_at_junctions: bool = True, bias_m: float = 0.0,
                    bias_tau_s: float = 60.0,
-                   route_nodes: tuple[int, int] | None = None) -> SimulatedDrive:
+                   route_nodes: tuple[int, int] | None = None,
+                   end_span_m: float | None = None,
+                   route_edges: list[int] | None = None,
+                   cruise_mps: tuple[float, float] = (7.0, 13.0)) -> SimulatedDrive:
     """Drive a shortest path of ``net`` and record noisy fixes.
 
     Route: the shortest path between two random junctions (or the OSM nodes
-    ``route_nodes``); with ``ends_at_junctions=False``
+    ``route_nodes``), or the directed edges ``route_edges`` as given (a U-turn: an edge and
+    its twin); with ``ends_at_junctions=False``
     the car starts at a uniformly random point of the path's first way piece and stops at one
-    of its last (as real drives do: nobody starts the recorder on a junction).
-    Speed: a cruise speed drawn from 7-13 m/s (25-47 km/h, urban), 4 m/s through turns
+    of its last (as real drives do: nobody starts the recorder on a junction); with
+    ``end_span_m`` it starts anywhere in the path's first ``end_span_m`` metres and stops
+    anywhere in its last (across pieces: a drive that begins 80 m along a long street).
+    Speed: a cruise speed drawn from ``cruise_mps`` (default 7-13 m/s, 25-47 km/h, urban;
+    a motorway 25-33 m/s), 4 m/s through turns
     sharper than 45 degrees, accelerating and braking at most 1.5 m/s^2; with ``stop_s`` > 0
     the car stops halfway and stands still that long. The first fix falls at a random point
     of the first sampling interval (``random_phase``), not exactly on the start.
@@ -74,6 +81,48 @@ def simulate_drive(net: RoadNetwork, rng: np.random.Generator, *, min_length_m: 
     wander of real receivers); ``outlier_share`` of the fixes are instead displaced 30-80 m
     in a random direction.
     """
+    edges, s_start, s_end = _pick_route(net, rng, route_edges, route_nodes, min_length_m,
+                                        max_length_m, ends_at_junctions, end_span_m)
+    pts = np.vstack([net.edge_xy[edges[0]]] + [net.edge_xy[e][1:] for e in edges[1:]])
+    seg = np.hypot(*np.diff(pts, axis=0).T)
+    pts = pts[np.concatenate([[True], seg > 1e-6])]
+    s_pts = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
+    grid = np.arange(0.0, float(net.edge_length_m[edges].sum()), 1.0)
+    v_grid = _speed_profile(grid, s_pts, pts, float(rng.uniform(*cruise_mps)),
+                            (s_start + s_end) / 2 if stop_s > 0 else None)
+    t_s, s_true = _sample_times(rng, grid, v_grid, s_start, s_end, rate_hz, random_phase,
+                                stop_s)
+    true_x, true_y = np.interp(s_true, s_pts, pts[:, 0]), np.interp(s_true, s_pts, pts[:, 1])
+    ends = np.cumsum(net.edge_length_m[edges])
+    pos = np.minimum(np.searchsorted(ends, s_true, side="right"), len(edges) - 1)
+    true_way = net.edge_way_id[np.asarray(edges)[pos]]
+    n = len(s_true)
+    x = true_x + rng.normal(0.0, noise_m, n)
+    y = true_y + rng.normal(0.0, noise_m, n)
+    if bias_m > 0:
+        bias = gauss_markov(rng, t_s, bias_m, bias_tau_s)
+        x, y = x + bias[:, 0], y + bias[:, 1]
+    out = rng.random(n) < outlier_share
+    r, ang = rng.uniform(30.0, 80.0, n), rng.uniform(-math.pi, math.pi, n)
+    x = np.where(out, true_x + r * np.cos(ang), x)
+    y = np.where(out, true_y + r * np.sin(ang), y)
+    # the driven sequence is what lies between the first and the last fix: a way the car
+    # entered after its last fix was recorded cannot be known
+    driven = edges[int(pos[0]):int(pos[-1]) + 1]
+    ways = merge_ways([], [driven], net.edge_way_id)
+    driven_start = float(ends[int(pos[0])] - net.edge_length_m[edges[int(pos[0])]])
+    return SimulatedDrive(driven, ways, t_s, x, y, true_way, out, s_end - s_start,
+                          s_true - driven_start)
+
+
+def _pick_route(net: RoadNetwork, rng: np.random.Generator, route_edges: list[int] | None,
+                route_nodes: tuple[int, int] | None, min_length_m: float, max_length_m: float,
+                ends_at_junctions: bool, end_span_m: float | None
+                ) -> tuple[list[int], float, float]:
+    """The path's directed edges and where along it the drive starts and ends [m]."""
+    if route_edges is not None:
+        edges = [int(e) for e in route_edges]
+        return (edges, *_drive_ends(net, edges, rng, ends_at_junctions, end_span_m))
     graph = net.graph()
     nodes = np.unique(np.concatenate([net.edge_u, net.edge_v]))
     for _ in range(10000):
@@ -88,43 +137,44 @@ def simulate_drive(net: RoadNetwork, rng: np.random.Generator, *, min_length_m: 
                 raise ValueError(f"no drivable route between nodes {route_nodes}") from None
             continue
         edges = [int(graph[p][q]["edge"]) for p, q in itertools.pairwise(path)]
-        total = float(net.edge_length_m[edges].sum())
-        s_start, s_end = 0.0, total
-        if not ends_at_junctions:
-            s_start = float(rng.uniform(0.0, net.edge_length_m[edges[0]]))
-            s_end = total - float(rng.uniform(0.0, net.edge_length_m[edges[-1]]))
+        s_start, s_end = _drive_ends(net, edges, rng, ends_at_junctions, end_span_m)
         if min_length_m <= s_end - s_start <= max_length_m:
-            break
+            return edges, s_start, s_end
         if route_nodes is not None:
             raise ValueError(f"the route between nodes {route_nodes} is "
                              f"{s_end - s_start:.0f} m, not {min_length_m}-{max_length_m} m")
-    else:  # pragma: no cover - the map is too small for the requested lengths
-        raise ValueError("no route of the requested length in this network")
-    pts = np.vstack([net.edge_xy[edges[0]]] + [net.edge_xy[e][1:] for e in edges[1:]])
-    seg = np.hypot(*np.diff(pts, axis=0).T)
-    keep = np.concatenate([[True], seg > 1e-6])
-    pts = pts[keep]
-    s_pts = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
-    # speed limit profile along a 1 m grid: slow down around sharp turns
-    grid = np.arange(0.0, total, 1.0)
+    raise ValueError("no route of the requested length in this network")  # pragma: no cover
+
+
+def _speed_profile(grid: np.ndarray, s_pts: np.ndarray, pts: np.ndarray, cruise: float,
+                   s_stop: float | None) -> np.ndarray:
+    """Speed limit on a 1 m grid along the path [m/s]: ``cruise``, 4 m/s around turns
+    sharper than 45 degrees, creeping to a stop at ``s_stop``, accelerating and braking at
+    most 1.5 m/s^2 (comfortable: v^2 <= v0^2 + 2 a ds)."""
     gx, gy = np.interp(grid, s_pts, pts[:, 0]), np.interp(grid, s_pts, pts[:, 1])
     head = np.unwrap(np.arctan2(np.gradient(gy), np.gradient(gx)))
     turn = np.abs(np.interp(grid + 10, grid, head) - np.interp(grid - 10, grid, head))
-    cruise = float(rng.uniform(7.0, 13.0))
     v_grid = np.where(turn > math.radians(45), 4.0, cruise)
-    s_stop = (s_start + s_end) / 2
-    if stop_s > 0:
+    if s_stop is not None:
         v_grid[int(s_stop)] = 0.3  # creep to the stop line, then stand
-    # comfortable acceleration / braking limit (1.5 m/s^2): v^2 <= v0^2 + 2 a ds
     for order in (slice(None), slice(None, None, -1)):
         v = v_grid[order]
         for k in range(1, v.size):
             v[k] = min(v[k], math.sqrt(v[k - 1] ** 2 + 2 * 1.5 * 1.0))
+    return v_grid
+
+
+def _sample_times(rng: np.random.Generator, grid: np.ndarray, v_grid: np.ndarray,
+                  s_start: float, s_end: float, rate_hz: float, random_phase: bool,
+                  stop_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Fix times [s] and the true positions along the path then [m]: driving at the
+    profile's speed, standing ``stop_s`` halfway."""
     dt = 1.0 / rate_hz
     # the receiver's clock does not know where the route begins: the first fix falls
     # anywhere within the first sampling interval of driving
     v_start = float(np.interp(s_start, grid, v_grid))
     s = s_start + (float(rng.uniform(0.0, v_start * dt)) if random_phase else 0.0)
+    s_stop = (s_start + s_end) / 2
     t, s_list, t_list = 0.0, [], []
     stopped = stop_s <= 0
     while s < s_end:
@@ -138,29 +188,19 @@ def simulate_drive(net: RoadNetwork, rng: np.random.Generator, *, min_length_m: 
                 t_list.append(t)
         s += float(np.interp(s, grid, v_grid)) * dt
         t += dt
-    s_true = np.array(s_list)
-    x = np.interp(s_true, s_pts, pts[:, 0])
-    y = np.interp(s_true, s_pts, pts[:, 1])
-    ends = np.cumsum(net.edge_length_m[edges])
-    pos = np.minimum(np.searchsorted(ends, s_true, side="right"), len(edges) - 1)
-    true_way = net.edge_way_id[np.asarray(edges)[pos]]
-    n = len(s_true)
-    x = x + rng.normal(0.0, noise_m, n)
-    y = y + rng.normal(0.0, noise_m, n)
-    if bias_m > 0:
-        bias = gauss_markov(rng, np.array(t_list), bias_m, bias_tau_s)
-        x, y = x + bias[:, 0], y + bias[:, 1]
-    out = rng.random(n) < outlier_share
-    r, ang = rng.uniform(30.0, 80.0, n), rng.uniform(-math.pi, math.pi, n)
-    x = np.where(out, np.interp(s_true, s_pts, pts[:, 0]) + r * np.cos(ang), x)
-    y = np.where(out, np.interp(s_true, s_pts, pts[:, 1]) + r * np.sin(ang), y)
-    # the driven sequence is what lies between the first and the last fix: a way the car
-    # entered after its last fix was recorded cannot be known
-    driven = edges[int(pos[0]):int(pos[-1]) + 1]
-    ways = merge_ways([], [driven], net.edge_way_id)
-    driven_start = float(ends[int(pos[0])] - net.edge_length_m[edges[int(pos[0])]])
-    return SimulatedDrive(driven, ways, np.array(t_list), x, y, true_way, out, s_end - s_start,
-                          s_true - driven_start)
+    return np.array(t_list), np.array(s_list)
+
+
+def _drive_ends(net: RoadNetwork, edges: list[int], rng: np.random.Generator,
+                ends_at_junctions: bool, end_span_m: float | None) -> tuple[float, float]:
+    """Where along the path the drive starts and ends [m] (see :func:`simulate_drive`)."""
+    total = float(net.edge_length_m[edges].sum())
+    if ends_at_junctions:
+        return 0.0, total
+    first, last = net.edge_length_m[edges[0]], net.edge_length_m[edges[-1]]
+    if end_span_m is not None:
+        first = last = min(end_span_m, total / 3.0)
+    return float(rng.uniform(0.0, first)), total - float(rng.uniform(0.0, last))
 
 
 def gauss_markov(rng: np.random.Generator, t_s: np.ndarray, sigma_m: float, tau_s: float

@@ -2,7 +2,8 @@
 
 Modules by concern: :mod:`.config` (vehicle priors, :class:`RangingConfig`), :mod:`.boxfit`
 (the single-frame fit of each box), :mod:`.horizon` (where the horizon is, per video and per
-frame), :mod:`.smoother` (Kalman filter and RTS smoother per track) and :mod:`.core`
+frame), :mod:`.parallax` and :mod:`.surface` (standing vehicles ranged from the ego's own
+motion, and the ground under each car), :mod:`.smoother` (Kalman filter and RTS smoother per track) and :mod:`.core`
 (:func:`range_tracks`, which wires them). The public names are re-exported here.
 """
 
@@ -31,6 +32,7 @@ from vid2sim.detect.ranging.horizon import (
     lane_horizon_offsets,
     pitch_for_horizon,
 )
+from vid2sim.detect.ranging.parallax import EgoPath, fit_standing_track, standing_range_rate
 from vid2sim.detect.ranging.smoother import SmoothedTrack, smooth_track, smooth_track_adaptive
 
 __all__ = [
@@ -39,6 +41,7 @@ __all__ = [
     "GUESSED_PITCH_STD_DEG",
     "BoxArrays",
     "BoxFit",
+    "EgoPath",
     "RangingConfig",
     "SmoothedTrack",
     "VehiclePrior",
@@ -46,6 +49,7 @@ __all__ = [
     "colored_noise_factor",
     "cuboid_config",
     "fit_boxes",
+    "fit_standing_track",
     "frame_horizon_offsets",
     "horizon_from_vehicles",
     "lane_horizon_offsets",
@@ -54,4 +58,5 @@ __all__ = [
     "range_tracks",
     "smooth_track",
     "smooth_track_adaptive",
+    "standing_range_rate",
 ]

@@ -212,6 +212,83 @@ class RangingConfig:
     max_log_range_std : float
         A single-frame fit whose log-range spread exceeds this is unobservable (0.5: the
         range is known to no better than a factor 1.65 either way).
+    carry_frames : int
+        A box whose bottom is below the image takes the ratio of the full fit to the fit of
+        its sides alone from this many of its track's nearest frames that had both (10: a
+        second at 10 fps; the ratio changes slowly as the bearing does).
+    carry_floor_rel : float
+        Least relative spread of that carried scale (0.02: the sides' pixel noise of a
+        near car is 1-2 % of its width, and the ratio's drift over a second as much).
+    standing_min_boxes : int
+        Boxes a track needs before the ego's motion tests it as standing (5: half a second
+        at 10 fps; fewer say little about one place in the world).
+    standing_min_travel_m : float
+        The ego must travel this far while a track is seen [m] for its parallax to range it
+        (3 m: the baseline a 1 px bearing change resolves to 10 % at 30 m on KITTI's
+        camera, f = 721 px, a car 8 m to the side).
+    standing_max_ego_noise_m : float
+        The ego's trajectory must be known to this [m] (one sigma, the trace stage's
+        estimate): the baseline's error is the range's (the assembly's same bound; an
+        INS/RTK such as KITTI's OXTS is known to a few cm, a phone GPS to 2-5 m).
+    standing_max_chi2 : float
+        Robust normalised residual above which a track's boxes fit no single place in the
+        world (a vehicle crossing, turning, accelerating): the parked cars of KITTI raw 0001
+        fit at 0.4-4.6 (bench_tracklets.py), a box noise model off by a factor 2-3 at most.
+    standing_size_sigmas : float
+        A standing fit whose width, height or length lies further than this many class
+        sigmas from its class is no standing vehicle of that class (a tram moving at 9 m/s
+        behind a 10 m/s ego fits as a 104 m long, 3.2 m wide standing tram; a box over two
+        parked cars as a 2.8 m wide car: 9 sigma). Not 4: a high car among cars (2.17 m:
+        5.6 sigma of the car prior) and a car whose flank its neighbour hides (width and
+        length trade against each other seen obliquely) are standing cars too.
+    standing_max_ground_m : float
+        The ground a standing vehicle may stand on, off the ego's road plane [m]: kerbs,
+        parking strips and crowns reach 0.5 m (KITTI raw 0001's parked row: 0.29-0.46 m
+        below, the car park behind it 0.58 m, from the lidar tracklets).
+    standing_scale_sigmas : float
+        Sigmas of the common scale (:func:`vid2sim.detect.ranging.surface.scale_sigmas`)
+        beyond which a track is a vehicle moving along the road, not a standing one (3: a
+        car at 12 % of the ego's speed along its axis still passes: the monocular scale
+        ambiguity, which the class priors alone resolve to about 4.5 %).
+    standing_road_half_width_m : float
+        Vehicles whose standing fit puts them within this lateral distance of the ego [m]
+        are in the driving lanes (the ego's lane and the next ones: 1.5 lanes of 3.6 m),
+        where most vehicles move: they need the scale test at ``standing_scale_sigmas``;
+        beyond it (parking strips, kerbs, car parks), where most stand, at
+        ``standing_scale_sigmas_beside_road``.
+    standing_scale_sigmas_beside_road : float
+        The scale test's bound beside the driving lanes (6, the size test's own: a small
+        city car parked at the kerb, 1.45 x 3.40 m, fits 4-5.5 sigma small against the
+        fleet's priors, KITTI raw 0001, and is no less standing for it).
+    travel_yaw_search_deg : float
+        The direction of the ego's travel is sought within this of its prior [deg] (the
+        lane markings' and the camera file's axes differ by 0.5 deg on KITTI raw 0001; a
+        dash-cam file is good to about a degree).
+    travel_yaw_min_tracks : int
+        Standing tracks the direction of travel needs before it is estimated from them
+        (3: two lines meet in one point, a third checks it).
+    standing_free_prior_factor : float
+        The scale test fits each track once more with its size priors this many times as
+        wide (10: a car's width then free within +-1.2 m), so that its sizes are what the
+        boxes and the baseline alone say.
+    standing_robust_sigmas : float
+        Scale of the Cauchy weights of a standing fit's edges [sigmas]: an edge on another
+        car (occlusion, a box over two cars) pulls no more than a few sigmas' worth (3: the
+        usual choice of Cauchy IRLS, 95 % efficiency at Gaussian noise needs 2.4).
+    standing_ground_prior_factor : float
+        The standing fit's prior on its ground height is the road's spread at its lateral
+        offset times this (2: the parallax, not the prior, should decide).
+    ego_speed_std_mps : float
+        One-sigma error of the ego's speed from its trajectory [m/s], the noise of the range
+        rate a standing vehicle has (0.1: the smoothed OXTS trace of KITTI raw 0001 against
+        its measured forward speed vf, RMSE 0.05 m/s, tests/geo/test_trace.py).
+    surface_lateral_window_m : float
+        A moving vehicle takes the ground of the standing vehicles within this lateral
+        distance of it [m] (2: half a lane either way, the width of a parking strip).
+    surface_floor_std_m : float
+        Least spread of a ground height from standing vehicles [m]: the road under one car
+        differs from its neighbour's by a few centimetres even on a smooth strip (camber,
+        drainage gutters, 0.03 m).
     """
 
     priors: dict[str, VehiclePrior] = field(default_factory=lambda: dict(DEFAULT_PRIORS))
@@ -261,6 +338,25 @@ class RangingConfig:
     filter_max_gap_s: float = 2.0
     top_alone_max_rel_error: float = 0.25
     max_log_range_std: float = 0.5
+    carry_frames: int = 10
+    carry_floor_rel: float = 0.02
+    standing_min_boxes: int = 5
+    standing_min_travel_m: float = 3.0
+    standing_max_ego_noise_m: float = 0.5
+    standing_max_chi2: float = 9.0
+    standing_size_sigmas: float = 6.0
+    standing_max_ground_m: float = 0.8
+    standing_scale_sigmas: float = 3.0
+    standing_road_half_width_m: float = 5.4
+    standing_scale_sigmas_beside_road: float = 6.0
+    standing_robust_sigmas: float = 3.0
+    standing_free_prior_factor: float = 10.0
+    travel_yaw_search_deg: float = 1.5
+    travel_yaw_min_tracks: int = 3
+    standing_ground_prior_factor: float = 2.0
+    ego_speed_std_mps: float = 0.1
+    surface_lateral_window_m: float = 2.0
+    surface_floor_std_m: float = 0.03
 
     def prior_for(self, category: VehicleCategory) -> VehiclePrior:
         return self.priors.get(category, self.priors[VehicleCategory.CAR])

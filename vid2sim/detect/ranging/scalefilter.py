@@ -52,7 +52,9 @@ class RangeMeasurements:
     (NaN where there is none). ``log_w`` / ``log_w_var``: ln of the box width [ln px] and its variance (NaN
     where a side is cut); the width model about the frame's fit (range ``lin_x_m``, log width
     ``lin_c``) is ``lin_a - ln((Z + d) / (lin_x_m + d)) + lin_e * (c - lin_c)`` with d such
-    that its slope at the fit is ``lin_b`` (d = -1 / lin_b - lin_x_m).
+    that its slope at the fit is ``lin_b`` (d = -1 / lin_b - lin_x_m). ``rate_mps`` /
+    ``rate_var``: for a standing vehicle, the range rate the ego's own motion gives it and its
+    variance (None, or NaN where there is none: a moving vehicle).
     """
 
     t_s: np.ndarray
@@ -68,6 +70,8 @@ class RangeMeasurements:
     start_m: float
     log_width_prior: float
     log_width_prior_var: float
+    rate_mps: np.ndarray | None = None
+    rate_var: np.ndarray | None = None
 
 
 @dataclass
@@ -111,16 +115,9 @@ def _update(x: np.ndarray, p: np.ndarray, h: np.ndarray, innov: np.ndarray, r: n
     return x, 0.5 * (p + np.transpose(p, (0, 2, 1))), ll
 
 
-def filter_range(m: RangeMeasurements, accel_noise_grid: tuple[float, ...], v0_std_mps: float,
-                 inverse: bool = True) -> list[FilteredRange]:
-    """Filter and smooth one track for every acceleration noise of ``accel_noise_grid``.
-
-    ``inverse``: the absolute range's variance is moved from the reading to the predicted
-    range as (Z / reading)^4 (its error is additive in 1/Z; see
-    :func:`vid2sim.detect.ranging.smoother._kf_rts_cv`).
-    """
-    q = np.asarray(accel_noise_grid, dtype=float)
-    g, n = q.size, len(m.t_s)
+def _initial_state(m: RangeMeasurements, g: int, v0_std_mps: float
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """G copies of the diffuse start: range from the first fit, width from its prior."""
     x = np.zeros((g, 3))
     x[:, 0], x[:, 2] = m.start_m, m.log_width_prior
     p = np.zeros((g, 3, 3))
@@ -128,62 +125,71 @@ def filter_range(m: RangeMeasurements, accel_noise_grid: tuple[float, ...], v0_s
     p[:, 1, 1] = v0_std_mps ** 2
     # A floor keeps the covariance invertible for the smoother when the width is known exactly.
     p[:, 2, 2] = max(m.log_width_prior_var, STATE_VAR_FLOOR)
-    xs_f, ps_f = np.zeros((n, g, 3)), np.zeros((n, g, 3, 3))
-    xs_p, ps_p = np.zeros((n, g, 3)), np.zeros((n, g, 3, 3))
-    dts = np.zeros(n)
-    loglik = np.zeros(g)
-    have_abs = np.isfinite(m.abs_m) & np.isfinite(m.abs_var_m2)
-    have_w = np.isfinite(m.log_w) & np.isfinite(m.log_w_var)
-    first = True
-    for k in range(n):
-        dt = float(m.t_s[k] - m.t_s[k - 1]) if k else 0.0
-        dts[k] = dt
-        if dt > 0:
-            x[:, 0] += dt * x[:, 1]
-            p01 = p[:, 0, :] + dt * p[:, 1, :]  # rows of F P
-            p = p.copy()
-            p[:, 0, :] = p01
-            p[:, :, 0] = p[:, :, 0] + dt * p[:, :, 1]
-            p[:, 0, 0] += q * dt ** 3 / 3
-            p[:, 0, 1] += q * dt ** 2 / 2
-            p[:, 1, 0] += q * dt ** 2 / 2
-            p[:, 1, 1] += q * dt
-            p[:, 2, 2] += LOG_WIDTH_WALK_PER_SQRT_S ** 2 * dt
-        xs_p[k], ps_p[k] = x, p
-        if have_abs[k]:
-            r = np.full(g, float(m.abs_var_m2[k]))
-            if inverse and not first and m.abs_m[k] > 0:
-                ratio = np.clip((np.maximum(x[:, 0], 1e-3) / m.abs_m[k]) ** 4,
-                                1 / INVERSE_RATIO_CLAMP, INVERSE_RATIO_CLAMP)
-                r = r * ratio
-            h = np.array([1.0, 0.0, 0.0])
-            innov = m.abs_m[k] - x[:, 0]
-            x, p, ll = _update(x, p, h, innov, r, gate=not first)
-            if not first:
-                loglik += ll
-            first = False
-        if have_w[k]:
-            # Extended Kalman update on the 1/(Z + d) law that the linear model's slope b
-            # implies (d = -1/b - Z_fit): a filter far from the frame's own fit must not
-            # read the width against a tangent (it ran away from the truth on far leads).
-            d_eff = -1.0 / m.lin_b[k] - m.lin_x_m[k]
-            zd = np.maximum(x[:, 0] + d_eff, 0.1)
-            h = np.zeros((g, 3))
-            h[:, 0], h[:, 2] = -1.0 / zd, m.lin_e[k]
-            pred = (m.lin_a[k] - np.log(zd / (m.lin_x_m[k] + d_eff))
-                    + m.lin_e[k] * (x[:, 2] - m.lin_c[k]))
-            # The noise level is chosen on the absolute cue's innovations alone: the width's
-            # slow changes from turning and occlusion would read as manoeuvres.
-            x, p, _ = _update(x, p, h, m.log_w[k] - pred, np.full(g, float(m.log_w_var[k])),
-                              gate=not first)
-            first = False
-        xs_f[k], ps_f[k] = x, p
-    # Rauch-Tung-Striebel backward pass.
+    return x, p
+
+
+def _predict(x: np.ndarray, p: np.ndarray, dt: float, q: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """Constant-velocity prediction over ``dt`` with white-noise acceleration ``q`` (one per
+    candidate) and the log width's random walk."""
+    x = x.copy()
+    x[:, 0] += dt * x[:, 1]
+    p01 = p[:, 0, :] + dt * p[:, 1, :]  # rows of F P
+    p = p.copy()
+    p[:, 0, :] = p01
+    p[:, :, 0] = p[:, :, 0] + dt * p[:, :, 1]
+    p[:, 0, 0] += q * dt ** 3 / 3
+    p[:, 0, 1] += q * dt ** 2 / 2
+    p[:, 1, 0] += q * dt ** 2 / 2
+    p[:, 1, 1] += q * dt
+    p[:, 2, 2] += LOG_WIDTH_WALK_PER_SQRT_S ** 2 * dt
+    return x, p
+
+
+def _update_absolute(x: np.ndarray, p: np.ndarray, m: RangeMeasurements, k: int,
+                     first: bool, inverse: bool):
+    """The absolute range cue; with ``inverse`` its variance moved from the reading to the
+    predicted range as (Z / reading)^4 (its error is additive in 1/Z; see
+    :func:`vid2sim.detect.ranging.smoother._kf_rts_cv`)."""
+    g = x.shape[0]
+    r = np.full(g, float(m.abs_var_m2[k]))
+    if inverse and not first and m.abs_m[k] > 0:
+        ratio = np.clip((np.maximum(x[:, 0], 1e-3) / m.abs_m[k]) ** 4,
+                        1 / INVERSE_RATIO_CLAMP, INVERSE_RATIO_CLAMP)
+        r = r * ratio
+    return _update(x, p, np.array([1.0, 0.0, 0.0]), m.abs_m[k] - x[:, 0], r, gate=not first)
+
+
+def _update_width(x: np.ndarray, p: np.ndarray, m: RangeMeasurements, k: int, first: bool):
+    """Extended Kalman update on the 1/(Z + d) law that the linear model's slope b implies
+    (d = -1/b - Z_fit): a filter far from the frame's own fit must not read the width
+    against a tangent (it ran away from the truth on far leads)."""
+    g = x.shape[0]
+    d_eff = -1.0 / m.lin_b[k] - m.lin_x_m[k]
+    zd = np.maximum(x[:, 0] + d_eff, 0.1)
+    h = np.zeros((g, 3))
+    h[:, 0], h[:, 2] = -1.0 / zd, m.lin_e[k]
+    pred = (m.lin_a[k] - np.log(zd / (m.lin_x_m[k] + d_eff))
+            + m.lin_e[k] * (x[:, 2] - m.lin_c[k]))
+    return _update(x, p, h, m.log_w[k] - pred, np.full(g, float(m.log_w_var[k])),
+                   gate=not first)
+
+
+def _update_rate(x: np.ndarray, p: np.ndarray, m: RangeMeasurements, k: int):
+    """The range rate a standing vehicle has from the ego's own measured motion
+    (:func:`vid2sim.detect.ranging.parallax.standing_range_rate`), at its noise."""
+    g = x.shape[0]
+    return _update(x, p, np.array([0.0, 1.0, 0.0]), m.rate_mps[k] - x[:, 1],
+                   np.full(g, float(m.rate_var[k])), gate=False)
+
+
+def _rts(xs_f: np.ndarray, ps_f: np.ndarray, xs_p: np.ndarray, ps_p: np.ndarray,
+         dts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rauch-Tung-Striebel backward pass over the filtered and predicted states."""
     xs, ps = xs_f.copy(), ps_f.copy()
-    for k in range(n - 2, -1, -1):
-        dt = dts[k + 1]
+    for k in range(len(dts) - 2, -1, -1):
         f = np.eye(3)
-        f[0, 1] = dt
+        f[0, 1] = dts[k + 1]
         # C = P_f F^T P_p^-1, i.e. C^T = P_p^-1 (F P_f) (both symmetric).
         try:
             c = np.transpose(np.linalg.solve(ps_p[k + 1] + STATE_VAR_FLOOR * np.eye(3),
@@ -192,6 +198,48 @@ def filter_range(m: RangeMeasurements, accel_noise_grid: tuple[float, ...], v0_s
             continue
         xs[k] = xs_f[k] + np.einsum("gij,gj->gi", c, xs[k + 1] - xs_p[k + 1])
         ps[k] = ps_f[k] + c @ (ps[k + 1] - ps_p[k + 1]) @ np.transpose(c, (0, 2, 1))
+    return xs, ps
+
+
+def filter_range(m: RangeMeasurements, accel_noise_grid: tuple[float, ...], v0_std_mps: float,
+                 inverse: bool = True) -> list[FilteredRange]:
+    """Filter and smooth one track for every acceleration noise of ``accel_noise_grid``.
+
+    Per frame: predict, then the absolute range (``inverse``: see :func:`_update_absolute`),
+    the box's log width and, for a standing vehicle, the range rate the ego's motion gives.
+    The noise level is chosen on the absolute cue's innovations alone: the width's slow
+    changes from turning and occlusion would read as manoeuvres.
+    """
+    q = np.asarray(accel_noise_grid, dtype=float)
+    g, n = q.size, len(m.t_s)
+    x, p = _initial_state(m, g, v0_std_mps)
+    xs_f, ps_f = np.zeros((n, g, 3)), np.zeros((n, g, 3, 3))
+    xs_p, ps_p = np.zeros((n, g, 3)), np.zeros((n, g, 3, 3))
+    dts = np.zeros(n)
+    loglik = np.zeros(g)
+    have_abs = np.isfinite(m.abs_m) & np.isfinite(m.abs_var_m2)
+    have_w = np.isfinite(m.log_w) & np.isfinite(m.log_w_var)
+    have_rate = (np.isfinite(m.rate_mps) & np.isfinite(m.rate_var) if m.rate_mps is not None
+                 else np.zeros(n, dtype=bool))
+    first = True
+    for k in range(n):
+        dt = float(m.t_s[k] - m.t_s[k - 1]) if k else 0.0
+        dts[k] = dt
+        if dt > 0:
+            x, p = _predict(x, p, dt, q)
+        xs_p[k], ps_p[k] = x, p
+        if have_abs[k]:
+            x, p, ll = _update_absolute(x, p, m, k, first, inverse)
+            if not first:
+                loglik += ll
+            first = False
+        if have_w[k]:
+            x, p, _ = _update_width(x, p, m, k, first)
+            first = False
+        if have_rate[k]:
+            x, p, _ = _update_rate(x, p, m, k)
+        xs_f[k], ps_f[k] = x, p
+    xs, ps = _rts(xs_f, ps_f, xs_p, ps_p, dts)
     return [FilteredRange(xs[:, j, 0].copy(), xs[:, j, 1].copy(),
                           np.sqrt(np.maximum(ps[:, j, 0, 0], 0.0)), xs[:, j, 2].copy(),
                           float(q[j]), float(loglik[j])) for j in range(g)]
