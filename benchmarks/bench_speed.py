@@ -107,13 +107,13 @@ def _instrument() -> None:
     pipeline.range_tracks = _timed("ranging", pipeline.range_tracks)
     original_run = OnnxDetector._raw_many, OnnxDetector._raw
 
-    def count_many(self, images):
+    def count_many(self, images, *args):
         CALLS["onnx"] += len({self._prepare(im)[0].shape for im in images})
-        return original_run[0](self, images)
+        return original_run[0](self, images, *args)
 
-    def count_one(self, image):
+    def count_one(self, image, *args):
         CALLS["onnx"] += 1
-        return original_run[1](self, image)
+        return original_run[1](self, image, *args)
 
     OnnxDetector._raw_many = count_many
     OnnxDetector._raw = count_one
@@ -313,14 +313,23 @@ def sparse_folders(tracking: Path, model_dir: Path, name: str, options: dict) ->
 
 
 class FrameCache:
-    """The default detector's boxes of every frame of a clip, found once: a detector run
-    depends on its frame only, so the keyframe schedule gets the boxes it would compute."""
+    """The default detector's boxes of every frame of a clip, found once: a full run of the
+    detector depends on its frame only, so the keyframe schedule gets the boxes it would
+    compute. A keyframe that looks at part of the frame (a second look at a new track) runs
+    the detector on that part."""
 
     def __init__(self, detector, video: Path):
+        self.detector = detector
+        self.input_size_px = detector.input_size_px
         self.boxes = {f.index: detector.detect(f.image_bgr) for f in iter_frames(video)}
         self.images: dict[bytes, int] = {}
 
-    def detect(self, image_bgr: np.ndarray) -> list[Detection]:
+    def full_look(self, width_px: int, height_px: int):
+        return self.detector.full_look(width_px, height_px)
+
+    def detect(self, image_bgr: np.ndarray, look=None) -> list[Detection]:
+        if look is not None:
+            return self.detector.detect(image_bgr, look)
         key = image_bgr.tobytes()[:: 9973]  # frames differ; a sparse fingerprint finds them
         return self.boxes[self.images[key]]
 

@@ -93,7 +93,7 @@ def _car(x: float, score: float = 0.9) -> Detection:
 
 
 def test_schedule_runs_keyframes_by_time_and_a_second_look_at_new_tracks():
-    keys = KeyframeSchedule(ScheduleConfig(keyframe_s=0.3), W)
+    keys = KeyframeSchedule(ScheduleConfig(keyframe_s=0.3, sweep_s=0.9), W)
     tracker = Tracker(image_size_px=(W, H))
     picked = []
     for i in range(10):
@@ -106,9 +106,13 @@ def test_schedule_runs_keyframes_by_time_and_a_second_look_at_new_tracks():
             ids, boxes = tracker.shown_boxes()
             tracker.update(i, t, None, measured=dict(zip(ids, boxes, strict=True)))
             keys.after_carry(tracker, dict.fromkeys(ids, True))
-    # frame 0 starts a track: frame 1 looks again; then every 0.3 s
-    assert picked == [0, 1, 4, 7]
-    assert keys.reasons == {"first": 1, "new track": 1, "interval": 2}
+    # frame 0 starts a track: frame 1 looks again; the grid every 0.3 s from frame 0 (a
+    # keyframe the tracks asked for does not move it, so the grid is known ahead)
+    assert picked == [0, 1, 3, 6, 9]
+    assert keys.reasons == {"first": 1, "new track": 1, "interval": 2, "sweep": 1}
+    # a full sweep on the first frame and every 0.9 s; the second look at the new track
+    # alone; the grid keyframes between sweeps at the tracks
+    assert keys.looks == {"sweep": 2, "local": 1, "band": 2}
     # sparse input (2 frames/s): every frame is a keyframe
     sparse = KeyframeSchedule(ScheduleConfig(keyframe_s=0.3), W)
     assert all(sparse.is_keyframe(i * 0.5) for i in range(5))

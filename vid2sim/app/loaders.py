@@ -23,6 +23,7 @@ from vid2sim.core.records import (
 from vid2sim.core.videofile import image_files
 from vid2sim.detect.vehicles.detector import OnnxDetector, load_detector
 from vid2sim.detect.vehicles.external import read_detections
+from vid2sim.detect.vehicles.models import resolve_model
 from vid2sim.detect.video import video_info
 from vid2sim.evaluate.annotations import read_keyframes
 
@@ -55,13 +56,35 @@ def load_camera_for(inputs: Inputs, info: VideoInfo) -> tuple[Camera, list[Note]
     return cam, [Note.warning(note)] if note else []
 
 
+_KEPT_DETECTORS: dict[tuple, OnnxDetector] | None = None
+"""Detectors loaded in this process, by their settings and weights (None: not kept)."""
+
+
+def keep_loaded_detectors() -> None:
+    """From now on keep each detector loaded in this process for the next run with the same
+    settings and weights (a batch worker building row after row): the session is built and
+    the weights read once per process. Detectors are safe to share between runs (their
+    sessions are thread-safe and they hold no state between frames)."""
+    global _KEPT_DETECTORS
+    if _KEPT_DETECTORS is None:
+        _KEPT_DETECTORS = {}
+
+
 def load_detector_for(settings: Settings) -> OnnxDetector:
     """The detector of ``settings.detector``; it keeps every box above the tracker's low
     score, since weak boxes feed the tracker's second association stage (ByteTrack)."""
     d = settings.detector
-    return load_detector(d.name, d.model_dir, score_threshold=settings.tracker_config().low_score,
-                         small_object_mode=d.tiles, refine_max_boxes=d.refine,
-                         threads=max(1, int(d.threads)))
+    options = {"score_threshold": settings.tracker_config().low_score,
+               "small_object_mode": d.tiles, "refine_max_boxes": d.refine,
+               "threads": max(1, int(d.threads))}
+    if _KEPT_DETECTORS is None:
+        return load_detector(d.name, d.model_dir, **options)
+    weights = resolve_model(d.name, d.model_dir)
+    stat = weights.stat()
+    key = (str(weights), stat.st_size, stat.st_mtime_ns, d.name, *sorted(options.items()))
+    if key not in _KEPT_DETECTORS:
+        _KEPT_DETECTORS[key] = load_detector(d.name, d.model_dir, **options)
+    return _KEPT_DETECTORS[key]
 
 
 def load_boxes(inputs: Inputs, settings: Settings

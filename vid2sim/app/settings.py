@@ -49,7 +49,12 @@ class DetectorSettings:
         above 1 it replaces the keyframe schedule
     :param keyframe_s: longest time between detector keyframes [s]; between them optical
         flow carries the boxes (:mod:`vid2sim.detect.schedule`); 0 = every frame
-    :param threads: onnxruntime intra-op threads (a batch gives each job cores / jobs)
+    :param threads: onnxruntime intra-op threads (a batch gives each job cores / jobs). 1:
+        the keyframe schedule runs the net in two threads at once (the grid's keyframes in
+        a worker thread ahead, the tracks' second looks in the main one, see
+        :mod:`vid2sim.detect.ahead`), each on a core of its own; a 416x416 YOLOX-nano window
+        costs 12.5 ms of CPU on one thread and 15.2 ms on two, with no wall time gained on
+        this shared 2-core machine (docs/performance.md)
     """
 
     name: str = DEFAULT_DETECTOR
@@ -59,7 +64,7 @@ class DetectorSettings:
     score: float | None = None
     detect_every: int = 1
     keyframe_s: float = ScheduleConfig().keyframe_s
-    threads: int = 2
+    threads: int = 1
 
     def check(self) -> None:
         """Raise :class:`InputError` for values no run can use."""

@@ -15,9 +15,19 @@ import numpy as np
 
 from vid2sim.base.errors import ImpossibleValueError, InconsistentInputError
 from vid2sim.core.camera import Camera, PitchSource
-from vid2sim.core.records import Detection, Frame, LaneTrack, Note, RangingResult, TrackedBox
+from vid2sim.core.records import (
+    Detection,
+    Frame,
+    LaneObservation,
+    LaneTrack,
+    Note,
+    RangingResult,
+    TrackedBox,
+)
 from vid2sim.core.videofile import skipped_frames_note
+from vid2sim.detect.ahead import AHEAD_FRAMES, DetectAhead, lookahead
 from vid2sim.detect.assign import relane
+from vid2sim.detect.frameloop import Looks, ScheduledTracking, fill_between
 from vid2sim.detect.lanes.markings import LaneMarkingConfig, LaneMarkingDetector
 from vid2sim.detect.lanes.track import LaneTrackConfig, track_lanes
 from vid2sim.detect.lanes.vanishing import HorizonEstimator, yaw_for_vanishing_column
@@ -43,7 +53,9 @@ def run_detect(source: Path, *, detector: Detector | None,
                schedule: ScheduleConfig | None = None, flow: FlowConfig | None = None,
                stats: dict | None = None, capture_clock: bool = False,
                skipped_frames: list[int] | None = None,
-               frame_times: dict[int, float] | None = None) -> list[TrackedBox]:
+               frame_times: dict[int, float] | None = None,
+               horizon_row_px: float | None = None, ahead: bool = True,
+               fill: bool = True) -> list[TrackedBox]:
     """Detect and track vehicles through a video, one frame in memory at a time.
 
     Parameters
@@ -75,11 +87,16 @@ def run_detect(source: Path, *, detector: Detector | None,
         Frame rate for image folders [frames/s] (default 10).
     schedule : ScheduleConfig, optional
         With a detector and ``detect_every`` 1: run the detector on keyframes only
-        (:mod:`vid2sim.detect.schedule`) and carry the boxes between them by optical flow
-        (:mod:`vid2sim.detect.tracking.flow`, settings ``flow``). None: the detector runs on every
-        ``detect_every``-th frame and the tracker predicts between.
+        (:mod:`vid2sim.detect.schedule`), on every window or on a band about the horizon, and
+        carry the boxes between them by optical flow (:mod:`vid2sim.detect.tracking.flow`,
+        settings ``flow``); a video faster than the schedule's ``analysis_hz`` is analysed on
+        every N-th frame and the boxes between are interpolated. The grid's keyframes are
+        detected ahead in a worker thread (:mod:`vid2sim.detect.ahead`). None: the detector
+        runs on every ``detect_every``-th frame and the tracker predicts between.
     stats : dict, optional
-        Filled with counts for summaries and benchmarks: ``frames``, ``keyframes``.
+        Filled with counts for summaries and benchmarks: ``frames``, ``analysed`` (frames
+        decoded and tracked), ``keyframes``, ``keyframe_reasons``, ``looks`` (sweeps and
+        band keyframes).
     capture_clock : bool
         For an image folder whose names number every N-th frame (``000010, 000015, ...``):
         associate on the numbering's clock (0.5 s apart at 10 fps), so a folder of sparse
@@ -91,80 +108,176 @@ def run_detect(source: Path, *, detector: Detector | None,
     frame_times : dict, optional
         Receives every streamed frame's time (0-based index -> ``t_s`` [s], the container's
         clock), so later stages can decode a few frames by seeking and still know their time.
+    horizon_row_px : float, optional
+        The camera's horizon row [px], about which the schedule's band keyframes look
+        (default the image's middle row).
+    ahead : bool
+        Run the grid keyframes' detector in a worker thread ahead of the tracker (the same
+        boxes as without; off for detectors that are not thread-safe).
+    fill : bool
+        With the schedule on a video analysed on every N-th frame: add the rows of the
+        frames between, interpolated (:func:`~vid2sim.detect.frameloop.fill_between`);
+        False returns the analysed frames' rows only (the ranging fills them after).
 
     Returns
     -------
     list of TrackedBox
         One row per confirmed track per frame it is alive in, sorted by frame then track id.
     """
+
     from tqdm import tqdm  # progress bars only where frames are streamed
 
+    _check_box_source(detector, detections, detect_every)
+    info = video_info(source, fps=fps)
+    tracker = Tracker(tracker_config, image_size_px=(info.width, info.height))
+    scheduled = schedule is not None and detector is not None and detect_every == 1
+    run = (_Scheduled(detector, tracker, schedule, flow, info, horizon_row_px, ahead)
+           if scheduled else _EveryNth(detector, detections, tracker, detect_every))
+    # Imported boxes need no pixels: decode only if someone looks at the image.
+    decode_every = (run.step_frames if (detector is not None or on_frame is not None)
+                    else 1_000_000_000)
+    frames = iter_frames(source, every=decode_every, fps=fps, skipped=skipped_frames)
+    observers = run.observers() + ([on_frame] if on_frame is not None else [])
+    if observers:
+        frames = _observed(frames, observers)
+    clock = _ClockSwap(source, info.fps, frame_times) if capture_clock else _ClockSwap.none(
+        frame_times)
+    rows: list[TrackedBox] = []
+    n_seen = 0
+    try:
+        with tqdm(total=info.n_frames or None, unit="frame", desc="detect",
+                  disable=not progress) as bar:
+            for frame in run.ahead(clock.frames(prefetch(frames))):
+                rows.extend(clock.shown(run.step(frame)))
+                n_seen = frame.index + 1
+                bar.update(1)
+    finally:
+        run.close()
+    if stats is not None:
+        stats.update(frames=n_seen, analysis_step=run.step_frames, **run.stats())
+    _check_boxes_cover(source, detections, n_seen)
+    rows = tracker.finalize(rows)
+    if fill and isinstance(run, _Scheduled):
+        rows = fill_between(rows, clock.all_times, run.step_frames)
+    return rows
+
+
+def _check_box_source(detector, detections, detect_every: int) -> None:
     if detector is None and detections is None:
         raise ValueError("run_detect needs a detector or imported detections")
     if detect_every < 1:
         raise ImpossibleValueError(None, f"--detect-every must be >= 1, got {detect_every}")
-    info = video_info(source, fps=fps)
-    tracker = Tracker(tracker_config, image_size_px=(info.width, info.height))
-    # An image folder of every N-th frame (names 000010, 000015, ...) is timed one frame per
-    # image, as the annotations and the scenario expect; with capture_clock the tracker's
-    # association clock follows the numbering, so it sees the real spacing (sparse: motion
-    # model first, a single confident box kept).
-    steps = folder_frame_steps(source) if capture_clock else None
-    clock = (None if steps is None or steps == list(range(len(steps)))
-             else np.asarray(steps, dtype=float) / info.fps)
-    keys = (KeyframeSchedule(schedule, info.width)
-            if schedule is not None and detector is not None and detect_every == 1 else None)
-    carrier = MedianFlow(flow) if keys is not None else None
-    rows: list[TrackedBox] = []
-    n_seen = n_detected = 0
-    # Imported boxes need no pixels: decode only if someone looks at the image.
-    decode_every = detect_every if (detector is not None or on_frame is not None) else 0
-    frames = iter_frames(source, every=decode_every or 1_000_000_000, fps=fps,
-                         skipped=skipped_frames)
-    # the optical flow's grey image is made in the decoding thread, ahead of its carry
-    observers = ([lambda frame: carrier.prepare(frame.index, frame.image_bgr)]
-                 if carrier is not None else [])
-    if on_frame is not None:
-        observers.append(on_frame)
-    if observers:
-        frames = _observed(frames, observers)
-    frames = prefetch(frames)
-    with tqdm(total=info.n_frames or None, unit="frame", desc="detect",
-              disable=not progress) as bar:
-        for frame in frames:
-            shown_t_s = frame.t_s
-            if frame_times is not None:
-                frame_times[frame.index] = shown_t_s
-            if clock is not None:
-                frame = replace(frame, t_s=float(clock[frame.index]))
-            before = len(rows)
-            if keys is not None:
-                rows.extend(_scheduled_step(frame, detector, tracker, keys, carrier))
-            else:
-                is_detect_frame = frame.index % detect_every == 0
-                if not is_detect_frame:
-                    found = None
-                elif detections is not None:
-                    found = detections.get(frame.index, [])
-                else:
-                    found = detector.detect(frame.image_bgr)
-                n_detected += found is not None
-                rows.extend(tracker.update(frame.index, frame.t_s, found))
-            if clock is not None:
-                rows[before:] = [replace(r, t_s=shown_t_s) for r in rows[before:]]
-            n_seen = frame.index + 1
-            bar.update(1)
-    if stats is not None:
-        stats["frames"] = n_seen
-        stats["keyframes"] = keys.n_keyframes if keys is not None else n_detected
-        stats["keyframe_reasons"] = dict(keys.reasons) if keys is not None else {}
+
+
+def _check_boxes_cover(source: Path, detections, n_seen: int) -> None:
+    """Boxes made for another (longer) video: an empty result would look like an empty road."""
     box_frames = [f for f, dets in (detections or {}).items() if dets]
     if box_frames and min(box_frames) >= n_seen:
-        # Boxes made for another (longer) video: an empty result would look like an empty road.
-        raise InconsistentInputError(source, f"none of the imported boxes falls on the video's {n_seen} "
-                         f"frames (boxes on 0-based frames {min(box_frames)}.."
-                         f"{max(box_frames)})", "is the detections file for this video?")
-    return tracker.finalize(rows)
+        raise InconsistentInputError(
+            source, f"none of the imported boxes falls on the video's {n_seen} frames (boxes on "
+            f"0-based frames {min(box_frames)}..{max(box_frames)})",
+            "is the detections file for this video?")
+
+
+class _ClockSwap:
+    """An image folder of every N-th frame (names 000010, 000015, ...) is timed one frame per
+    image, as the annotations and the scenario expect; with the capture clock the tracker's
+    association clock follows the numbering, so it sees the real spacing (sparse: motion
+    model first, a single confident box kept), and the rows get the shown time back. Also
+    records every streamed frame's shown time in ``all_times`` (the caller's
+    ``frame_times``, if given)."""
+
+    def __init__(self, source: Path | None, fps: float, frame_times: dict[int, float] | None):
+        steps = folder_frame_steps(source) if source is not None else None
+        self.clock = (None if steps is None or steps == list(range(len(steps)))
+                      else np.asarray(steps, dtype=float) / fps)
+        self.all_times: dict[int, float] = frame_times if frame_times is not None else {}
+        self._shown: dict[int, float] = {}
+
+    @classmethod
+    def none(cls, frame_times: dict[int, float] | None) -> _ClockSwap:
+        return cls(None, 1.0, frame_times)
+
+    def frames(self, frames: Iterator[Frame]) -> Iterator[Frame]:
+        for frame in frames:
+            self.all_times[frame.index] = frame.t_s
+            if self.clock is not None:
+                self._shown[frame.index] = frame.t_s
+                frame = replace(frame, t_s=float(self.clock[frame.index]))
+            yield frame
+
+    def shown(self, rows: list[TrackedBox]) -> list[TrackedBox]:
+        if self.clock is None:
+            return rows
+        return [replace(r, t_s=self._shown[r.frame]) for r in rows]
+
+
+class _EveryNth:
+    """The detector (or the imported boxes) on every ``detect_every``-th frame, the tracker
+    predicting between."""
+
+    def __init__(self, detector, detections, tracker: Tracker, detect_every: int):
+        self.detector, self.detections, self.tracker = detector, detections, tracker
+        self.step_frames = detect_every
+        self.n_detected = 0
+
+    def observers(self) -> list[Callable[[Frame], None]]:
+        return []
+
+    def ahead(self, frames: Iterator[Frame]) -> Iterator[Frame]:
+        return frames
+
+    def step(self, frame: Frame) -> list[TrackedBox]:
+        found = None
+        if frame.index % self.step_frames == 0:
+            found = (self.detections.get(frame.index, []) if self.detections is not None
+                     else self.detector.detect(frame.image_bgr))
+        self.n_detected += found is not None
+        return self.tracker.update(frame.index, frame.t_s, found)
+
+    def stats(self) -> dict:
+        return {"keyframes": self.n_detected, "keyframe_reasons": {}, "looks": {},
+                "analysed": self.n_detected}
+
+    def close(self) -> None:
+        pass
+
+
+class _Scheduled:
+    """The keyframe schedule (:class:`~vid2sim.detect.frameloop.ScheduledTracking`) on the
+    analysed frames, the rows of the frames between interpolated."""
+
+    def __init__(self, detector: Detector, tracker: Tracker, schedule: ScheduleConfig,
+                 flow: FlowConfig | None, info, horizon_row_px: float | None, ahead: bool):
+        self.keys = KeyframeSchedule(schedule, info.width)
+        self.carrier = MedianFlow(flow)
+        self.worker = DetectAhead(detector) if ahead else None
+        looks = Looks(detector, (info.width, info.height), schedule, horizon_row_px)
+        self.loop = ScheduledTracking(detector, tracker, self.keys, self.carrier, looks,
+                                      self.worker)
+        self.step_frames = schedule.analysis_step(info.fps)
+        self.n_analysed = 0
+
+    def observers(self) -> list[Callable[[Frame], None]]:
+        # the optical flow's grey image is made in the decoding thread, ahead of its carry
+        return [lambda frame: self.carrier.prepare(frame.index, frame.image_bgr)]
+
+    def ahead(self, frames: Iterator[Frame]) -> Iterator[Frame]:
+        return lookahead(frames, AHEAD_FRAMES * self.step_frames, self.loop.visit)
+
+    def step(self, frame: Frame) -> list[TrackedBox]:
+        if frame.image_bgr is None:  # a frame between two analysed ones
+            return []
+        self.n_analysed += 1
+        return self.loop.step(frame)
+
+    def stats(self) -> dict:
+        return {"keyframes": self.keys.n_keyframes, "keyframe_reasons": dict(self.keys.reasons),
+                "looks": dict(self.keys.looks), "analysed": self.n_analysed}
+
+    def close(self) -> None:
+        if self.worker is not None:
+            self.worker.close()
 
 
 def _observed(frames: Iterator[Frame], observers: list[Callable[[Frame], None]]
@@ -175,23 +288,6 @@ def _observed(frames: Iterator[Frame], observers: list[Callable[[Frame], None]]
             for observe in observers:
                 observe(frame)
         yield frame
-
-
-def _scheduled_step(frame: Frame, detector: Detector, tracker: Tracker,
-                    keys: KeyframeSchedule, carrier: MedianFlow) -> list[TrackedBox]:
-    """One frame of the keyframe schedule: detect, or carry the shown boxes by flow."""
-    if keys.is_keyframe(frame.t_s):
-        found = detector.detect(frame.image_bgr)
-        out = tracker.update(frame.index, frame.t_s, found)
-        carrier.carry(frame.image_bgr, [], frame.index)  # keeps this frame for the next carry
-        keys.after_keyframe(tracker, frame.t_s)
-        return out
-    ids, boxes = tracker.shown_boxes()
-    moved, ok = carrier.carry(frame.image_bgr, boxes, frame.index)
-    out = tracker.update(frame.index, frame.t_s, None,
-                         measured={tid: moved[i] for i, tid in enumerate(ids) if ok[i]})
-    keys.after_carry(tracker, {tid: bool(ok[i]) for i, tid in enumerate(ids)})
-    return out
 
 
 LANE_INTERVAL_S = 0.2
@@ -278,49 +374,82 @@ def detect_and_range(video: Path, camera: Camera, *, detector, detections=None,
         What was estimated and why, for the summary.
     """
     notes: list[Note] = []
-    if lane_every is None:
-        lane_every = max(1, round(LANE_INTERVAL_S * video_info(video, fps=fps).fps))
-    horizon_est = HorizonEstimator(camera, every=lane_every)
-    # The lane markings as a measurement (the ego lane per frame, ~3 ms at 1242x375): every
-    # decoded frame, since the ego's lateral position is filtered from them.
-    marking_detector = LaneMarkingDetector(camera, markings)
-    lane_obs = []
-
-    def on_frame(frame: Frame) -> None:
-        horizon_est.add_frame(frame.image_bgr, frame.index)
-        lane_obs.append(marking_detector.measure(frame.image_bgr, frame.index, frame.t_s))
-
+    rate = video_info(video, fps=fps).fps
+    step = (schedule.analysis_step(rate) if (schedule is not None and detector is not None
+                                             and detect_every == 1) else 1)
+    lanes_seen = _LaneObserver(camera, markings,
+                               lane_every or max(1, round(LANE_INTERVAL_S * rate / step)))
     skipped: list[int] = []
     frame_times: dict[int, float] = {}
     boxes = run_detect(video, detector=detector, detections=detections,
                        detect_every=detect_every, progress=progress, fps=fps,
                        tracker_config=tracker_config, schedule=schedule, stats=stats,
-                       on_frame=on_frame, skipped_frames=skipped, frame_times=frame_times,
-                       flow=flow)
+                       on_frame=lanes_seen, skipped_frames=skipped, frame_times=frame_times,
+                       flow=flow, horizon_row_px=camera.horizon_y_px(), fill=False)
     if skipped:
         notes.append(Note.warning(f"{Path(video).name}: {skipped_frames_note(skipped)}"))
     yaw_before = camera.yaw_deg
-    # Lane markings also say where straight ahead is: correct the camera's yaw so the ego
-    # corridor runs along the lane rather than along a slightly turned camera axis.
-    column, n_col = horizon_est.estimate_column()
-    if column is not None and n_col >= MIN_LANE_FRAMES_FOR_YAW:
-        yaw = yaw_for_vanishing_column(camera, column)
-        if abs(yaw - camera.yaw_deg) <= MAX_YAW_CORRECTION_DEG:
-            notes.append(Note.estimate(
-                f"camera yaw {yaw:+.2f} deg from the lane markings' vanishing point "
-                f"({n_col} frames; camera file said {camera.yaw_deg:+.2f})"))
-            camera = replace(camera, yaw_deg=yaw)
-        else:
-            notes.append(Note.warning(
-                f"lane markings point {yaw - camera.yaw_deg:+.1f} deg off the camera axis: "
-                "implausible for a mounting, yaw not changed"))
+    camera = _yaw_from_lanes(camera, lanes_seen.horizon, notes)
     # The ego lane first: vehicles' lanes (and so the lead) are counted from it.
-    lanes = track_lanes(lane_obs, math.radians(camera.yaw_deg - yaw_before), lane_config)
-
+    lanes = track_lanes(lanes_seen.observations, math.radians(camera.yaw_deg - yaw_before),
+                        lane_config)
     config = config or RangingConfig()
-    # Trams first (the detector's, and tall vehicles beyond the kerb), at the pitch the
-    # ranging will estimate, so that each is ranged once with the tram's size.
-    chosen = choose_horizon(boxes, camera, config, horizon_est.rows_px)
+    result = _range_with_trams(boxes, camera, config, lanes, lanes_seen.horizon, rail, notes,
+                               ego_path, yaw_before)
+    # A fast video is ranged on its analysed frames, its other frames filled after.
+    result.boxes = fill_between(result.boxes, frame_times, step)
+    result.frame_times_s = frame_times
+    if assign_lanes:
+        result.boxes = relane(result.boxes, config, result.lanes,
+                              never_lead_tracks=result.never_lead_tracks)
+    return result, camera, notes
+
+
+class _LaneObserver:
+    """Shown every decoded frame (in the decoding thread): the lane markings as a measurement
+    (the ego lane per frame, ~3 ms at 1242x375; every decoded frame, since the ego's lateral
+    position is filtered from them) and the horizon on every ``every``-th."""
+
+    def __init__(self, camera: Camera, markings: LaneMarkingConfig | None, every: int):
+        self.horizon = HorizonEstimator(camera, every=every)
+        self.detector = LaneMarkingDetector(camera, markings)
+        self.observations: list[LaneObservation] = []
+
+    def __call__(self, frame: Frame) -> None:
+        self.horizon.add_frame(frame.image_bgr, frame.index)
+        self.observations.append(self.detector.measure(frame.image_bgr, frame.index,
+                                                       frame.t_s))
+
+
+def _yaw_from_lanes(camera: Camera, horizon: HorizonEstimator, notes: list[Note]) -> Camera:
+    """Lane markings also say where straight ahead is: the camera's yaw corrected so the ego
+    corridor runs along the lane rather than along a slightly turned camera axis, when enough
+    frames agree and the correction is plausible for a mounting."""
+    column, n_col = horizon.estimate_column()
+    if column is None or n_col < MIN_LANE_FRAMES_FOR_YAW:
+        return camera
+    yaw = yaw_for_vanishing_column(camera, column)
+    if abs(yaw - camera.yaw_deg) > MAX_YAW_CORRECTION_DEG:
+        notes.append(Note.warning(
+            f"lane markings point {yaw - camera.yaw_deg:+.1f} deg off the camera axis: "
+            "implausible for a mounting, yaw not changed"))
+        return camera
+    notes.append(Note.estimate(
+        f"camera yaw {yaw:+.2f} deg from the lane markings' vanishing point "
+        f"({n_col} frames; camera file said {camera.yaw_deg:+.2f})"))
+    return replace(camera, yaw_deg=yaw)
+
+
+def _range_with_trams(boxes: list[TrackedBox], camera: Camera, config: RangingConfig,
+                      lanes: LaneTrack, horizon: HorizonEstimator, rail: RailConfig | None,
+                      notes: list[Note], ego_path: EgoPath | None,
+                      yaw_before: float) -> RangingResult:
+    """Trams first (the detector's, and tall vehicles beyond the kerb), at the pitch the
+    ranging will estimate, so that each is ranged once with the tram's size; then every
+    track ranged (standing vehicles from the ego's motion, with ``ego_path``: its travel
+    along the camera file's axis, ``yaw_before``, when a camera file states the mounting),
+    trams kept from the lead."""
+    chosen = choose_horizon(boxes, camera, config, horizon.rows_px)
     rail_tracks = find_rail_tracks(boxes, lanes, camera.with_pitch(
         pitch_for_horizon(camera, chosen[0])), rail)
     if rail_tracks.relabelled:
@@ -329,13 +458,9 @@ def detect_and_range(video: Path, camera: Camera, *, detector, detections=None,
     if ego_path is not None and camera.pitch_source is not PitchSource.DEFAULT:
         # a camera file states the mounting: the body (and its travel) lies along its axis
         ego_path = replace(ego_path, travel_yaw_rad=math.radians(camera.yaw_deg - yaw_before))
-    result = range_tracks(boxes, camera, horizon_hints_px=horizon_est.rows_px,
-                          horizon_hint_frames=horizon_est.frames, config=config, lanes=lanes,
+    result = range_tracks(boxes, camera, horizon_hints_px=horizon.rows_px,
+                          horizon_hint_frames=horizon.frames, config=config, lanes=lanes,
                           horizon=chosen, ego_path=ego_path)
     result, rail_notes = keep_trams_from_lead(result, rail_tracks)
-    result.frame_times_s = frame_times
     notes.extend(rail_notes)
-    if assign_lanes:
-        result.boxes = relane(result.boxes, config, result.lanes,
-                              never_lead_tracks=result.never_lead_tracks)
-    return result, camera, notes
+    return result

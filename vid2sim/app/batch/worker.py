@@ -88,6 +88,11 @@ def run_row(task: RowTask) -> RowOutcome:
     """
     peak = PeakRss()
     t0 = time.perf_counter()
+    # a worker process that builds several rows (Ray's) loads the net once; the pipeline is
+    # imported by the first row a process builds (see _build_row)
+    from vid2sim.app.loaders import keep_loaded_detectors
+
+    keep_loaded_detectors()
     row = task.row
     outcome = RowOutcome(name=row.name, status="ok", line=row.line, host=socket.gethostname(),
                          started_utc=datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ"))

@@ -9,6 +9,7 @@ which provides the priors (:class:`MotionPriors`).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
@@ -132,27 +133,7 @@ def expansion_cost(prev_px: np.ndarray, dt_s: np.ndarray, dets_px: np.ndarray, *
     if n == 0 or m == 0:
         return np.full((n, m), np.inf)
     dt = np.maximum(np.asarray(dt_s, dtype=float).reshape(-1), MIN_DT_S)
-    if foe_px is None:
-        centre_p = np.stack([(prev[:, 0] + prev[:, 2]) / 2, (prev[:, 1] + prev[:, 3]) / 2], 1)
-        foe = np.broadcast_to(np.tile(centre_p, 2)[:, None, :], (n, m, 4))
-    else:
-        foe = np.broadcast_to(np.array([foe_px[0], foe_px[1]] * 2, float), (n, m, 4))
-    a = (prev[:, None, :] - foe)[:, :, None, :]                      # (n, m, 1, 4)
-    b = (dets[None, :, :] - foe)[:, :, None, :]
-    cut_prev = border_cut(prev, image_size_px, config.border_margin_px)[:, None, :]
-    cut_det = border_cut(dets, image_size_px, config.border_margin_px)[None, :, :]
-    both = ~cut_prev & ~cut_det                                      # (n, m, 4) two-sided
-    # One edge cut: the true edge lies further out than the box says, so the prediction
-    # only bounds it (one-sided residual); both cut: no information.
-    prev_only = (cut_prev & ~cut_det)[:, :, None, :]
-    det_only = (~cut_prev & cut_det)[:, :, None, :]
-    outward = np.array([-1.0, -1.0, 1.0, 1.0])                       # x1, y1 out = smaller
-    h_prev = np.maximum(prev[:, 3] - prev[:, 1], 1.0)
-    h_det = np.maximum(dets[:, 3] - dets[:, 1], 1.0)
-    scale = np.sqrt(h_prev[:, None] * h_det[None, :])                # (n, m) [px]
-    s_edge = (config.edge_noise_ratio * scale + EDGE_NOISE_FLOOR_PX)[:, :, None]
-    s_t = ((config.lateral_speed_mps / config.vehicle_height_m) * dt[:, None] * scale
-           + MIN_STD_PX)[:, :, None]
+    pairs = _Pairs.of(prev, dets, dt, foe_px, image_size_px, config, drift_px_s)
     # A track's own closing rate (1/Z dynamics: r = 1 / (1 - c dt)) centres its scale prior;
     # a track whose own approach has carried it past the camera cannot be continued.
     own = (np.zeros(n) if closing_rate_per_s is None
@@ -163,62 +144,127 @@ def expansion_cost(prev_px: np.ndarray, dt_s: np.ndarray, dets_px: np.ndarray, *
     u = np.linspace(-LN_SCALE_GRID_SIGMAS, LN_SCALE_GRID_SIGMAS, n_grid)
     rate = np.where(u > 0, config.growth_rate_per_s, config.shrink_rate_per_s)
     r = np.exp(ln_r0[:, None] + u[None, :] * rate[None, :] * dt[:, None])[:, None, :, None]
-    # The inner edge of a box off to one side of the FOE (the edge nearer to it) is the far
-    # end of the vehicle's visible side, up to a car length deeper than the rear face that
-    # sets the outer edges, so it scales by anything between 1 and r.
-    same_side = (a[..., 0::2].prod(-1) > 0)[..., 0], (a[..., 1::2].prod(-1) > 0)[..., 0]
-    inner = np.zeros(both.shape, dtype=bool)
-    for axis, side in zip((0, 1), same_side, strict=True):
-        first_inner = np.abs(a[:, :, 0, axis]) < np.abs(a[:, :, 0, axis + 2])
-        inner[..., axis] = side & first_inner
-        inner[..., axis + 2] = side & ~first_inner
-    inner &= both
-    v = (both & ~inner)[:, :, None, :]                               # edges fitted exactly
-    vi = inner[:, :, None, :]
-    k = (s_edge / s_t) ** 2                                          # ridge of the t prior
-    t0 = (np.zeros((n, 2)) if drift_px_s is None
-          else np.nan_to_num(np.asarray(drift_px_s, dtype=float).reshape(n, 2)))
-    t0 = (t0 * dt[:, None])[:, None, None, :]                        # (n, 1, 1, 2) [px]
-
-    def edge_cost(r: np.ndarray) -> np.ndarray:
-        """Edge misfit plus translation prior for scale ratios r (n, 1, G, 1) -> (n, m, G)."""
-        res = b - r * a                                              # (n, m, G, 4)
-        j = np.zeros(res.shape[:3])
-        t = np.zeros(res.shape)
-        for i, axis in enumerate((slice(0, 4, 2), slice(1, 4, 2))):   # x edges, y edges
-            ra, va = res[..., axis], v[..., axis]
-            t_axis = ((ra * va).sum(-1) + k * t0[..., i]) / (va.sum(-1) + k)
-            t[..., axis] = t_axis[..., None]
-            j += (t_axis - t0[..., i]) ** 2 / s_t ** 2
-        e = res - t                                                  # observed - predicted
-        j += ((e * v) ** 2).sum(-1) / s_edge ** 2
-        e_unscaled = b - a - t                                       # the inner edge at r = 1
-        e_inner = np.where(e * e_unscaled <= 0, 0.0,
-                           np.sign(e) * np.minimum(np.abs(e), np.abs(e_unscaled)))
-        j += ((e_inner * vi) ** 2).sum(-1) / s_edge ** 2
-        # prev cut: the observed edge must lie at or beyond the prediction; det cut: within
-        over = np.where(prev_only, np.maximum(0.0, -outward * e), 0.0)
-        over += np.where(det_only, np.maximum(0.0, outward * e), 0.0)
-        return j + (over ** 2).sum(-1) / s_edge ** 2
-
-    j_free = (edge_cost(r) + u[None, None, :] ** 2).min(axis=2)
-    n_x = both[:, :, 0::2].sum(-1)
-    n_y = both[:, :, 1::2].sum(-1)
-    dof = n_x + n_y + (cut_prev ^ cut_det).sum(-1)
-    gate = np.vectorize(lambda d: CHI2_99.get(int(d), np.inf), otypes=[float])(dof)
-    ok = (n_x >= 1) & (n_y >= 1) & ~passed[:, None]
+    j_free = (pairs.edge_cost(r) + u[None, None, :] ** 2).min(axis=2)
+    gate, usable = pairs.gate()
+    ok = usable & ~passed[:, None]
     if static_rates_per_px_s is None:
         return np.where(ok, j_free / gate, np.inf)
+    h_prev = np.maximum(prev[:, 3] - prev[:, 1], 1.0)
     out = []
     for rate_px in static_rates_per_px_s:
         # a static object at range Z = f H / h closes by v dt: r = 1 / (1 - v dt / Z)
         closing = rate_px * dt * h_prev                              # v dt / Z, (n,)
         r_static = 1.0 / np.maximum(1.0 - closing, MIN_REMAINING_RANGE)
         j_static = np.where((closing < PASSED_CLOSING)[:, None],
-                            edge_cost(r_static[:, None, None, None])[:, :, 0], np.inf)
+                            pairs.edge_cost(r_static[:, None, None, None])[:, :, 0], np.inf)
         j = np.minimum(j_static, j_free + config.moving_penalty)
         out.append(np.where(ok, j / gate, np.inf))
     return np.array(out).reshape(len(out), n, m)
+
+
+@dataclass(frozen=True, slots=True)
+class _Pairs:
+    """Every (track box, detection) pair of :func:`expansion_cost` about the FOE: edges
+    relative to it (``a`` before, ``b`` now, (n, m, 1, 4)), which edges are seen in both
+    boxes and fitted exactly (``v``) or as a vehicle's inner side (``vi``), which are cut in
+    one box only, and the edge and translation noise."""
+
+    a: np.ndarray
+    b: np.ndarray
+    both: np.ndarray
+    cut_prev: np.ndarray
+    cut_det: np.ndarray
+    prev_only: np.ndarray
+    det_only: np.ndarray
+    v: np.ndarray
+    vi: np.ndarray
+    s_edge: np.ndarray
+    s_t: np.ndarray
+    k: np.ndarray
+    t0: np.ndarray
+
+    @classmethod
+    def of(cls, prev: np.ndarray, dets: np.ndarray, dt: np.ndarray,
+           foe_px: tuple[float, float] | None, image_size_px: tuple[int, int] | None,
+           config: MotionPriors, drift_px_s: np.ndarray | None) -> _Pairs:
+        n, m = len(prev), len(dets)
+        if foe_px is None:
+            centre_p = np.stack([(prev[:, 0] + prev[:, 2]) / 2,
+                                 (prev[:, 1] + prev[:, 3]) / 2], 1)
+            foe = np.broadcast_to(np.tile(centre_p, 2)[:, None, :], (n, m, 4))
+        else:
+            foe = np.broadcast_to(np.array([foe_px[0], foe_px[1]] * 2, float), (n, m, 4))
+        a = (prev[:, None, :] - foe)[:, :, None, :]                      # (n, m, 1, 4)
+        b = (dets[None, :, :] - foe)[:, :, None, :]
+        cut_prev = border_cut(prev, image_size_px, config.border_margin_px)[:, None, :]
+        cut_det = border_cut(dets, image_size_px, config.border_margin_px)[None, :, :]
+        both = ~cut_prev & ~cut_det                                      # (n, m, 4) two-sided
+        h_prev = np.maximum(prev[:, 3] - prev[:, 1], 1.0)
+        h_det = np.maximum(dets[:, 3] - dets[:, 1], 1.0)
+        scale = np.sqrt(h_prev[:, None] * h_det[None, :])                # (n, m) [px]
+        s_edge = (config.edge_noise_ratio * scale + EDGE_NOISE_FLOOR_PX)[:, :, None]
+        s_t = ((config.lateral_speed_mps / config.vehicle_height_m) * dt[:, None] * scale
+               + MIN_STD_PX)[:, :, None]
+        inner = _inner_edges(a, both)
+        t0 = (np.zeros((n, 2)) if drift_px_s is None
+              else np.nan_to_num(np.asarray(drift_px_s, dtype=float).reshape(n, 2)))
+        # One edge cut: the true edge lies further out than the box says, so the prediction
+        # only bounds it (one-sided residual); both cut: no information.
+        return cls(a=a, b=b, both=both, cut_prev=cut_prev, cut_det=cut_det,
+                   prev_only=(cut_prev & ~cut_det)[:, :, None, :],
+                   det_only=(~cut_prev & cut_det)[:, :, None, :],
+                   v=(both & ~inner)[:, :, None, :],                     # edges fitted exactly
+                   vi=inner[:, :, None, :], s_edge=s_edge, s_t=s_t,
+                   k=(s_edge / s_t) ** 2,                                # ridge of the t prior
+                   t0=(t0 * dt[:, None])[:, None, None, :])              # (n, 1, 1, 2) [px]
+
+    def edge_cost(self, r: np.ndarray) -> np.ndarray:
+        """Edge misfit plus translation prior for scale ratios r (n, 1, G, 1) -> (n, m, G)."""
+        a, b, v, s_t, t0 = self.a, self.b, self.v, self.s_t, self.t0
+        res = b - r * a                                              # (n, m, G, 4)
+        j = np.zeros(res.shape[:3])
+        t = np.zeros(res.shape)
+        for i, axis in enumerate((slice(0, 4, 2), slice(1, 4, 2))):   # x edges, y edges
+            ra, va = res[..., axis], v[..., axis]
+            t_axis = ((ra * va).sum(-1) + self.k * t0[..., i]) / (va.sum(-1) + self.k)
+            t[..., axis] = t_axis[..., None]
+            j += (t_axis - t0[..., i]) ** 2 / s_t ** 2
+        e = res - t                                                  # observed - predicted
+        j += ((e * v) ** 2).sum(-1) / self.s_edge ** 2
+        e_unscaled = b - a - t                                       # the inner edge at r = 1
+        e_inner = np.where(e * e_unscaled <= 0, 0.0,
+                           np.sign(e) * np.minimum(np.abs(e), np.abs(e_unscaled)))
+        j += ((e_inner * self.vi) ** 2).sum(-1) / self.s_edge ** 2
+        # prev cut: the observed edge must lie at or beyond the prediction; det cut: within
+        over = np.where(self.prev_only, np.maximum(0.0, -OUTWARD * e), 0.0)
+        over += np.where(self.det_only, np.maximum(0.0, OUTWARD * e), 0.0)
+        return j + (over ** 2).sum(-1) / self.s_edge ** 2
+
+    def gate(self) -> tuple[np.ndarray, np.ndarray]:
+        """The 99 % chi-square gate of each pair (usable edges as degrees of freedom) and
+        whether it is usable at all (an edge per axis seen in both boxes)."""
+        n_x = self.both[:, :, 0::2].sum(-1)
+        n_y = self.both[:, :, 1::2].sum(-1)
+        dof = n_x + n_y + (self.cut_prev ^ self.cut_det).sum(-1)
+        gate = np.vectorize(lambda d: CHI2_99.get(int(d), np.inf), otypes=[float])(dof)
+        return gate, (n_x >= 1) & (n_y >= 1)
+
+
+OUTWARD = np.array([-1.0, -1.0, 1.0, 1.0])
+"""The outward direction of each box edge (x1, y1, x2, y2): x1 and y1 out = smaller."""
+
+
+def _inner_edges(a: np.ndarray, both: np.ndarray) -> np.ndarray:
+    """The inner edge of a box off to one side of the FOE (the edge nearer to it) is the far
+    end of the vehicle's visible side, up to a car length deeper than the rear face that
+    sets the outer edges, so it scales by anything between 1 and r."""
+    same_side = (a[..., 0::2].prod(-1) > 0)[..., 0], (a[..., 1::2].prod(-1) > 0)[..., 0]
+    inner = np.zeros(both.shape, dtype=bool)
+    for axis, side in zip((0, 1), same_side, strict=True):
+        first_inner = np.abs(a[:, :, 0, axis]) < np.abs(a[:, :, 0, axis + 2])
+        inner[..., axis] = side & first_inner
+        inner[..., axis + 2] = side & ~first_inner
+    return inner & both
 
 
 def closing_rate(before_px: np.ndarray, after_px: np.ndarray, dt_s: float,

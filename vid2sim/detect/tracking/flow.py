@@ -118,12 +118,7 @@ class MedianFlow:
         ok : ndarray (n,) of bool
             Which boxes were carried.
         """
-        grey = None
-        if index is not None:
-            with self._ready_lock:
-                for old in [k for k in self._ready if k < index]:
-                    del self._ready[old]
-                grey = self._ready.pop(index, None)
+        grey = self._take_prepared(index) if index is not None else None
         if grey is None:
             grey = self._grey(image_bgr)
         self._scale = min(1.0, self.config.max_width_px / image_bgr.shape[1])
@@ -132,11 +127,40 @@ class MedianFlow:
         ok = np.zeros(len(boxes), dtype=bool)
         if prev is None or prev.shape != grey.shape or len(boxes) == 0:
             return boxes.copy(), ok
-        cfg = self.config
         s = self._scale
         small = boxes * s
+        p0, who = self._corners(prev, small)
+        if p0 is None:
+            return boxes.copy(), ok
+        cfg = self.config
+        lk = {"winSize": (cfg.window_px, cfg.window_px), "maxLevel": cfg.levels}
+        p1, st1, _ = cv2.calcOpticalFlowPyrLK(prev, grey, p0, None, **lk)
+        p0b, st2, _ = cv2.calcOpticalFlowPyrLK(grey, prev, p1, None, **lk)
+        good = ((st1.ravel() == 1) & (st2.ravel() == 1)
+                & (np.linalg.norm(p0b - p0, axis=1) <= cfg.max_fb_error_px))
+        out = boxes.copy()
+        for i in np.unique(who):
+            sel = good & (who == i)
+            moved = self._moved_box(p0[sel], p1[sel], small[i])
+            if moved is not None:
+                out[i] = moved / s
+                ok[i] = True
+        return out, ok
+
+    def _take_prepared(self, index: int) -> np.ndarray | None:
+        """Frame ``index``'s grey image from :meth:`prepare`, if made; older ones dropped."""
+        with self._ready_lock:
+            for old in [k for k in self._ready if k < index]:
+                del self._ready[old]
+            return self._ready.pop(index, None)
+
+    def _corners(self, prev: np.ndarray, small: np.ndarray
+                 ) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """Shi-Tomasi corners inside each box (downscaled px) of the previous frame, and the
+        box each belongs to; None when no box has enough."""
+        cfg = self.config
         points, owner = [], []
-        h_img, w_img = grey.shape
+        h_img, w_img = prev.shape
         for i, (x1, y1, x2, y2) in enumerate(small):
             bw, bh = x2 - x1, y2 - y1
             if bw < cfg.min_box_px or bh < cfg.min_box_px:
@@ -155,37 +179,32 @@ class MedianFlow:
             points.append(pts)
             owner.append(np.full(len(pts), i))
         if not points:
-            return boxes.copy(), ok
-        p0 = np.concatenate(points).astype(np.float32)
-        who = np.concatenate(owner)
-        lk = {"winSize": (cfg.window_px, cfg.window_px), "maxLevel": cfg.levels}
-        p1, st1, _ = cv2.calcOpticalFlowPyrLK(prev, grey, p0, None, **lk)
-        p0b, st2, _ = cv2.calcOpticalFlowPyrLK(grey, prev, p1, None, **lk)
-        good = ((st1.ravel() == 1) & (st2.ravel() == 1)
-                & (np.linalg.norm(p0b - p0, axis=1) <= cfg.max_fb_error_px))
-        out = boxes.copy()
-        for i in np.unique(who):
-            sel = good & (who == i)
-            if sel.sum() < cfg.min_points:
-                continue
-            a, b = p0[sel].astype(float), p1[sel].astype(float)
-            shift = np.median(b - a, axis=0)
-            ia, ib = _pairs(len(a))
-            d0 = np.linalg.norm(a[ia] - a[ib], axis=1)
-            d1 = np.linalg.norm(b[ia] - b[ib], axis=1)
-            keep = d0 > 1.0  # pairs closer than a pixel give no scale
-            if keep.sum() < cfg.min_points:
-                continue
-            ratios = d1[keep] / d0[keep]
-            q1, scale, q3 = np.percentile(ratios, [25, 50, 75])
-            if q3 - q1 > cfg.max_scale_spread:
-                continue
-            x1, y1, x2, y2 = small[i]
-            cx, cy = (x1 + x2) / 2 + shift[0], (y1 + y2) / 2 + shift[1]
-            hw, hh = scale * (x2 - x1) / 2, scale * (y2 - y1) / 2
-            out[i] = np.array([cx - hw, cy - hh, cx + hw, cy + hh]) / s
-            ok[i] = True
-        return out, ok
+            return None, None
+        return np.concatenate(points).astype(np.float32), np.concatenate(owner)
+
+    def _moved_box(self, before: np.ndarray, after: np.ndarray, box: np.ndarray
+                   ) -> np.ndarray | None:
+        """The box (downscaled px) moved by its points' median shift and scaled by the median
+        ratio of their pair distances; None when too few points survive or they disagree."""
+        cfg = self.config
+        if len(before) < cfg.min_points:
+            return None
+        a, b = before.astype(float), after.astype(float)
+        shift = np.median(b - a, axis=0)
+        ia, ib = _pairs(len(a))
+        d0 = np.linalg.norm(a[ia] - a[ib], axis=1)
+        d1 = np.linalg.norm(b[ia] - b[ib], axis=1)
+        keep = d0 > 1.0  # pairs closer than a pixel give no scale
+        if keep.sum() < cfg.min_points:
+            return None
+        ratios = d1[keep] / d0[keep]
+        q1, scale, q3 = np.percentile(ratios, [25, 50, 75])
+        if q3 - q1 > cfg.max_scale_spread:
+            return None
+        x1, y1, x2, y2 = box
+        cx, cy = (x1 + x2) / 2 + shift[0], (y1 + y2) / 2 + shift[1]
+        hw, hh = scale * (x2 - x1) / 2, scale * (y2 - y1) / 2
+        return np.array([cx - hw, cy - hh, cx + hw, cy + hh])
 
 
 @functools.lru_cache(maxsize=64)

@@ -40,6 +40,7 @@ ByteTrack), so a 20 px far car and a 200 px near car are filtered alike.
 from __future__ import annotations
 
 from collections import defaultdict
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -54,94 +55,9 @@ from vid2sim.core.boxes import (
 from vid2sim.core.records import Detection, TrackedBox
 from vid2sim.detect.tracking._box_kalman import BoxKalman
 from vid2sim.detect.tracking.egomotion import PASSED_CLOSING, closing_rate, drift, expansion_cost
+from vid2sim.detect.tracking.tracker_config import TrackerConfig
 
-
-@dataclass(frozen=True, slots=True)
-class TrackerConfig:
-    """Tracker thresholds.
-
-    :param high_score: detections at or above go to the first association stage
-    :param low_score: detections below are ignored; between the two they go to stage two
-    :param new_track_score: minimum score of an unmatched detection to start a track
-    :param weak_start_score: an unmatched weaker detection (at least this score) starts a
-        weak tentative track, which must then be found on ``weak_confirm_hits`` detected
-        frames in a row (a small, far vehicle scores 0.2-0.45 frame after frame; a false
-        detection of that score rarely repeats at the same place)
-    :param weak_confirm_hits: detections in a row that confirm a weak tentative track
-    :param weak_confirm_min_hits: fewer detections in a row also confirm it when they span
-        ``weak_confirm_s`` or more (sparse input: a weak box repeated where the motion puts
-        it 0.5 s later is the same evidence as four frames in a row of dense video), or when
-        the input ends before a weak track found on every detected frame since its birth
-        could reach ``weak_confirm_hits`` (a folder of three sparse keyframes)
-    :param weak_confirm_s: the span that makes ``weak_confirm_min_hits`` enough [s]: 0.3 s,
-        what ``weak_confirm_hits`` consecutive frames span at 10 fps, so dense 10 fps video
-        is confirmed exactly as before
-    :param iou_high: minimum IoU to match a confident detection (stage one)
-    :param iou_low: minimum IoU to match a weak detection (stage two; stricter because weak
-        boxes are noisier)
-    :param iou_tentative: minimum IoU to match a not yet confirmed track
-    :param weak_revive_s: a confirmed track lost for at most this long may be taken up again
-        by a weak detection [s]: one missed frame (a far car scoring 0.13-0.26 frame after
-        frame, once below the detector's floor) must not end it
-    :param iou_weak_revive: minimum IoU of such a weak detection with the lost track's
-        predicted box (stricter than ``iou_low``: the track was not seen on the last frame)
-    :param max_lost_s: a track unmatched for longer than this is ended [s]
-    :param min_hits: detections needed before a track is confirmed (in dense input; see
-        ``sparse_interval_s``)
-    :param sparse_interval_s: a tentative track is dropped when a detected frame less than
-        this long after its birth misses it; after longer intervals it is kept [s]
-    :param edge_noise_ratio: one-sigma error of a detected box edge as a fraction of the box
-        height (localisation noise of the detector)
-    :param lateral_speed_mps: one-sigma speed of a vehicle across the camera's line of sight
-        not explained by the ego's forward motion (drift in lane, a slow lane change) [m/s]
-    :param vehicle_height_m: typical vehicle height, converts lateral speed to box heights
-        per second [m]
-    :param growth_rate_per_s: one-sigma rate of growth of the log box size, i.e. closing
-        speed over range (10 m/s at 10 m gives 1/s) [1/s]
-    :param shrink_rate_per_s: the same for shrinking boxes: with the camera moving forward
-        the static world grows, a box shrinks only behind a vehicle faster than the ego, and
-        by little (3 m/s faster at 10 m gives 0.3/s) [1/s]
-    :param border_margin_px: a box edge this close to the image border is taken as cut by it
-        (detectors stop the box of a cut vehicle a few pixels short of the border)
-    :param moving_penalty: extra chi-square cost of explaining a pair as a moving vehicle
-        rather than a static one approached at the ego speed common to the frame (2 ln of
-        the odds static : moving, 2 for odds of about 3 : 1)
-    :param closing_time_constant_s: time constant of the filter on each track's closing
-        rate (box growth) [s]
-    :param max_static_rate_per_s: largest ego-motion hypothesis searched, as closing speed
-        over range for a box ``static_rate_box_px`` high (30 m/s at 10 m: 3/s) [1/s]
-    :param n_static_rates: ego-motion hypotheses searched from a standing ego up to
-        ``max_static_rate_per_s`` (81: steps of 0.05/s, below the closing-rate noise of one
-        frame pair)
-    :param static_rate_box_px: box height the ego-motion hypotheses are stated for [px]
-    """
-
-    high_score: float = 0.45
-    low_score: float = 0.1
-    new_track_score: float = 0.5
-    weak_start_score: float = 0.25
-    weak_confirm_hits: int = 4
-    weak_confirm_min_hits: int = 3
-    weak_confirm_s: float = 0.3
-    iou_high: float = 0.2
-    iou_low: float = 0.4
-    iou_tentative: float = 0.3
-    weak_revive_s: float = 0.35
-    iou_weak_revive: float = 0.5
-    max_lost_s: float = 1.2
-    min_hits: int = 2
-    sparse_interval_s: float = 0.2
-    edge_noise_ratio: float = 0.1
-    lateral_speed_mps: float = 0.5
-    vehicle_height_m: float = 1.5
-    growth_rate_per_s: float = 1.0
-    shrink_rate_per_s: float = 0.3
-    border_margin_px: float = 8.0
-    moving_penalty: float = 2.0
-    closing_time_constant_s: float = 0.3
-    max_static_rate_per_s: float = 4.0
-    n_static_rates: int = 81
-    static_rate_box_px: float = 100.0
+__all__ = ["LOST", "TRACKED", "Track", "Tracker", "TrackerConfig"]
 
 
 # --------------------------------------------------------------------------- tracks
@@ -257,7 +173,8 @@ class Tracker:
     # ----------------------------------------------------------------- public
 
     def update(self, frame: int, t_s: float, detections: list[Detection] | None,
-               measured: dict[int, np.ndarray] | None = None) -> list[TrackedBox]:
+               measured: dict[int, np.ndarray] | None = None,
+               seen: Callable[[np.ndarray], np.ndarray] | None = None) -> list[TrackedBox]:
         """Advance to ``frame`` (time ``t_s`` [s]) and return the boxes alive there.
 
         Parameters
@@ -273,7 +190,15 @@ class Tracker:
             On a frame without detections: boxes of tracks measured another way (track id ->
             (x1, y1, x2, y2) [px], e.g. carried by optical flow, see
             :mod:`vid2sim.detect.tracking.flow`). They correct the track's filter and are its row;
-            they neither confirm a track nor count as a detection.
+            they neither confirm a track nor count as a detection. On a frame with
+            detections, the boxes of the tracks the detector did not look at (``seen``).
+        seen : callable, optional
+            For a detector run that looked at part of the frame only: which of the boxes
+            given (n, 4) [px], the tracks' predicted boxes, it looked at well enough to have
+            found a vehicle there. A track no detection took is missed (lost, or deleted if
+            tentative) only there; elsewhere it is carried as on a frame without detections
+            (its ``measured`` box, else its prediction), neither missed nor seen. None: the
+            detector looked at the whole frame.
 
         Returns
         -------
@@ -301,7 +226,7 @@ class Tracker:
                   else (self._iou_stages, self._motion_stage))
         for stage in stages:
             high, low = stage(step, high, low)
-        dead = self._handle_misses(step)
+        dead = self._handle_misses(step, seen, measured or {})
         self._start_tracks(step, high, low)
         self._tracks = [t for t in self._tracks if t.track_id not in dead
                         and t_s - t.last_seen_t_s <= cfg.max_lost_s]
@@ -352,11 +277,12 @@ class Tracker:
 
     # ----------------------------------------------------------------- the steps of update
 
-    def _carry(self, frame: int, t_s: float, measured: dict[int, np.ndarray]
-               ) -> list[TrackedBox]:
-        """Rows of a frame without detections: measured boxes correct their filters."""
+    def _carry(self, frame: int, t_s: float, measured: dict[int, np.ndarray],
+               tracks: list[Track] | None = None) -> list[TrackedBox]:
+        """Rows of a frame without detections (or of ``tracks``, which the detector did not
+        look at): measured boxes correct their filters."""
         rows = []
-        for t in self._tracks:
+        for t in (self._tracks if tracks is None else tracks):
             if t.state != TRACKED:
                 continue
             box = measured.get(t.track_id)
@@ -366,7 +292,7 @@ class Tracker:
             box = t.kf.box_px if box is None else box
             t.shown_box_px = box
             rows.append(t.row(frame, t_s, box, t.score))
-        if measured:
+        if measured and tracks is None:
             self._last_measured_t_s = t_s
         return rows
 
@@ -450,12 +376,21 @@ class Tracker:
             self._hit(step, unmatched[ti], low[di], restart=True)
         return [high[i] for i in free_high], [low[i] for i in free_low]
 
-    def _handle_misses(self, step: _Step) -> set[int]:
+    def _handle_misses(self, step: _Step, seen: Callable[[np.ndarray], np.ndarray] | None,
+                       measured: dict[int, np.ndarray]) -> set[int]:
         """Tracks missed by this detected frame: a confirmed track goes lost; a tentative one
         is a false detection (returned, to be deleted) if the vehicle, were it real, should
-        have been seen again by now, else it is confirmed and goes lost."""
+        have been seen again by now, else it is confirmed and goes lost. Tracks where the
+        detector did not look (``seen``) are not missed: they are carried (their rows added
+        to the step's)."""
         dead: set[int] = set()
-        for track in step.free(self._tracks):
+        free = step.free(self._tracks)
+        if seen is not None and free:
+            looked = np.asarray(seen(np.array([t.kf.box_px for t in free])), dtype=bool)
+            carried = [t for t, ok in zip(free, looked, strict=True) if not ok]
+            step.rows.extend(self._carry(step.frame, step.t_s, measured, carried))
+            free = [t for t, ok in zip(free, looked, strict=True) if ok]
+        for track in free:
             if track.confirmed:
                 track.state = LOST
             elif track.weak or step.t_s - track.born_t_s < self.config.sparse_interval_s:

@@ -25,7 +25,6 @@ Range comes from box edges, so their frame-to-frame jitter becomes range-rate no
 
 from __future__ import annotations
 
-import functools
 from pathlib import Path
 from typing import Protocol, runtime_checkable
 
@@ -34,18 +33,26 @@ import numpy as np
 
 from vid2sim.base.errors import FormatError
 from vid2sim.core.boxes import cut_by_window, iou_matrix, nms, suppress_fragments
-from vid2sim.core.records import Detection, VehicleCategory
+from vid2sim.core.records import Detection
 from vid2sim.detect.vehicles import models
 from vid2sim.detect.vehicles._dynamic import dynamic_copy
+from vid2sim.detect.vehicles.decode import (
+    COCO_VEHICLES,
+    NET_INPUT_PX,
+    decode_picodet,
+    decode_yolox,
+    letterbox,
+    vehicle_candidates,
+)
 from vid2sim.detect.vehicles.windows import (
     REFINE_CROP_SCALE,
     REFINE_MAX_BOXES,
     REFINE_MIN_IOU,
     REFINE_MIN_SIDE_PX,
-    centre_window,
+    Look,
+    full_look,
     refine_candidates,
     refine_crop,
-    tile_windows,
 )
 
 CENTRE_MIN_SCORE = 0.5
@@ -53,12 +60,6 @@ CENTRE_MIN_SCORE = 0.5
 start a track: a car 30-45 m ahead scores about 0.65 there against 0.37 in the full frame, a
 road shadow or a fragment of a partly hidden car 0.3-0.47."""
 
-COCO_VEHICLES: dict[int, VehicleCategory] = {
-    2: VehicleCategory.CAR, 3: VehicleCategory.MOTORCYCLE, 5: VehicleCategory.BUS,
-    6: VehicleCategory.TRAM, 7: VehicleCategory.TRUCK}
-"""COCO class id (0-based) -> vehicle category. COCO's ``train`` (6) holds trains and trams,
-and the only rail vehicle a road camera meets beside or on the street is a tram: it is its
-own category, replayed on its own track (:mod:`vid2sim.detect.rail`)."""
 
 DEFAULT_DETECTOR = models.DEFAULT_DETECTOR
 
@@ -75,9 +76,6 @@ them too."""
 CROSS_CLASS_IOU = 0.7
 """IoU above which boxes of different vehicle classes are taken for one vehicle."""
 
-NET_INPUT_PX = (416, 416)
-"""(width, height) of the shared exports' fixed input (MODELS.md); a loaded model's own input
-size overrides it."""
 
 YOLOX_NMS_IOU = 0.45
 """Class-aware NMS IoU of YOLOX, as in the upstream demo (MODELS.md)."""
@@ -90,12 +88,7 @@ SCORE_THRESHOLD = 0.3
 """Default lowest vehicle score kept by a detector built directly (MODELS.md: "score
 threshold about 0.3"); the application layer passes the tracker's low score instead."""
 
-LETTERBOX_FILL = 114
-"""Grey level of YOLOX's letterbox canvas (upstream preprocessing, MODELS.md)."""
 
-LOGIT_CLIP = 10.0
-"""Raw YOLOX size logits are clipped to +-this before exp(): a box e^10 strides wide is
-already larger than any input, and the clip keeps exp() finite on garbage outputs."""
 
 FREE_SHAPE_STEP_PX = 32
 """Input sides of a free-shape run are multiples of this: the net's largest stride (YOLOX
@@ -107,8 +100,6 @@ context the net was trained with. On KITTI's six labelled frames (default settin
 a margin recall 0.92 -> 0.88 and precision 0.85 -> 0.83 against the full 416x416 canvas;
 with 32 px (or 64) the same counts as the full canvas (23/25 found, 7/48 false)."""
 
-PICODET_TOP_K = 1000
-"""Cells kept per PicoDet level before NMS, as upstream (MODELS.md)."""
 
 
 @runtime_checkable
@@ -118,131 +109,6 @@ class Detector(Protocol):
     def detect(self, image_bgr: np.ndarray) -> list[Detection]:
         """Vehicles in ``image_bgr`` (HxWx3 uint8), boxes in that image's pixels."""
         ...
-
-
-# --------------------------------------------------------------------------- geometry
-
-
-def letterbox(image_bgr: np.ndarray, size_px: tuple[int, int] = NET_INPUT_PX,
-              fill: int = LETTERBOX_FILL) -> tuple[np.ndarray, float]:
-    """Resize keeping the aspect ratio and paste at the top-left of a filled canvas.
-
-    Returns the canvas (``size_px`` = (width, height)) and the scale r (canvas px per image
-    px); a canvas point (u, v) is the image point (u / r, v / r).
-    """
-    out_w, out_h = size_px
-    h, w = image_bgr.shape[:2]
-    r = min(out_h / h, out_w / w)
-    # floor, as the upstream YOLOX demo does
-    new_w, new_h = max(1, int(w * r)), max(1, int(h * r))
-    canvas = np.full((out_h, out_w, 3), fill, dtype=np.uint8)
-    canvas[:new_h, :new_w] = cv2.resize(image_bgr, (new_w, new_h),
-                                        interpolation=cv2.INTER_LINEAR)
-    return canvas, r
-
-
-# --------------------------------------------------------------------------- decoders
-
-
-def decode_yolox(output: np.ndarray, input_size_px: tuple[int, int] = NET_INPUT_PX,
-                 strides: tuple[int, ...] = (8, 16, 32)) -> tuple[np.ndarray, np.ndarray]:
-    """Decode a raw YOLOX output [1, N, 5 + C] into boxes and class scores on the input canvas.
-
-    Rows run over strides 8, 16, 32, each grid row-major; columns are tx, ty, tw, th,
-    objectness, C class scores (sigmoid already applied in the export).
-
-    Returns
-    -------
-    boxes_px : (N, 4) array
-        (x1, y1, x2, y2) on the network input canvas [px].
-    class_scores : (N, C) array
-        objectness * class probability.
-    """
-    pred = output.reshape(-1, output.shape[-1]).astype(np.float32)
-    grid, stride = _yolox_grid(tuple(input_size_px), tuple(strides))
-    if len(grid) != len(pred):
-        raise ValueError(f"YOLOX output has {len(pred)} rows, expected {len(grid)} "
-                         f"for input {input_size_px}")
-    centre = (pred[:, 0:2] + grid) * stride
-    size = np.exp(np.clip(pred[:, 2:4], -LOGIT_CLIP, LOGIT_CLIP)) * stride
-    boxes = np.concatenate([centre - size / 2, centre + size / 2], axis=1)
-    return boxes, pred[:, 4:5] * pred[:, 5:]
-
-
-@functools.lru_cache(maxsize=16)
-def _yolox_grid(input_size_px: tuple[int, int], strides: tuple[int, ...]
-                ) -> tuple[np.ndarray, np.ndarray]:
-    """Cell (column, row) and stride of every YOLOX output row for one input size (cached:
-    a run sees a handful of window sizes)."""
-    in_w, in_h = input_size_px
-    grids, scale = [], []
-    for s in strides:
-        gh, gw = in_h // s, in_w // s
-        gy, gx = np.mgrid[0:gh, 0:gw]
-        grids.append(np.column_stack([gx.ravel(), gy.ravel()]))
-        scale.append(np.full(gh * gw, s, dtype=np.float32))
-    grid = np.concatenate(grids).astype(np.float32)
-    grid.flags.writeable = False
-    stride = np.concatenate(scale)[:, None]
-    stride.flags.writeable = False
-    return grid, stride
-
-
-def decode_picodet(class_outputs: list[np.ndarray], box_outputs: list[np.ndarray],
-                   input_size_px: tuple[int, int] = NET_INPUT_PX,
-                   strides: tuple[int, ...] = (8, 16, 32, 64), reg_max: int = 7,
-                   top_k: int = PICODET_TOP_K) -> tuple[np.ndarray, np.ndarray]:
-    """Decode PicoDet outputs (per stride: class scores [1, N, C], distances [1, N, 4*(reg_max+1)]).
-
-    Each side (left, top, right, bottom) is a distribution over reg_max + 1 bins; its
-    expectation times the stride is the distance from the cell centre ((col + 0.5) * s,
-    (row + 0.5) * s). The best ``top_k`` cells per level (by max class score) are kept,
-    as upstream does.
-
-    Returns
-    -------
-    boxes_px : (M, 4) array
-        (x1, y1, x2, y2) on the network input canvas [px].
-    class_scores : (M, C) array
-    """
-    in_w, in_h = input_size_px
-    bins = np.arange(reg_max + 1, dtype=np.float32)
-    all_boxes, all_scores = [], []
-    for s, cls, reg in zip(strides, class_outputs, box_outputs, strict=True):
-        cls = cls.reshape(-1, cls.shape[-1]).astype(np.float32)
-        reg = reg.reshape(-1, 4, reg_max + 1).astype(np.float32)
-        gw = int(np.ceil(in_w / s))
-        gh = int(np.ceil(in_h / s))
-        if len(cls) != gw * gh:
-            raise ValueError(f"PicoDet level stride {s} has {len(cls)} cells, expected {gw * gh}")
-        if len(cls) > top_k:
-            idx = np.argpartition(-cls.max(axis=1), top_k)[:top_k]
-        else:
-            idx = np.arange(len(cls))
-        cls, reg = cls[idx], reg[idx]
-        # softmax over the bins (shifted by the max for numerical safety)
-        e = np.exp(reg - reg.max(axis=2, keepdims=True))
-        dist = (e / e.sum(axis=2, keepdims=True)) @ bins * s  # (M, 4) l, t, r, b [px]
-        cx = (idx % gw + 0.5) * s
-        cy = (idx // gw + 0.5) * s
-        all_boxes.append(np.column_stack([cx - dist[:, 0], cy - dist[:, 1],
-                                          cx + dist[:, 2], cy + dist[:, 3]]))
-        all_scores.append(cls)
-    return np.concatenate(all_boxes), np.concatenate(all_scores)
-
-
-def vehicle_candidates(boxes_px: np.ndarray, class_scores: np.ndarray, score_threshold: float
-                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Best vehicle class per row, keeping rows scoring >= ``score_threshold``.
-
-    Returns boxes (K, 4), scores (K,), COCO class ids (K,).
-    """
-    ids = np.array(sorted(COCO_VEHICLES))
-    vehicle_scores = class_scores[:, ids]
-    best = vehicle_scores.argmax(axis=1)
-    score = vehicle_scores[np.arange(len(best)), best]
-    keep = score >= score_threshold
-    return boxes_px[keep], score[keep], ids[best[keep]]
 
 
 # --------------------------------------------------------------------------- detectors
@@ -334,9 +200,11 @@ class OnnxDetector:
     def _expected_cells(self, width_px: int, height_px: int) -> int:
         return -1
 
-    def _prepare(self, image_bgr: np.ndarray) -> tuple[np.ndarray, tuple[float, float]]:
+    def _prepare(self, image_bgr: np.ndarray, max_scale: float | None = None
+                 ) -> tuple[np.ndarray, tuple[float, float]]:
         """Network input (3, H, W) float32 for one window, and the (x, y) scale from input
-        to window pixels."""
+        to window pixels; ``max_scale`` caps the net pixels per window pixel where the net
+        takes inputs smaller than its own (a crop seen at another window's scale)."""
         raise NotImplementedError
 
     def _decode(self, outputs: list[np.ndarray], input_size_px: tuple[int, int]
@@ -344,9 +212,12 @@ class OnnxDetector:
         """Boxes on the network input [px] and class scores of one batch item."""
         raise NotImplementedError
 
-    def _raw_many(self, images: list[np.ndarray]) -> list[tuple[np.ndarray, np.ndarray]]:
+    def _raw_many(self, images: list[np.ndarray], caps: list[float | None] | None = None
+                  ) -> list[tuple[np.ndarray, np.ndarray]]:
         """:meth:`_raw` of several windows, inputs of one shape in one onnxruntime call."""
-        prepared = [self._prepare(im) for im in images]
+        caps = caps or [None] * len(images)
+        prepared = [self._prepare(im) if cap is None else self._prepare(im, cap)
+                    for im, cap in zip(images, caps, strict=True)]
         out: list[tuple[np.ndarray, np.ndarray] | None] = [None] * len(images)
         groups: dict[tuple[int, ...], list[int]] = {}
         for i, (blob, _) in enumerate(prepared):
@@ -362,25 +233,33 @@ class OnnxDetector:
                 out[i] = boxes * [sx, sy, sx, sy], scores
         return out
 
-    def _raw(self, image_bgr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _raw(self, image_bgr: np.ndarray, cap: float | None = None
+             ) -> tuple[np.ndarray, np.ndarray]:
         """Boxes (in ``image_bgr`` pixels) and class scores before thresholds and NMS."""
-        blob, (sx, sy) = self._prepare(image_bgr)
+        blob, (sx, sy) = (self._prepare(image_bgr) if cap is None
+                          else self._prepare(image_bgr, cap))
         outputs = self.session.run(None, {self.input_name: blob[None]})
         self.n_calls = getattr(self, "n_calls", 0) + 1
         boxes, scores = self._decode(outputs, (blob.shape[2], blob.shape[1]))
         return boxes * [sx, sy, sx, sy], scores
 
-    def _window(self, image_bgr: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _window(self, image_bgr: np.ndarray, cap: float | None = None
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Vehicle boxes (window px), scores and COCO ids of one window after NMS."""
-        return self._postprocess(image_bgr.shape, *self._raw(image_bgr))
+        raw = self._raw(image_bgr) if cap is None else self._raw(image_bgr, cap)
+        return self._postprocess(image_bgr.shape, *raw)
 
-    def _windows(self, images: list[np.ndarray]
+    def _windows(self, images: list[np.ndarray], caps: list[float | None] | None = None
                  ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-        """:meth:`_window` of several windows (batched when the weights allow)."""
+        """:meth:`_window` of several windows (batched when the weights allow); ``caps``
+        as ``max_scale`` of :meth:`_prepare`, per window."""
+        caps = caps or [None] * len(images)
         if not self.batch_windows or len(images) < 2:
-            return [self._window(im) for im in images]
+            return [self._window(im) if cap is None else self._window(im, cap)
+                    for im, cap in zip(images, caps, strict=True)]
+        raws = self._raw_many(images) if not any(caps) else self._raw_many(images, caps)
         return [self._postprocess(im.shape, *raw)
-                for im, raw in zip(images, self._raw_many(images), strict=True)]
+                for im, raw in zip(images, raws, strict=True)]
 
     def _postprocess(self, shape: tuple[int, ...], boxes: np.ndarray, class_scores: np.ndarray
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -432,31 +311,29 @@ class OnnxDetector:
                 boxes_px[i] = found[best]
         return boxes_px
 
-    def detect(self, image_bgr: np.ndarray) -> list[Detection]:
-        """Vehicles in one BGR image, boxes in its pixels, best score first."""
+    def full_look(self, width_px: int, height_px: int) -> Look:
+        """Every window this detector runs on a frame of this size (:func:`full_look`)."""
+        return full_look(width_px, height_px, tiles=self.small_object_mode)
+
+    def detect(self, image_bgr: np.ndarray, look: Look | None = None) -> list[Detection]:
+        """Vehicles in one BGR image, boxes in its pixels, best score first.
+
+        ``look`` chooses the windows (:class:`~vid2sim.detect.vehicles.windows.Look`, e.g.
+        cut to a band about the horizon); by default every window of :meth:`full_look`.
+        """
         h, w = image_bgr.shape[:2]
-        windows = tile_windows(w, h) if self.small_object_mode else [(0, 0, w, h)]
-        centre = centre_window(w, h)
-        parts_b, parts_s, parts_c = [], [], []
-        results = self._windows([image_bgr[y1:y2, x1:x2] for x1, y1, x2, y2 in windows])
-        for (x1, y1, x2, y2), (boxes, scores, ids) in zip(windows, results, strict=True):
-            boxes = boxes + [x1, y1, x1, y1]
-            if len(windows) > 1 and (x1, y1, x2, y2) == centre:
-                # The centre window sees far cars at the net's scale, and with them more of
-                # what only looks like one (shadows, fragments): only its confident boxes.
-                keep = scores >= CENTRE_MIN_SCORE
-                boxes, scores, ids = boxes[keep], scores[keep], ids[keep]
-            if (x2 - x1, y2 - y1) != (w, h):
-                # A car cut by a tile's inner edge gets a truncated box there; the full frame
-                # or the neighbouring tile sees it whole, so the cut box is dropped.
-                cut = cut_by_window(boxes, (x1, y1, x2, y2), w, h)
-                boxes, scores, ids = boxes[~cut], scores[~cut], ids[~cut]
-            parts_b.append(boxes)
-            parts_s.append(scores)
-            parts_c.append(ids)
-        boxes = np.concatenate(parts_b)
-        scores = np.concatenate(parts_s)
-        ids = np.concatenate(parts_c)
+        look = look or self.full_look(w, h)
+        windows = list(look.windows)
+        if not windows:
+            return []
+        crops = [image_bgr[y1:y2, x1:x2] for x1, y1, x2, y2 in windows]
+        results = (self._windows(crops) if look.caps is None
+                   else self._windows(crops, list(look.caps)))
+        parts = [self._window_boxes(window, found, look.centre, w, h)
+                 for window, found in zip(windows, results, strict=True)]
+        boxes = np.concatenate([p[0] for p in parts])
+        scores = np.concatenate([p[1] for p in parts])
+        ids = np.concatenate([p[2] for p in parts])
         if len(windows) > 1:
             # The same car seen in two windows may be called car in one and truck in the
             # other: merge without regard to class.
@@ -464,10 +341,32 @@ class OnnxDetector:
             boxes, scores, ids = boxes[keep], scores[keep], ids[keep]
         order = suppress_fragments(boxes, scores)
         boxes, scores, ids = boxes[order], scores[order], ids[order]
-        if self.refine_max_boxes > 0:
+        if self.refine_max_boxes > 0 and look.refine:
             boxes = self.refine(image_bgr, boxes)
         return [Detection(box_px=tuple(float(v) for v in boxes[i]), score=float(scores[i]),
                           category=COCO_VEHICLES[int(ids[i])]) for i in range(len(boxes))]
+
+    @staticmethod
+    def _window_boxes(window: tuple[int, int, int, int],
+                      found: tuple[np.ndarray, np.ndarray, np.ndarray],
+                      centre: tuple[int, int, int, int] | None, width_px: int, height_px: int
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """One window's boxes in frame pixels, with the centre window's weak boxes and the
+        boxes a window's inner edge cut dropped."""
+        x1, y1, x2, y2 = window
+        boxes, scores, ids = found
+        boxes = boxes + [x1, y1, x1, y1]
+        if window == centre:
+            # The centre window sees far cars at the net's scale, and with them more of
+            # what only looks like one (shadows, fragments): only its confident boxes.
+            keep = scores >= CENTRE_MIN_SCORE
+            boxes, scores, ids = boxes[keep], scores[keep], ids[keep]
+        if (x2 - x1, y2 - y1) != (width_px, height_px):
+            # A car cut by a tile's inner edge gets a truncated box there; the full frame
+            # or the neighbouring tile sees it whole, so the cut box is dropped.
+            cut = cut_by_window(boxes, window, width_px, height_px)
+            boxes, scores, ids = boxes[~cut], scores[~cut], ids[~cut]
+        return boxes, scores, ids
 
 
 class YoloxDetector(OnnxDetector):
@@ -478,26 +377,29 @@ class YoloxDetector(OnnxDetector):
     def _expected_cells(self, width_px: int, height_px: int) -> int:
         return sum((width_px // s) * (height_px // s) for s in (8, 16, 32))
 
-    def _prepare(self, image_bgr: np.ndarray) -> tuple[np.ndarray, tuple[float, float]]:
+    def _prepare(self, image_bgr: np.ndarray, max_scale: float | None = None
+                 ) -> tuple[np.ndarray, tuple[float, float]]:
         size = self.input_size_px
+        if not self.free_shape:
+            max_scale = None  # a fixed input: the window fills it
         if self.free_shape:
             # the letterbox canvas cut after the image, rounded up to the net's largest
             # stride: the same pixels at the same scale, without computing the padding (the
             # axis that sets the scale keeps its full side, so the scale is unchanged)
             w, h = self.input_size_px
-            r = min(h / image_bgr.shape[0], w / image_bgr.shape[1])
+            r = min(h / image_bgr.shape[0], w / image_bgr.shape[1], max_scale or np.inf)
             step = FREE_SHAPE_STEP_PX
             size = (min(w, step * -(-max(1, int(image_bgr.shape[1] * r)) // step)
                         + FREE_SHAPE_MARGIN_PX),
                     min(h, step * -(-max(1, int(image_bgr.shape[0] * r)) // step)
                         + FREE_SHAPE_MARGIN_PX))
-        canvas, r = letterbox(image_bgr, size)
+        canvas, r = letterbox(image_bgr, size, max_scale=max_scale)
         blob = canvas.transpose(2, 0, 1).astype(np.float32)  # BGR, 0-255, no norm
         return blob, (1.0 / r, 1.0 / r)
 
     def _decode(self, outputs: list[np.ndarray], input_size_px: tuple[int, int]
                 ) -> tuple[np.ndarray, np.ndarray]:
-        return decode_yolox(outputs[0], input_size_px)
+        return decode_yolox(outputs[0], input_size_px, min_objectness=self.score_threshold)
 
 
 class PicodetDetector(OnnxDetector):
@@ -515,7 +417,9 @@ class PicodetDetector(OnnxDetector):
         super().__init__(model_path, score_threshold=score_threshold, nms_iou=nms_iou,
                          small_object_mode=small_object_mode, threads=threads, **refine_options)
 
-    def _prepare(self, image_bgr: np.ndarray) -> tuple[np.ndarray, tuple[float, float]]:
+    def _prepare(self, image_bgr: np.ndarray, max_scale: float | None = None
+                 ) -> tuple[np.ndarray, tuple[float, float]]:
+        # the input is resized to the net's fixed size whatever ``max_scale``
         h, w = image_bgr.shape[:2]
         in_w, in_h = self.input_size_px
         resized = cv2.resize(image_bgr, (in_w, in_h), interpolation=cv2.INTER_LINEAR)
