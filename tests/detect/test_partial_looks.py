@@ -13,8 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from vid2sim.core.records import Detection, Frame, RangedBox
-from vid2sim.detect.ahead import DetectAhead, lookahead
-from vid2sim.detect.frameloop import fill_between
+from vid2sim.detect.frameloop import DetectAhead, fill_between, lookahead
 from vid2sim.detect.pipeline import run_detect
 from vid2sim.detect.schedule import (
     BAND,

@@ -52,7 +52,7 @@ class DetectorSettings:
     :param threads: onnxruntime intra-op threads (a batch gives each job cores / jobs). 1:
         the keyframe schedule runs the net in two threads at once (the grid's keyframes in
         a worker thread ahead, the tracks' second looks in the main one, see
-        :mod:`vid2sim.detect.ahead`), each on a core of its own; a 416x416 YOLOX-nano window
+        :mod:`vid2sim.detect.frameloop`), each on a core of its own; a 416x416 YOLOX-nano window
         costs 12.5 ms of CPU on one thread and 15.2 ms on two, with no wall time gained on
         this shared 2-core machine (docs/performance.md)
     """

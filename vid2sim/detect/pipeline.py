@@ -25,9 +25,15 @@ from vid2sim.core.records import (
     TrackedBox,
 )
 from vid2sim.core.videofile import skipped_frames_note
-from vid2sim.detect.ahead import AHEAD_FRAMES, DetectAhead, lookahead
 from vid2sim.detect.assign import relane
-from vid2sim.detect.frameloop import Looks, ScheduledTracking, fill_between
+from vid2sim.detect.frameloop import (
+    AHEAD_FRAMES,
+    DetectAhead,
+    Looks,
+    ScheduledTracking,
+    fill_between,
+    lookahead,
+)
 from vid2sim.detect.lanes.markings import LaneMarkingConfig, LaneMarkingDetector
 from vid2sim.detect.lanes.track import LaneTrackConfig, track_lanes
 from vid2sim.detect.lanes.vanishing import HorizonEstimator, yaw_for_vanishing_column
@@ -91,7 +97,7 @@ def run_detect(source: Path, *, detector: Detector | None,
         carry the boxes between them by optical flow (:mod:`vid2sim.detect.tracking.flow`,
         settings ``flow``); a video faster than the schedule's ``analysis_hz`` is analysed on
         every N-th frame and the boxes between are interpolated. The grid's keyframes are
-        detected ahead in a worker thread (:mod:`vid2sim.detect.ahead`). None: the detector
+        detected ahead in a worker thread (:mod:`vid2sim.detect.frameloop`). None: the detector
         runs on every ``detect_every``-th frame and the tracker predicts between.
     stats : dict, optional
         Filled with counts for summaries and benchmarks: ``frames``, ``analysed`` (frames

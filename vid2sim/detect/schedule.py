@@ -9,7 +9,7 @@ rate. A frame is a keyframe when
 * it is on the grid: the first frame, then the first frame ``keyframe_s`` or more after the
   last grid keyframe (so sparse input, whose frames are that far apart, is detected on every
   frame). The grid depends on the frames' times only (:class:`KeyframeGrid`), so the detector
-  can run on a grid keyframe ahead of the tracker (:mod:`vid2sim.detect.ahead`);
+  can run on a grid keyframe ahead of the tracker (:mod:`vid2sim.detect.frameloop`);
 * the last keyframe started a confident track that has not had its second look (the
   tracker's confirmation, and its test of a one-frame false detection, need the next frame);
 * optical flow failed on a confirmed track not cut by the image border (occlusion, motion
@@ -98,7 +98,7 @@ class ScheduleConfig:
         what a 10 fps one does per second of video; the scenario keeps the video's rate
     :param fixed_grid: the grid's keyframes keep their times whatever keyframes the tracks
         asked for in between, so they are known ahead and detected in a worker thread
-        (:mod:`vid2sim.detect.ahead`); False counts the interval from the last keyframe of
+        (:mod:`vid2sim.detect.frameloop`); False counts the interval from the last keyframe of
         any kind (fewer keyframes, all detected in turn)
     :param local_looks: a keyframe the tracks asked for (a second look, a failed flow)
         looks at those tracks only; False (default, with ``sweep_s`` 0): a full sweep
