@@ -154,7 +154,7 @@ def test_the_grid_depends_on_time_only_and_sweeps_on_its_own_cadence():
 
 
 def test_a_keyframe_the_tracks_ask_for_looks_at_them_only():
-    keys = KeyframeSchedule(ScheduleConfig(keyframe_s=1.0), 640)
+    keys = KeyframeSchedule(ScheduleConfig(keyframe_s=1.0, local_looks=True), 640)
     tracker = Tracker(image_size_px=(640, 360))
     assert keys.decide(0.0, keys.grid.plan(0.0)) == SWEEP
     tracker.update(0, 0.0, [_car(100.0), _car(400.0)])
