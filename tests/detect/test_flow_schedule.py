@@ -93,7 +93,7 @@ def _car(x: float, score: float = 0.9) -> Detection:
 
 
 def test_schedule_runs_keyframes_by_time_and_a_second_look_at_new_tracks():
-    keys = KeyframeSchedule(ScheduleConfig(keyframe_s=0.3, sweep_s=0.9), W)
+    keys = KeyframeSchedule(ScheduleConfig(keyframe_s=0.3, sweep_s=0.9, local_looks=True), W)
     tracker = Tracker(image_size_px=(W, H))
     picked = []
     for i in range(10):
