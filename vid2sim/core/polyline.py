@@ -50,6 +50,8 @@ def _nearest_by_index(a: np.ndarray, d: np.ndarray, seg_len: np.ndarray, seg_s: 
     idx = np.flatnonzero(finite)
     pairs = shapely.STRtree(segs).query_nearest(shapely.points(pts[idx]), all_matches=True)
     p_i, j = pairs
+    if not len(p_i):
+        return
     order = np.lexsort((j, p_i))
     p_i, j = p_i[order], j[order]
     rel0 = pts[idx[p_i]] - a[j]
@@ -82,7 +84,8 @@ def signed_offsets(line_xy_m: np.ndarray, xy_m: np.ndarray,
     line = np.asarray(line_xy_m, float)
     pts = np.asarray(xy_m, float).reshape(-1, 2)
     a, d = line[:-1], np.diff(line, axis=0)
-    seg_len = np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-9)
+    raw_len = np.hypot(d[:, 0], d[:, 1])
+    seg_len = np.maximum(raw_len, 1e-9)
     seg_s = np.concatenate([[0.0], np.cumsum(seg_len)])
     n_seg = len(a)
     if expected_s_m is None or not len(pts):
@@ -97,7 +100,10 @@ def signed_offsets(line_xy_m: np.ndarray, xy_m: np.ndarray,
         width = int(max(1, (np.clip(hi, 1, n_seg) - first).max()))
     s_out = np.full(len(pts), np.nan)
     off_out = np.full(len(pts), np.nan)
-    if expected_s_m is None and len(pts) * n_seg > INDEXED_PAIRS:
+    # the index answers as the all-pairs search does where no segment has zero length (a
+    # repeated point ties its neighbours with an offset of sign 0)
+    if expected_s_m is None and len(pts) * n_seg > INDEXED_PAIRS and n_seg \
+            and np.all(raw_len > 1e-9) and np.isfinite(line).all():
         _nearest_by_index(a, d, seg_len, seg_s, pts, s_out, off_out)
         return s_out, off_out
     chunk = max(1, 200_000 // max(width, 1))  # bounds the (points x segments) work arrays

@@ -146,11 +146,14 @@ def project_actors(line: np.ndarray, actors: list[Actor]
                    ) -> list[tuple[np.ndarray, np.ndarray]]:
     """Arc length and offset (positive left) of every trajectory point of each actor on
     ``line`` [m]."""
-    out = []
-    for a in actors:
-        xy = np.column_stack((a.trajectory.x, a.trajectory.y))
-        out.append(signed_offsets(line, xy))
-    return out
+    # one call for all the points: a long drive's points then go through the spatial index
+    # (one call per actor kept every call under its threshold: quadratic in the drive)
+    xy = [np.column_stack((a.trajectory.x, a.trajectory.y)).reshape(-1, 2) for a in actors]
+    if not xy:
+        return []
+    s_m, d_m = signed_offsets(line, np.concatenate(xy))
+    cuts = np.cumsum([len(p) for p in xy])[:-1]
+    return list(zip(np.split(s_m, cuts), np.split(d_m, cuts), strict=True))
 
 
 def standing_vehicles(actors: list[Actor], offsets: list[tuple[np.ndarray, np.ndarray]],
