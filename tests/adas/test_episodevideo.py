@@ -5,27 +5,17 @@ from __future__ import annotations
 import csv
 import re
 
-import cv2
 import numpy as np
 import pytest
 
+from tests.videoframes import decoded_frames
 from vid2sim.adas.episodevideo import EPISODE_VIEW_PX, RenderChoice, parse_render, pick
 from vid2sim.base.errors import ImpossibleValueError
 from vid2sim.cli.main import main
 from vid2sim.core.scenario import save
 from vid2sim.samples.scenarios import braking_lead_scenario
 
-
-def _frames(path):
-    cap = cv2.VideoCapture(str(path))
-    out = []
-    while True:
-        ok, img = cap.read()
-        if not ok:
-            break
-        out.append(img)
-    cap.release()
-    return out
+_frames = decoded_frames
 
 
 def _red_banner(img) -> int:

@@ -15,6 +15,7 @@ import pytest
 
 from tests.conftest import REPO
 from tests.test_cli_bad_inputs import _assert_one_error_line, _snapshot, read_only
+from tests.videoframes import decoded_frames
 from vid2sim.base.errors import (
     ImpossibleValueError,
     InconsistentInputError,
@@ -94,16 +95,7 @@ def test_outline_hull_spans_the_evaluation_s_box_and_iou_judges_a_shifted_detect
 # --------------------------------------------------------------------------- a short build
 
 
-def _frames(path):
-    cap = cv2.VideoCapture(str(path))
-    out = []
-    while True:
-        ok, img = cap.read()
-        if not ok:
-            break
-        out.append(img)
-    cap.release()
-    return out
+_frames = decoded_frames
 
 
 @pytest.fixture(scope="module")
