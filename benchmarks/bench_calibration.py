@@ -233,7 +233,7 @@ def _oxts_csv(raw: Path, skip: int, out: Path, container_clock: bool = False) ->
 
     KITTI's ``video.mp4`` plays its frames at 10 fps while the camera captured them every
     0.1032 s: video time runs 3.1 % slow against the OXTS's, which one offset cannot
-    absorb (the sync fits an offset, as a dash-cam's clocks differ by one). With
+    absorb (the sync fits a clock rate with the offset where the motion pins it). With
     ``container_clock`` the fixes are re-timed onto the video's clock through the camera's
     timestamps (the drive as a camera with a true frame clock would have recorded it)."""
     from vid2sim.geo.oxts import OXTS_LAT, OXTS_LON, OXTS_VE, OXTS_VN, OXTS_YAW
@@ -284,11 +284,13 @@ def sync_check(raw: Path, cache: Path) -> list[dict]:
 
         rec = yaml.safe_load(out.read_text())
         off = rec.get("gps_offset_s") or {}
+        rate = rec.get("gps_clock_rate") or {}
         est = load_camera(out)
         cam = load_camera(raw / "camera.yaml")
         rows.append({"clip": f"kitti 0001 gps -{skip / 10:.1f} s, {label}", "truth_s": truth_s,
                      "offset_s": off.get("value"), "std_s": off.get("std"),
-                     "observable": off.get("observable"),
+                     "observable": off.get("observable"), "rate": rate.get("value"),
+                     "rate_std": rate.get("std"), "rate_fitted": rate.get("fitted"),
                      "fx_pct": 100 * (est.fx / cam.fx - 1),
                      "h_pct": 100 * (est.height_m / cam.height_m - 1), "cpu_s": cpu,
                      "note": next((ln for ln in text.splitlines() if "time offset" in ln), "")})
@@ -296,7 +298,8 @@ def sync_check(raw: Path, cache: Path) -> list[dict]:
         err = (r["offset_s"] - r["truth_s"]) if r["offset_s"] is not None else float("nan")
         print(f"time sync {r['clip']}: first fix at {r['offset_s']} s (std {r['std_s']}, "
               f"observable {r['observable']}), truth {r['truth_s']:+.3f} s, error "
-              f"{err:+.3f} s; fx {r['fx_pct']:+.1f} %, height {r['h_pct']:+.1f} %, "
+              f"{err:+.3f} s; clock rate {r['rate']} (std {r['rate_std']}, fitted "
+              f"{r['rate_fitted']}); fx {r['fx_pct']:+.1f} %, height {r['h_pct']:+.1f} %, "
               f"{r['cpu_s']:.1f} s CPU\n  {r['note']}")
     return rows
 
