@@ -29,7 +29,7 @@ from vid2sim.calib import (
     with_lanes,
 )
 from vid2sim.calib import calibrate as fit_camera
-from vid2sim.calib.sync import estimate_time_offset
+from vid2sim.calib.sync import SyncConfig, estimate_time_offset
 from vid2sim.core.calibration import (
     CameraEstimate,
     EgoMotionSample,
@@ -243,14 +243,15 @@ def fit_cues(cues: Cues, info: VideoInfo, prior: CameraPrior, cfg: CalibrationCo
 
 
 def sync_clock(cues: Cues, info: VideoInfo, prior: CameraPrior, trace: GpsTrace,
-               ego_gps_clock: EgoTrack, cfg: CalibrationConfig) -> TimeOffset:
+               ego_gps_clock: EgoTrack, cfg: CalibrationConfig,
+               sync_cfg: SyncConfig | None = None) -> TimeOffset:
     """The video time of the GPS's first fix, from the visual and GPS motion profiles
     (``ego_gps_clock``: the trajectory smoothed with the first fix at t = 0)."""
     visual = fit_cues(replace(cues, held={}), info, prior, cfg)
     ta, tb, v, w = visual_profiles(visual, cues.pairs)
     first = min(f.t_utc_s for f in trace.fixes)
     series = gps_series(trace, first, ego_gps_clock)
-    return estimate_time_offset(ta, tb, v, w, *series)
+    return estimate_time_offset(ta, tb, v, w, *series, config=sync_cfg)
 
 
 def lane_prior_from_roads(roads: list, road_source: str | None,

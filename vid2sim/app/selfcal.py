@@ -119,7 +119,7 @@ def sync_offset(choice: CameraChoice, inputs: Inputs, info: VideoInfo, settings:
     ego0, _ = smooth_ego(trace, rate_hz=settings.rate_hz, gps_offset_s=0.0,
                          params=settings.trace)
     prior = choice.prior if choice.prior is not None else _prior_of(choice.camera)
-    off = cal.sync_clock(cues, info, prior, trace, ego0, cfg)
+    off = cal.sync_clock(cues, info, prior, trace, ego0, cfg, settings.sync)
     choice.offset = off
     if off.observable:
         rate = (f"; the GPS clock runs at {off.rate:.3f} +- {off.rate_std:.3f} s per video "

@@ -32,6 +32,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from vid2sim.base.errors import ImpossibleValueError
 from vid2sim.core.calibration import TimeOffset
 from vid2sim.core.records import GpsTrace
 
@@ -86,6 +87,15 @@ class SyncConfig:
     rate_step: float = 0.005
     rate_window_s: float = 0.6
     max_rate_std: float = 0.029
+
+    def check(self) -> None:
+        """Raise :class:`ImpossibleValueError` for settings no sync can run with."""
+        steps = (self.coarse_step_s, self.fine_step_s, self.rate_step, self.rate_window_s)
+        if not all(math.isfinite(x) and x > 0 for x in steps):
+            raise ImpossibleValueError(None, "sync grid steps and window must be > 0")
+        if not (0.0 <= self.max_rate_dev < 0.5 and self.min_overlap > 0):
+            raise ImpossibleValueError(None, f"sync max_rate_dev {self.max_rate_dev:g} must be "
+                                       "0-0.5 and min_overlap > 0")
 
 
 @dataclass(frozen=True, slots=True)
@@ -157,6 +167,7 @@ def estimate_time_offset(t_a_s: np.ndarray, t_b_s: np.ndarray, speed: np.ndarray
     scale; ``gps_speed`` [m/s] and ``gps_heading`` [rad, counter-clockwise, unwrapped] the
     GPS's at its times."""
     cfg = config or SyncConfig()
+    cfg.check()
     prof = _Profiles(*(np.asarray(x, float) for x in (t_a_s, t_b_s, speed, yaw_change,
                                                      gps_t_s, gps_speed, gps_heading)))
     if len(prof.ta) < 5 or len(prof.gt) < 5:
