@@ -6,7 +6,6 @@ import math
 
 import numpy as np
 import pytest
-
 from hypothesis import given
 from hypothesis import settings as hsettings
 from hypothesis import strategies as st
@@ -93,7 +92,7 @@ def _profiles(offset, rate, phase, seed, length_s=24.0):
     video: GPS time u is world (video) time offset + u / rate."""
     rng = np.random.default_rng(seed)
     t = np.arange(0.0, length_s, 0.2)
-    v, h = _drive(t + 0.05, phase)
+    v, _h = _drive(t + 0.05, phase)
     _, h_b = _drive(t + 0.1, phase)
     speed = 0.7 * v * rate + rng.normal(0, 0.3, t.size)  # metres per video second
     yaw = 1.3 * (h_b - _drive(t, phase)[1]) + rng.normal(0, 0.0005, t.size)

@@ -333,7 +333,7 @@ def _joint_fit(tau1: float, prof: _Profiles, cfg: SyncConfig
     u_ref = _lever_s(tau1, prof, cfg)
     m_grid = tau1 + u_ref + np.arange(-cfg.rate_window_s, cfg.rate_window_s + 1e-9,
                                       cfg.fine_step_s)
-    n_r = int(round(cfg.max_rate_dev / cfg.rate_step))
+    n_r = round(cfg.max_rate_dev / cfg.rate_step)
     rates = 1.0 + cfg.rate_step * np.arange(-n_r, n_r + 1)
     chi2 = np.array([_curve(m_grid - u_ref / r, prof, cfg, r) for r in rates])
     if not np.isfinite(chi2).any():
