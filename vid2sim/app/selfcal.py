@@ -111,7 +111,8 @@ def sync_offset(choice: CameraChoice, inputs: Inputs, info: VideoInfo, settings:
 
     Measures the cues first if a camera file made that unnecessary so far."""
     cfg = cal.calibration_config(settings)
-    cues = choice.cues or cal.measure_cues(Path(inputs.video), info, inputs.fps, cfg)
+    cues = choice.cues or cal.measure_cues(Path(inputs.video), info, inputs.fps, cfg,
+                                           for_sync=True)
     if cal.check_cues(cues, Path(inputs.video)) is not None:
         choice.notes.append(Note.warning("GPS-video time offset not estimated: the clip "
                                          "shows too little road motion"))
