@@ -18,7 +18,9 @@ Per clip: signed errors of fx [%], height [%], horizon row at the true principal
 yaw [deg], k1; which cue fixed fx and the height; and the RANGE error the estimate alone
 gives a point on the road straight ahead at 10, 20 and 40 m (seen through the true camera,
 back-projected through the estimate): what the camera costs the ranging. CPU seconds of the
-calibration (measurement + fit).
+calibration (measurement + fit). Optional parts: (d) composite builds, (e) ``--ego-speed``,
+(f) ``--sync``, (g) ``--cost`` (whole builds), (h) ``--stage-cost`` (the calibration stages
+alone, CPU seconds).
 
 Re-imaged clips are written to ``--cache`` (default /tmp/vid2sim-calib) and reused.
 """
@@ -354,6 +356,50 @@ def cost_check(raw: Path, shared: Path, cache: Path) -> dict:
     return out
 
 
+def stage_cost(raw: Path, cache: Path) -> dict:
+    """(h) CPU seconds (user + sys, all threads) of the calibration stages alone: the 60 s
+    720p clip of (g) without GPS or camera file (calibration cues, calibrate camera), and
+    the GPS-video time sync of KITTI raw 0001 with its camera file and the OXTS of (f) with
+    its first 1.5 s removed (the cues measured for the sync alone)."""
+    import resource
+
+    from vid2sim.app import selfcal
+    from vid2sim.app.loaders import load_trace, load_video_info
+
+    def cpu() -> float:
+        r = resource.getrusage(resource.RUSAGE_SELF)
+        return r.ru_utime + r.ru_stime
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from bench_speed import make_720p_clip
+
+    clip = cache / "clip60_720p.mp4"
+    if not clip.exists():
+        make_720p_clip(raw, clip)
+    settings = Settings(progress=False, camera_cache=False, allow_download=False)
+    inputs = Inputs(video=clip)
+    info = load_video_info(inputs)
+    choice = selfcal.start_camera(inputs, info, settings)
+    c0 = cpu()
+    selfcal.measure_cues_for(choice, inputs, info, settings)
+    c1 = cpu()
+    selfcal.finish_camera(choice, inputs, info, settings)
+    out = {"cues_s": c1 - c0, "calibrate_s": cpu() - c1}
+    gps = cache / "oxts_skip15_False.csv"
+    truth = _oxts_csv(raw, 15, gps)
+    inputs = Inputs(video=raw / "video.mp4", gps=gps, camera=raw / "camera.yaml")
+    info = load_video_info(inputs)
+    choice = selfcal.start_camera(inputs, info, settings)
+    c0 = cpu()
+    selfcal.sync_offset(choice, inputs, info, settings, load_trace(inputs))
+    out.update(sync_s=cpu() - c0, sync_error_s=choice.offset.offset_s - truth)
+    print(f"stage cost: 60 s 720p clip, no GPS: calibration cues {out['cues_s']:.2f} s CPU, "
+          f"calibrate camera {out['calibrate_s']:.2f} s CPU; KITTI raw 0001 with its camera "
+          f"file, GPS 1.5 s late: time sync {out['sync_s']:.2f} s CPU (offset error "
+          f"{out['sync_error_s']:+.3f} s)")
+    return out
+
+
 def print_composite(rows: list[dict]) -> None:
     print(f"\n{'clip':<22}{'range m':>12}{'|err| med %':>12}{'bias %':>8}{'present':>8}"
           f"{'IoU':>6}{'(n)':>5}{'fx %':>7}{'h %':>7}{'k1':>7}{'(true)':>7}{'calib s':>8}")
@@ -400,6 +446,9 @@ def main(argv: list[str] | None = None) -> int:
                              "its first 1.5 s removed)")
     parser.add_argument("--cost", action="store_true",
                         help="also build the 60 s 720p clip with and without a camera file")
+    parser.add_argument("--stage-cost", action="store_true",
+                        help="also the CPU of the calibration stages alone (60 s 720p clip "
+                             "without GPS; the sync of KITTI raw 0001 with its camera file)")
     parser.add_argument("--json", type=Path, default=None, help="also write the rows here")
     args = parser.parse_args(argv)
     raw = args.shared / "kitti_raw_0001"
@@ -423,6 +472,8 @@ def main(argv: list[str] | None = None) -> int:
         extra["sync"] = sync_check(raw, args.cache)
     if args.cost:
         extra["cost"] = cost_check(raw, args.shared, args.cache)
+    if args.stage_cost:
+        extra["stage_cost"] = stage_cost(raw, args.cache)
     comp = [composite_build(raw, args.shared, args.cache, s, 10 + s) for s in args.composite]
     if comp:
         print_composite(comp)
