@@ -45,6 +45,8 @@ class CameraChoice:
     :param cues: the measured cues, when calibrating
     :param estimate: the self-calibration, once made
     :param offset: the GPS clock's estimated offset, when synced
+    :param vehicles: the vehicle boxes of a frame (the run's detector or imported boxes),
+        whose points the road's flow drops; None: no mask (``vid2sim calibrate``)
     """
 
     camera: Camera | None
@@ -54,6 +56,7 @@ class CameraChoice:
     estimate: CameraEstimate | None = None
     offset: TimeOffset | None = None
     cache_key: str | None = None
+    vehicles: cal.VehicleBoxes | None = None
 
     @property
     def calibrating(self) -> bool:
@@ -80,7 +83,7 @@ def measure_cues_for(choice: CameraChoice, inputs: Inputs, info: VideoInfo,
     """Measure the clip's cues (once)."""
     if choice.cues is None:
         choice.cues = cal.measure_cues(Path(inputs.video), info, inputs.fps,
-                                       cal.calibration_config(settings))
+                                       cal.calibration_config(settings), choice.vehicles)
 
 
 def visual_ego_speeds(choice: CameraChoice, info: VideoInfo, settings: Settings
@@ -194,8 +197,11 @@ def camera_line(choice: CameraChoice) -> str:
 # --------------------------------------------------------------------------- the command
 
 
-def run_calibrate(inputs: Inputs, out_path: Path, settings: Settings | None = None) -> str:
-    """``vid2sim calibrate``: self-calibrate the camera of a clip and write its camera file.
+def run_calibrate(inputs: Inputs, out_path: Path, settings: Settings | None = None,
+                  vehicles: cal.VehicleBoxes | None = None) -> str:
+    """``vid2sim calibrate``: self-calibrate the camera of a clip and write its camera file
+    (``vehicles``: a frame's vehicle boxes, whose points the road's flow drops; the command
+    itself loads no detector).
 
     Raises
     ------
@@ -215,6 +221,7 @@ def run_calibrate(inputs: Inputs, out_path: Path, settings: Settings | None = No
     choice = start_camera(replace(inputs, camera=inputs.camera), info, settings)
     if not choice.calibrating:  # a whole camera file: calibrate with it as a prior
         choice = CameraChoice(camera=None, prior=_prior_of(choice.camera))
+    choice.vehicles = vehicles
     check_output_file(out_path)
     measure_cues_for(choice, inputs, info, settings)
     why = cal.check_cues(choice.cues, video)
