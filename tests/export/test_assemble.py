@@ -222,3 +222,19 @@ def test_moving_car_slow_ego_and_noisy_gps_are_not_held():
     sc, _ = assemble_scenario(ego, [], _parked_rows(0.8), CAMERA, source=Source(),
                               ego_noise_m=3.0)
     assert np.median(sc.actors[0].trajectory.speed) == pytest.approx(2.0, abs=0.1)
+
+
+def test_a_track_faster_than_any_vehicle_is_dropped_not_written():
+    # ego at 10 m/s; track 1 follows at 20 m; track 2's range grows 8 m a frame: it moves at
+    # 10 + 80 = 90 m/s in the world, over the 70 m/s bound, so it is a mis-ranged track
+    ego = ego_track()
+    t = np.arange(0.0, 3.0, 0.1)
+    rows = ([box(ti, 1, 20.0, 0.0) for ti in t]
+            + [box(ti, 2, 15.0 + 80.0 * ti, 3.5) for ti in t])
+    sc, warnings = assemble_scenario(ego, [], rows, CAMERA, source=Source())
+    assert [a.id for a in sc.actors] == ["1"]
+    assert any(w.startswith("track 2: world speed 90 m/s") for w in warnings)
+    # the bound is a setting: above 90 m/s both stay
+    sc, _ = assemble_scenario(ego, [], rows, CAMERA, source=Source(),
+                              config=AssembleConfig(max_actor_speed_mps=95.0))
+    assert [a.id for a in sc.actors] == ["1", "2"]

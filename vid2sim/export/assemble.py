@@ -104,6 +104,13 @@ class AssembleConfig:
     cars of KITTI raw 0001 shrank at 0.67-1.14 of the ego's closing speed,
     tests/detect/test_ranging_parked.py), which makes a parked car appear to move at up to that
     share of the ego's speed."""
+    max_actor_speed_mps: float = 70.0
+    """A track whose world speed exceeds this anywhere [m/s] is mis-ranged, not a vehicle:
+    70 m/s (252 km/h) is above any road vehicle's top speed and the ``max_speed`` the
+    OpenSCENARIO export declares (scenario.json's schema refuses 200). Such a track is dropped
+    with a warning naming it rather than written into the scenario: an estimated camera whose
+    scale the clip could not observe makes a range jump of a few metres between frames
+    (the 60 s 720p clip without GPS: 219 m/s)."""
 
 
 # --------------------------------------------------------------------------- maths
@@ -403,10 +410,17 @@ def actors_from_tracks(tracks: list[RangedBox], ego: EgoTrack,
             if rows[0].t_s < t_lo - 0.5 or rows[-1].t_s > t_hi + 0.5:
                 warnings.append(f"track {actor_id}: seen outside the ego trajectory's time span "
                                 f"[{t_lo:.1f}, {t_hi:.1f}] s; ego pose held at the ends")
-            actors.append(_actor_from_rows(
+            actor = _actor_from_rows(
                 rows, actor_id, ego, cfg, warnings, axis, ego_heading, hold,
                 track_id in standing_tracks, round(float((ground_m_by_track or {}).get(
-                    track_id, 0.0)), 3)))
+                    track_id, 0.0)), 3))
+            fastest = float(np.max(actor.trajectory.speed, initial=0.0))
+            if not fastest <= cfg.max_actor_speed_mps:
+                warnings.append(f"track {actor_id}: world speed {fastest:.0f} m/s is no "
+                                f"vehicle's (over {cfg.max_actor_speed_mps:g}): mis-ranged, "
+                                "dropped (check the camera: pass --camera or --gps)")
+                continue
+            actors.append(actor)
     if n_short:
         warnings.append(f"{n_short} track pieces seen for less than {cfg.min_seen_s:g} s dropped")
     return actors, warnings
