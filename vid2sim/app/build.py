@@ -48,6 +48,7 @@ from vid2sim.app.settings_file import changed_settings, settings_tree
 from vid2sim.app.tracking import detect_and_range_with, lead_summary
 from vid2sim.base.defaults import EGO_LENGTH_M
 from vid2sim.base.fileio import staged_folder, write_text_atomic
+from vid2sim.base.memory import release_free_memory
 from vid2sim.core import scenario as scenario_io
 from vid2sim.core.camera import Camera
 from vid2sim.core.records import EgoLateral, EgoTrack, Note, NoteKind, VideoInfo, notes_of
@@ -152,6 +153,9 @@ class _Stages:
             self.report(f"[{len(self.seconds) + 1}] {name} ...")
         t0 = time.perf_counter()
         out = fn(*args, **kwargs)
+        # what the stage freed goes back to the system, so that the next stage's peak does
+        # not stand on memory no object holds
+        release_free_memory()
         self.seconds[name] = time.perf_counter() - t0
         return out
 

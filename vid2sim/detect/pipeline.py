@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from vid2sim.base.errors import ImpossibleValueError, InconsistentInputError
+from vid2sim.base.memory import release_free_memory
 from vid2sim.core.camera import Camera, PitchSource
 from vid2sim.core.records import (
     Detection,
@@ -400,6 +401,7 @@ def detect_and_range(video: Path, camera: Camera, *, detector, detections=None,
     lanes = track_lanes(lanes_seen.observations, math.radians(camera.yaw_deg - yaw_before),
                         lane_config)
     config = config or RangingConfig()
+    release_free_memory()  # the decoding's and tracking's freed memory, before the ranging
     result = _range_with_trams(boxes, camera, config, lanes, lanes_seen.horizon, rail, notes,
                                ego_path, yaw_before)
     # A fast video is ranged on its analysed frames, its other frames filled after.
@@ -456,6 +458,7 @@ def _range_with_trams(boxes: list[TrackedBox], camera: Camera, config: RangingCo
     along the camera file's axis, ``yaw_before``, when a camera file states the mounting),
     trams kept from the lead."""
     chosen = choose_horizon(boxes, camera, config, horizon.rows_px)
+    release_free_memory()  # its fits' temporaries, before the ranging's own
     rail_tracks = find_rail_tracks(boxes, lanes, camera.with_pitch(
         pitch_for_horizon(camera, chosen[0])), rail)
     if rail_tracks.relabelled:

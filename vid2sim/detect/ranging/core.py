@@ -17,7 +17,7 @@ the x of the vehicle's rear, lateral_m the y of its centre.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -32,6 +32,14 @@ from vid2sim.detect.ranging.boxfit import (
     predict_edges,
 )
 from vid2sim.detect.ranging.config import RangingConfig
+from vid2sim.detect.ranging.groups import (
+    BoxSizes,
+    FitColumns,
+    RangeOutput,
+    TrackGroup,
+    track_groups,
+    track_pieces,
+)
 from vid2sim.detect.ranging.horizon import (
     choose_horizon,
     frame_horizon_offsets,
@@ -75,31 +83,6 @@ def _log_width_model(camera: Camera, fit: BoxFit, ba: BoxArrays, road_z: np.ndar
     return {"a": a, "b": b, "e": e, "c": np.log(fit.width_m)}
 
 
-def _track_pieces(t_s: np.ndarray, valid: np.ndarray, max_gap_s: float, index: np.ndarray
-                  ) -> list[np.ndarray]:
-    """Split one time-ordered track (``index`` its boxes) into pieces that the range filter
-    takes on their own: consecutive usable measurements more than ``max_gap_s`` apart start a
-    new piece, each unusable box joins the piece of its nearest usable one in time, and boxes
-    further than ``max_gap_s`` from any usable one form single-box pieces (their own fit)."""
-    if not valid.any():
-        return [index]
-    seen = np.flatnonzero(valid)
-    piece_of_seen = np.concatenate(([0], np.cumsum(np.diff(t_s[seen]) > max_gap_s)))
-    # Nearest usable box in time for every box.
-    pos = np.clip(np.searchsorted(t_s[seen], t_s), 1, seen.size - 1) if seen.size > 1 else (
-        np.zeros(t_s.size, dtype=int))
-    if seen.size > 1:
-        left, right = seen[pos - 1], seen[pos]
-        nearest = np.where(np.abs(t_s - t_s[left]) <= np.abs(t_s[right] - t_s), pos - 1, pos)
-    else:
-        nearest = pos
-    label = piece_of_seen[nearest]
-    far = np.abs(t_s - t_s[seen[nearest]]) > max_gap_s
-    pieces = [index[(label == k) & ~far] for k in range(int(piece_of_seen[-1]) + 1)]
-    pieces += [index[[i]] for i in np.flatnonzero(far)]
-    return [pc for pc in pieces if pc.size]
-
-
 def _size_from_track(values_m: np.ndarray, var_m2: np.ndarray, white_var_m2: np.ndarray,
                      prior_m: float, prior_std_m: float) -> tuple[float, float]:
     """A vehicle's size from its track's single-frame fits and the class prior.
@@ -123,39 +106,6 @@ def _size_from_track(values_m: np.ndarray, var_m2: np.ndarray, white_var_m2: np.
 
 
 # --------------------------------------------------------------------------- the steps
-
-
-@dataclass
-class _Sizes:
-    """Per box: the class priors (``*0``) and what its track learnt (``w``, ``h``, with
-    spreads), the road's spread under it, and its ground height; per track the widths."""
-
-    w0: np.ndarray
-    w0_std: np.ndarray
-    h0: np.ndarray
-    h0_std: np.ndarray
-    l0: np.ndarray
-    l0_std: np.ndarray
-    w: np.ndarray
-    w_std: np.ndarray
-    h: np.ndarray
-    h_std: np.ndarray
-    road_std: np.ndarray
-    road_z: np.ndarray
-    width_by_track: dict[int, float] = field(default_factory=dict)
-
-    @classmethod
-    def from_priors(cls, boxes: list[TrackedBox], config: RangingConfig) -> _Sizes:
-        priors = [config.prior_for(b.category) for b in boxes]
-        arr = {k: np.array([getattr(p, k) for p in priors], dtype=float)
-               for k in ("width_m", "width_std_m", "height_m", "height_std_m", "length_m",
-                         "length_std_m")}
-        n = len(boxes)
-        return cls(arr["width_m"], arr["width_std_m"], arr["height_m"], arr["height_std_m"],
-                   arr["length_m"], arr["length_std_m"], arr["width_m"].copy(),
-                   arr["width_std_m"].copy(), arr["height_m"].copy(),
-                   arr["height_std_m"].copy(), np.full(n, config.road_height_std_m),
-                   np.zeros(n))
 
 
 def _tracks(boxes: list[TrackedBox]) -> dict[int, np.ndarray]:
@@ -196,7 +146,7 @@ def _horizon_boxes(boxes: list[TrackedBox], camera: Camera, config: RangingConfi
     return cam, pitch, ba, out
 
 
-def _learn_sizes(cam: Camera, ba: BoxArrays, sizes: _Sizes, tracks: dict[int, np.ndarray],
+def _learn_sizes(cam: Camera, ba: BoxArrays, sizes: BoxSizes, tracks: dict[int, np.ndarray],
                  config: RangingConfig) -> BoxFit:
     """Each track's own width and height (into ``sizes``); returns the loose fit.
 
@@ -250,7 +200,7 @@ def _pitch_inflation(t_box: np.ndarray, tracks: dict[int, np.ndarray],
 
 
 def _ground_under_tracks(cam: Camera, ba: BoxArrays, t_box: np.ndarray, fit: BoxFit,
-                         sizes: _Sizes, tracks: dict[int, np.ndarray], config: RangingConfig,
+                         sizes: BoxSizes, tracks: dict[int, np.ndarray], config: RangingConfig,
                          path: EgoPath | None) -> tuple[StandingTracks, dict[int, TrackGround]]:
     """Standing tracks fitted from the ego's motion (with a trajectory), and the ground under
     every track (into ``sizes``: ground height, road spread, and a standing vehicle's own
@@ -304,7 +254,7 @@ class _Cues:
     rate_var: np.ndarray
 
 
-def _filter_cues(cam: Camera, ba: BoxArrays, fit: BoxFit, sizes: _Sizes,
+def _filter_cues(cam: Camera, ba: BoxArrays, fit: BoxFit, sizes: BoxSizes,
                  inflation: np.ndarray, config: RangingConfig) -> _Cues:
     """The filter's measurements: the absolute cues (a fit with the width left free: ground
     and top edge) and the box's scale change (its log width against the outline's, with the
@@ -338,7 +288,7 @@ def _filter_cues(cam: Camera, ba: BoxArrays, fit: BoxFit, sizes: _Sizes,
                  log_w_ok, lin, np.full(n, np.nan), np.full(n, np.nan))
 
 
-def _carry_scale(cam: Camera, ba: BoxArrays, cues: _Cues, sizes: _Sizes, t_box: np.ndarray,
+def _carry_scale(cam: Camera, ba: BoxArrays, cues: _Cues, sizes: BoxSizes, t_box: np.ndarray,
                  tracks: dict[int, np.ndarray], inflation: np.ndarray,
                  config: RangingConfig) -> int:
     """Into ``cues``: for boxes whose ground contact is out of view (a near vehicle's bottom
@@ -399,21 +349,8 @@ def _standing_rates(cues: _Cues, t_box: np.ndarray, standing: StandingTracks,
         cues.log_w_ok[members] = False
 
 
-@dataclass
-class _Output:
-    range_m: np.ndarray
-    rate: np.ndarray
-    lateral: np.ndarray
-    lateral_rate: np.ndarray
-    std: np.ndarray
-
-    @classmethod
-    def empty(cls, n: int) -> _Output:
-        return cls(*(np.full(n, np.nan) for _ in range(5)))
-
-
-def _filter_piece(piece: np.ndarray, t_box: np.ndarray, cues: _Cues, sizes: _Sizes,
-                  config: RangingConfig, out: _Output) -> None:
+def _filter_piece(piece: np.ndarray, t_box: np.ndarray, cues: _Cues, sizes: BoxSizes,
+                  config: RangingConfig, out: RangeOutput) -> None:
     """One piece of a track through the range filter and the lateral smoother (into
     ``out``)."""
     fit = cues.fit
@@ -469,6 +406,98 @@ def _ground_notes(standing: StandingTracks, grounds: dict[int, TrackGround]) -> 
             + "; ground under the tracks from " + ", ".join(
                 f"{k}: {v}" for k, v in sorted(by_source.items())))
     return [Note.estimate(text)]
+
+
+def _single_frame_fit(cam: Camera, ba: BoxArrays, sizes: BoxSizes, inflation: np.ndarray,
+                      config: RangingConfig) -> BoxFit:
+    """Every box's fit of all cues at its track's sizes, on the ground under it."""
+    return fit_boxes(cam, ba, sizes.w, sizes.w_std, sizes.h, sizes.h_std, sizes.l0, config,
+                     length_std_m=sizes.l0_std, pitch_noise_inflation=inflation,
+                     road_height_std_m=sizes.road_std, road_z_m=sizes.road_z)
+
+
+def _sizes_by_group(cam: Camera, ba: BoxArrays, sizes: BoxSizes, groups: list[TrackGroup],
+                    config: RangingConfig) -> FitColumns:
+    """Each track's own size (into ``sizes``), a group of tracks at a time; of the loose fit
+    only the columns the per-frame pitch reads."""
+    loose = FitColumns.empty(len(ba.x1))
+    for g in groups:
+        part = sizes.subset(g.index)
+        loose.put(g.index, _learn_sizes(cam, ba.subset(g.index), part, g.tracks, config))
+        sizes.put(g.index, part)
+    return loose
+
+
+def _first_fit_columns(cam: Camera, ba: BoxArrays, sizes: BoxSizes, inflation: np.ndarray,
+                       groups: list[TrackGroup], config: RangingConfig) -> FitColumns:
+    """The single-frame fit of every box, a group of tracks at a time (the standing
+    vehicles' start)."""
+    first = FitColumns.empty(len(ba.x1))
+    for g in groups:
+        first.put(g.index, _single_frame_fit(cam, ba.subset(g.index), sizes.subset(g.index),
+                                             inflation[g.index], config))
+    return first
+
+
+def _range_group(cam: Camera, ba: BoxArrays, t_box: np.ndarray, sizes: BoxSizes,
+                 inflation: np.ndarray, g: TrackGroup, standing: StandingTracks,
+                 grounds: dict[int, TrackGround], config: RangingConfig,
+                 path: EgoPath | None, out: RangeOutput) -> tuple[int, int]:
+    """One group of tracks: the single-frame fit on the ground under each car, the filter's
+    cues, every track through the range filter (into ``out``); without a trajectory the
+    ground under its tracks (into ``grounds``). Returns the boxes with no usable cue and
+    those ranged by their track's scale."""
+    gba, gs, gt, ginf = ba.subset(g.index), sizes.subset(g.index), t_box[g.index], inflation[
+        g.index]
+    fit = _single_frame_fit(cam, gba, gs, ginf, config)
+    if path is None:
+        grounds.update(_ground_under_tracks(cam, gba, gt, fit, gs, g.tracks, config, None)[1])
+    cues = _filter_cues(cam, gba, fit, gs, ginf, config)
+    carried = _carry_scale(cam, gba, cues, gs, gt, g.tracks, ginf, config)
+    _standing_rates(cues, gt, StandingTracks(
+        fits={t: f for t, f in standing.fits.items() if t in g.tracks}), g.tracks, path, config)
+    part = RangeOutput.empty(g.index.size)
+    for members in g.tracks.values():
+        for piece in track_pieces(gt[members], fit.valid[members], config.filter_max_gap_s,
+                                  members):
+            _filter_piece(piece, gt, cues, gs, config, part)
+    out.put(g.index, part)
+    return int((~fit.valid).sum()), carried
+
+
+def _range_by_group(cam: Camera, ba: BoxArrays, t_box: np.ndarray, sizes: BoxSizes,
+                    inflation: np.ndarray, tracks: dict[int, np.ndarray],
+                    groups: list[TrackGroup], config: RangingConfig, path: EgoPath | None
+                    ) -> tuple[RangeOutput, StandingTracks, dict[int, TrackGround], int, int]:
+    """Every track ranged, a group at a time, after the standing vehicles and the ground
+    under the tracks (with a trajectory: from the first single-frame fits of all groups);
+    the boxes with no usable cue and those ranged by their track's scale are counted."""
+    standing, grounds = StandingTracks(), {}
+    if path is not None:
+        first = _first_fit_columns(cam, ba, sizes, inflation, groups, config)
+        standing, grounds = _ground_under_tracks(cam, ba, t_box, first, sizes, tracks, config,
+                                                 path)
+        del first
+    out = RangeOutput.empty(len(t_box))
+    no_cue = carried = 0
+    for g in groups:
+        n_bad, n_carried = _range_group(cam, ba, t_box, sizes, inflation, g, standing, grounds,
+                                        config, path, out)
+        no_cue, carried = no_cue + n_bad, carried + n_carried
+    return out, standing, grounds, no_cue, carried
+
+
+def _ranged_boxes(boxes: list[TrackedBox], out: RangeOutput, sizes: BoxSizes
+                  ) -> list[RangedBox]:
+    """One :class:`RangedBox` per input box (lanes and the lead not yet assigned)."""
+    return [
+        RangedBox(frame=b.frame, t_s=b.t_s, track_id=b.track_id, category=b.category,
+                  score=b.score, x1=b.x1, y1=b.y1, x2=b.x2, y2=b.y2,
+                  range_m=float(out.range_m[i]), lateral_m=float(out.lateral[i]),
+                  range_rate_mps=float(out.rate[i]), range_std_m=float(out.std[i]),
+                  is_lead=False, width_m=float(sizes.w[i]),
+                  lateral_rate_mps=float(out.lateral_rate[i]))
+        for i, b in enumerate(boxes)]
 
 
 # --------------------------------------------------------------------------- main entry
@@ -532,52 +561,30 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
     notes += more
     t_box = np.array([b.t_s for b in boxes], dtype=float)
     tracks = _tracks(boxes)
-    sizes = _Sizes.from_priors(boxes, config)
-    loose = _learn_sizes(cam, ba, sizes, tracks, config)
-    # Per-frame horizon offset (body pitch), then the single-frame fit of every box.
+    groups = track_groups(tracks)
+    sizes = BoxSizes.from_priors(boxes, config)
+    loose = _sizes_by_group(cam, ba, sizes, groups, config)
+    # Per-frame horizon offset (body pitch): all vehicles of a frame together.
     if config.per_frame_pitch:
         frame_offset_px = frame_horizon_offsets(boxes, cam, ba, loose, sizes.w, sizes.h,
                                                 sizes.l0, config, sizes.l0_std)
         if np.any(frame_offset_px != 0):
             ba = ba.shifted(frame_offset_px)
+    del loose
     inflation = _pitch_inflation(t_box, tracks, config)
-
-    def single_frame_fit() -> BoxFit:
-        return fit_boxes(cam, ba, sizes.w, sizes.w_std, sizes.h, sizes.h_std, sizes.l0,
-                         config, length_std_m=sizes.l0_std, pitch_noise_inflation=inflation,
-                         road_height_std_m=sizes.road_std, road_z_m=sizes.road_z)
-
-    fit = single_frame_fit()
-    standing, grounds = _ground_under_tracks(cam, ba, t_box, fit, sizes, tracks, config,
-                                             ego_path)
-    if standing.fits or any(g.source != "ego plane" for g in grounds.values()):
-        fit = single_frame_fit()  # on the ground under each car
-    if (~fit.valid).any():
+    out, standing, grounds, no_cue, carried = _range_by_group(cam, ba, t_box, sizes, inflation,
+                                                              tracks, groups, config, ego_path)
+    if no_cue:
         warnings.append(Note.warning(
-            f"{int((~fit.valid).sum())} boxes gave no usable range cue (cut by the border on "
+            f"{no_cue} boxes gave no usable range cue (cut by the border on "
             "too many sides); their range comes from the track filter"))
-    cues = _filter_cues(cam, ba, fit, sizes, inflation, config)
-    carried = _carry_scale(cam, ba, cues, sizes, t_box, tracks, inflation, config)
     if carried:
         notes.append(Note.estimate(
             f"{carried} boxes with their bottom below the image ranged by the scale their "
             "track learnt while its bottom was visible"))
-    _standing_rates(cues, t_box, standing, tracks, ego_path, config)
-    out = _Output.empty(len(boxes))
-    for members in tracks.values():
-        for piece in _track_pieces(t_box[members], fit.valid[members], config.filter_max_gap_s,
-                                   members):
-            _filter_piece(piece, t_box, cues, sizes, config, out)
     # Lanes and the lead are assigned in one pass once every input is known
     # (vid2sim.detect.assign, run by the pipeline or the build after the road's course).
-    ranged = [
-        RangedBox(frame=b.frame, t_s=b.t_s, track_id=b.track_id, category=b.category,
-                  score=b.score, x1=b.x1, y1=b.y1, x2=b.x2, y2=b.y2,
-                  range_m=float(out.range_m[i]), lateral_m=float(out.lateral[i]),
-                  range_rate_mps=float(out.rate[i]), range_std_m=float(out.std[i]),
-                  is_lead=False, width_m=float(sizes.w[i]),
-                  lateral_rate_mps=float(out.lateral_rate[i]))
-        for i, b in enumerate(boxes)]
+    ranged = _ranged_boxes(boxes, out, sizes)
     notes += _ground_notes(standing, grounds)
     return RangingResult(
         ranged, pitch, horizon[0], horizon[1], sizes.width_by_track,

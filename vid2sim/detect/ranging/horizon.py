@@ -5,13 +5,20 @@ from __future__ import annotations
 
 import math
 from collections import defaultdict
+from collections.abc import Callable
 
 import numpy as np
 
 from vid2sim.base.defaults import IMAGE_FOLDER_FPS, MAD_TO_SIGMA
 from vid2sim.core.camera import Camera
 from vid2sim.core.records import Note, TrackedBox, VehicleCategory
-from vid2sim.detect.ranging.boxfit import BoxArrays, BoxFit, fit_boxes, predict_edges
+from vid2sim.detect.ranging.boxfit import (
+    FIT_BLOCK_BOXES,
+    BoxArrays,
+    BoxFit,
+    fit_boxes,
+    predict_edges,
+)
 from vid2sim.detect.ranging.config import RangingConfig
 from vid2sim.detect.ranging.smoother import _kf_rts_cv
 
@@ -21,6 +28,15 @@ FIXED_SIZE_STD_M = 1e-3
 # Prior spread of the body-pitch offset's rate [px/s], in units of the pitch jitter [px]:
 # ten jitters a second is diffuse (the filter's first frames decide).
 PITCH_OFFSET_RATE_PRIOR_JITTERS = 10.0
+
+
+def _by_block(n: int, columns: Callable[[slice], tuple[np.ndarray, ...]]
+              ) -> tuple[np.ndarray, ...]:
+    """``columns`` of the boxes ``[i, i + FIT_BLOCK_BOXES)`` one block after another,
+    concatenated: a whole clip's fit, with its per-box covariance matrices, is never held
+    at once (each box is fitted on its own, so the columns are the same)."""
+    parts = [columns(slice(i, i + FIT_BLOCK_BOXES)) for i in range(0, n, FIT_BLOCK_BOXES)]
+    return tuple(np.concatenate(c) for c in zip(*parts, strict=True))
 
 
 def pitch_for_horizon(camera: Camera, horizon_y_px: float) -> float:
@@ -62,19 +78,24 @@ def horizon_from_vehicles(boxes: list[TrackedBox], camera: Camera, config: Rangi
     sub = ba.subset(idx)
     p = config.prior_for(VehicleCategory.CAR)
     ones = np.ones(len(idx))
-    fit = fit_boxes(camera, sub, p.width_m * ones, p.width_std_m * ones, p.height_m * ones,
-                    p.height_std_m * ones, p.length_m * ones, config, use_ground=False,
-                    use_height=False, length_std_m=p.length_std_m * ones)
-    pred = predict_edges(camera, fit.range_m, fit.lateral_m, fit.width_m, p.height_m * ones,
-                         fit.length_m, sub.outline)
-    offset = sub.y2 - pred[:, 3]
+
+    def width_cue(sl: slice) -> tuple[np.ndarray, ...]:
+        part, one = sub.subset(sl), ones[sl]
+        fit = fit_boxes(camera, part, p.width_m * one, p.width_std_m * one, p.height_m * one,
+                        p.height_std_m * one, p.length_m * one, config, use_ground=False,
+                        use_height=False, length_std_m=p.length_std_m * one)
+        pred = predict_edges(camera, fit.range_m, fit.lateral_m, fit.width_m, p.height_m * one,
+                             fit.length_m, part.outline)
+        return fit.range_m, fit.lateral_m, fit.valid, part.y2 - pred[:, 3]
+
+    fit_range_m, fit_lateral_m, fit_valid, offset = _by_block(len(idx), width_cue)
     # Only vehicles on the ego's road (its lane and the next ones): parked cars and those
     # beyond a kerb stand on ground that is rarely level with the ego's lane (a crowned road
     # falls 2-3 % to the gutter, parking strips and kerbs add 0.1-0.15 m). In KITTI raw 0001
     # they put the horizon at 180 px where the lane markings and the calibration say 173.
-    near = np.abs(fit.lateral_m) < config.horizon_vehicle_max_lateral_m
+    near = np.abs(fit_lateral_m) < config.horizon_vehicle_max_lateral_m
     near_m, far_m = config.horizon_vehicle_range_m
-    keep = (fit.valid & (fit.range_m > near_m) & (fit.range_m < far_m) & np.isfinite(offset)
+    keep = (fit_valid & (fit_range_m > near_m) & (fit_range_m < far_m) & np.isfinite(offset)
             & near)
     by_track: dict[int, list[float]] = defaultdict(list)
     for i, off in zip(idx[keep], offset[keep], strict=True):
@@ -165,18 +186,23 @@ def frame_horizon_offsets(boxes: list[TrackedBox], camera: Camera, ba: BoxArrays
         return out
     sub = ba.subset(sel)
     tiny = np.full(sel.size, FIXED_SIZE_STD_M)
-    wfit = fit_boxes(camera, sub, width_m[sel], tiny, height_m[sel], tiny, length_m[sel],
-                     config, use_ground=False, use_height=False,
-                     length_std_m=None if length_std_m is None else length_std_m[sel])
-    pred = predict_edges(camera, wfit.range_m, wfit.lateral_m, width_m[sel], height_m[sel],
-                         wfit.length_m, sub.outline)
-    offset = sub.y2 - pred[:, 3]
+
+    def width_cue(sl: slice) -> tuple[np.ndarray, ...]:
+        part, i = sub.subset(sl), sel[sl]
+        wfit = fit_boxes(camera, part, width_m[i], tiny[sl], height_m[i], tiny[sl], length_m[i],
+                         config, use_ground=False, use_height=False,
+                         length_std_m=None if length_std_m is None else length_std_m[i])
+        pred = predict_edges(camera, wfit.range_m, wfit.lateral_m, width_m[i], height_m[i],
+                             wfit.length_m, part.outline)
+        return part.y2 - pred[:, 3], wfit.cov_white[:, 0, 0], wfit.valid
+
+    offset, white_log_range_var, fit_valid = _by_block(sel.size, width_cue)
     # Noise of one offset: the width cue's frame-to-frame range noise seen as rows
     # (d row / d ln Z = -(row - horizon)), plus the bottom edge's own pixel noise.
     gap = np.maximum(sub.y2 - camera.horizon_y_px(), 1.0)
-    var = (gap ** 2) * wfit.cov_white[:, 0, 0] + (
+    var = (gap ** 2) * white_log_range_var + (
         config.edge_noise_px + config.edge_noise_frac * (sub.y2 - sub.y1)) ** 2
-    ok = np.isfinite(offset) & np.isfinite(var) & wfit.valid
+    ok = np.isfinite(offset) & np.isfinite(var) & fit_valid
     tids = np.array([boxes[i].track_id for i in sel])
     for tid in np.unique(tids[ok]):
         m = ok & (tids == tid)
