@@ -317,6 +317,83 @@ def _untestable(t_s: np.ndarray, path: EgoPath, config: RangingConfig) -> str | 
     return None
 
 
+@dataclass(frozen=True)
+class CrossSlope:
+    """The road's fall across the ego's travel on one side [m of height per m of lateral
+    offset], from the standing vehicles' grounds: its one-sigma error, the robust spread of
+    one vehicle's ground about it [m] and how many grounds measured it."""
+
+    slope: float
+    slope_std: float
+    scatter_m: float
+    n: int
+
+    def at(self, lateral_m: float) -> tuple[float, float]:
+        """The ground height [m] and its one-sigma spread at ``lateral_m``."""
+        return (self.slope * lateral_m,
+                math.hypot(lateral_m * self.slope_std, self.scatter_m))
+
+
+def fit_cross_slope(lateral_m: np.ndarray, ground_m: np.ndarray, std_m: np.ndarray,
+                    config: RangingConfig) -> CrossSlope | None:
+    """The plane through the ego's lane (its markings measure the ground there: height 0)
+    that tilts across the road to the standing vehicles' grounds, g = s y, or None with fewer
+    than ``config.surface_cross_slope_min_tracks`` of them.
+
+    Robust (iteratively reweighted least squares with Cauchy weights at
+    ``config.surface_robust_sigmas`` of the residuals' scale, 1.4826 MAD): a standing fit
+    whose bottom a hedge or a kerb hides reads its ground up to half a car's height too high,
+    and one such must not tilt the plane. The slope's error is the scatter over the lever arm
+    sqrt(sum w y^2); the scatter (at least ``config.surface_floor_std_m``) is how far one car's
+    ground departs from the plane.
+    """
+    y, g = np.asarray(lateral_m, float), np.asarray(ground_m, float)
+    if y.size < config.surface_cross_slope_min_tracks:
+        return None
+    sd = np.maximum(np.asarray(std_m, float), config.surface_floor_std_m)
+    slope = float(np.median(g / y))
+    w = np.ones_like(y)
+    scale = config.surface_floor_std_m
+    for _ in range(20):
+        r = g - slope * y
+        scale = max(1.4826 * float(np.median(np.abs(r - np.median(r)))),
+                    config.surface_floor_std_m)
+        w = 1.0 / (1.0 + (r / (config.surface_robust_sigmas * scale)) ** 2)
+        w = w / (sd ** 2 + scale ** 2) * scale ** 2
+        new = float(np.sum(w * y * g) / np.sum(w * y * y))
+        if abs(new - slope) < 1e-6:
+            slope = new
+            break
+        slope = new
+    slope_std = scale / math.sqrt(float(np.sum(w * y * y)))
+    return CrossSlope(slope, slope_std, scale, int(y.size))
+
+
+def cross_slopes(known: list[tuple[float, float, float]], config: RangingConfig
+                 ) -> dict[int, CrossSlope | None]:
+    """The road's cross slope left (+1) and right (-1) of the ego's lane from the standing
+    vehicles' (lateral, ground, spread) beyond it: on each side the surface next to the
+    ego's lane, the standing vehicles within ``config.surface_band_m`` laterally of the
+    nearest one (a parking strip, the next lane; further out a hedge, a car park or a
+    verge is another surface, not the road's slope). A side without enough of them takes
+    the other side's (one plane through the ego's lane: no crown is seen, so none is
+    assumed)."""
+    half = config.lane_width_m / 2
+    out: dict[int, CrossSlope | None] = {}
+    for side in (1, -1):
+        pts = np.array([k for k in known if side * k[0] > half]).reshape(-1, 3)
+        if pts.size:
+            pts = pts[np.abs(pts[:, 0]) <= np.abs(pts[:, 0]).min() + config.surface_band_m]
+        out[side] = fit_cross_slope(pts[:, 0], pts[:, 1], pts[:, 2], config)
+    return {side: out[side] or out[-side] for side in (1, -1)}
+
+
+def _bayes(prior_std: float, mean: float, spread: float, floor: float) -> tuple[float, float]:
+    """The ego plane (height 0, ``prior_std``) updated by a measurement ``mean`` +- ``spread``."""
+    info = 1.0 / prior_std ** 2 + 1.0 / spread ** 2
+    return (mean / spread ** 2) / info, max(math.sqrt(1.0 / info), floor)
+
+
 def track_grounds(standing: StandingTracks, lateral_by_track: dict[int, float],
                   config: RangingConfig) -> dict[int, TrackGround]:
     """The ground under every track.
@@ -326,11 +403,17 @@ def track_grounds(standing: StandingTracks, lateral_by_track: dict[int, float],
     plane with the spread that grows beside the ego's lane as the prior, updated by the
     standing tracks within ``config.surface_lateral_window_m`` of its lateral offset (their
     inverse-variance mean, spread by the mean's error and their scatter), so that one weak
-    far fit cannot lift a car by its whole prior range.
+    far fit cannot lift a car by its whole prior range; where none stands that near, by the
+    road's cross slope the standing tracks measured (:func:`cross_slopes`) at its offset,
+    with the slope's error times the offset and the cars' scatter about it.
     """
     out: dict[int, TrackGround] = {}
     known = [(float(lateral_by_track[t]), f.ground_m, f.ground_std_m)
              for t, f in standing.fits.items() if t in lateral_by_track]
+    # the slope from the fits' own lateral offsets (the single-frame offsets of a car on
+    # lower ground read it nearer the ego by the same ratio as its range)
+    slopes = cross_slopes([(float(f.theta[1]), f.ground_m, f.ground_std_m)
+                           for t, f in standing.fits.items() if t in lateral_by_track], config)
     for tid, lat in lateral_by_track.items():
         if tid in standing.fits:
             f = standing.fits[tid]
@@ -340,16 +423,20 @@ def track_grounds(standing: StandingTracks, lateral_by_track: dict[int, float],
         prior = road_std_at(lat, config)
         near = [(g, sd) for y, g, sd in known
                 if abs(y - lat) <= config.surface_lateral_window_m]
-        if not near or abs(lat) <= config.lane_width_m / 2:
+        slope = slopes[1 if lat > 0 else -1]
+        if abs(lat) <= config.lane_width_m / 2 or (not near and slope is None):
             out[tid] = TrackGround(0.0, prior, "ego plane")
+            continue
+        if not near:
+            mean, spread = slope.at(lat)
+            out[tid] = TrackGround(*_bayes(prior, mean, spread, config.surface_floor_std_m),
+                                   "road cross slope")
             continue
         g = np.array([v[0] for v in near])
         w = 1.0 / np.maximum(np.array([v[1] for v in near]), config.surface_floor_std_m) ** 2
         mean = float(np.sum(w * g) / np.sum(w))
         spread = math.hypot(1.0 / math.sqrt(float(np.sum(w))),
                             float(np.std(g)) if len(g) > 1 else 0.0)
-        info = 1.0 / prior ** 2 + 1.0 / spread ** 2
-        est = (mean / spread ** 2) / info
-        std = max(math.sqrt(1.0 / info), config.surface_floor_std_m)
-        out[tid] = TrackGround(est, std, "standing neighbours")
+        out[tid] = TrackGround(*_bayes(prior, mean, spread, config.surface_floor_std_m),
+                               "standing neighbours")
     return out
