@@ -351,3 +351,40 @@ def test_a_car_parked_crosswise_beside_the_road_stands_at_its_nearest_face():
     assert np.median(np.abs(rel)) < 0.03
     rates = np.array([b.range_rate_mps for b in result.boxes])
     assert np.nanmedian(np.abs(rates + 8.0)) < 0.3
+
+
+def _crosswise_boxes(path: EgoPath, centre: tuple[float, float], ground_m: float,
+                     track_id: int, t_end: float = 2.5) -> list[TrackedBox]:
+    """Boxes of a car standing across the road (long axis across the ego's travel)."""
+    shape = shape_matrix([CLASS_SHAPES["car"]])
+    rng = np.random.default_rng(track_id)
+    boxes = []
+    for k, t in enumerate(path.t_s):
+        if t > t_end + 1e-9:
+            break
+        cx = centre[0] - float(np.interp(t, path.t_s, path.x_m))
+        box = outline_boxes(CAM, np.array([cx - L / 2]), np.array([centre[1]]), np.array([W]),
+                            np.array([H]), np.array([L]), shape, math.pi / 2, z_m=ground_m)[0]
+        if box[0] < 10:
+            break
+        boxes.append(TrackedBox(k, round(float(t), 6), track_id, "car", 0.9,
+                                *(box + rng.normal(0, 0.5, 4))))
+    return boxes
+
+
+def test_a_car_park_on_a_road_that_falls_across_stands_on_that_fall():
+    # The road falls 4.75 % to the left: a parked row 8 m to the left stands 0.38 m below
+    # the ego's plane, a car park 20 m to the left 0.95 m below, beyond the 0.8 m that a
+    # kerb or a strip puts a car off the road under it. Alone the car-park car is no
+    # plausible standing car; with the row measuring the fall it stands on it.
+    path = straight_path(8.0)
+    car_park = _crosswise_boxes(path, (45.0, 20.0), -0.95, 9)
+    alone = range_tracks(car_park, CAM, ego_path=path)
+    assert 9 not in alone.standing_tracks
+    row = [b for i, x in enumerate((30.0, 36.0, 42.0))
+           for b in standing_boxes(path, (x, 8.0), track_id=i + 1, ground_m=-0.38,
+                                   t_span=(0.0, 2.5), seed=i)[0]]
+    result = range_tracks(row + car_park, CAM, ego_path=path)
+    assert {1, 2, 3, 9} <= result.standing_tracks
+    assert result.ground_m_by_track[9][0] == pytest.approx(-0.95, abs=0.1)
+    assert result.ground_m_by_track[9][2] == "standing fit"

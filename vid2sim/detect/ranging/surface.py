@@ -86,11 +86,13 @@ def scale_sigmas(free: StandingFit, prior_mean: np.ndarray, prior_std: np.ndarra
 
 def standing_verdict(fit: StandingFit, free: StandingFit | None, prior_mean: np.ndarray,
                      prior_std: np.ndarray, camera_height_m: float, ground_std_m: float,
-                     config: RangingConfig) -> str | None:
+                     config: RangingConfig, ground_ref_m: float = 0.0) -> str | None:
     """None when ``fit`` (with the class priors) is a plausible standing vehicle whose data
     alone (``free``: the same fit with the size priors let go) need no other scale, else the
     reason it is not. Without ``free`` the scale test is left out (a vehicle moving along the
-    ego's travel expands from the same focus as a standing one)."""
+    ego's travel expands from the same focus as a standing one). ``ground_ref_m``: the road
+    surface's height where the vehicle stands, which its ground may leave by at most
+    ``config.standing_max_ground_m`` (0: the ego's road plane)."""
     if not fit.converged:
         return "the standing fit did not converge"
     if not fit.chi2_per_dof <= config.standing_max_chi2:
@@ -100,11 +102,13 @@ def standing_verdict(fit: StandingFit, free: StandingFit | None, prior_mean: np.
         name = ("width", "height", "length")[int(np.argmax(z))]
         return (f"standing, its {name} would be {fit.theta[2 + int(np.argmax(z))]:.2f} m "
                 f"({z.max():.0f} sigma from its class)")
-    if abs(fit.ground_m) > config.standing_max_ground_m:
-        return f"standing, its ground would be {fit.ground_m:+.2f} m off the ego's road"
+    if abs(fit.ground_m - ground_ref_m) > config.standing_max_ground_m:
+        where = "the ego's road" if ground_ref_m == 0.0 else (
+            f"the road surface there ({ground_ref_m:+.2f} m)")
+        return f"standing, its ground would be {fit.ground_m:+.2f} m, too far off {where}"
     if free is None:
         return None
-    k = scale_sigmas(free, prior_mean, prior_std, camera_height_m, ground_std_m)
+    k = scale_sigmas(free, prior_mean, prior_std, camera_height_m - ground_ref_m, ground_std_m)
     bound = (config.standing_scale_sigmas if abs(fit.theta[1]) <= config.standing_road_half_width_m
              else config.standing_scale_sigmas_beside_road)
     if k > bound:
@@ -162,16 +166,62 @@ def find_standing_tracks(camera: Camera, ba: BoxArrays, t_s: np.ndarray,
             fits = {tid: pr.fit(camera, out.travel_yaw_rad, config, fits[tid].theta)
                     for tid, pr in problems.items()}
     for tid, fit in fits.items():
-        why = problems[tid].verdict(fit, camera, out.travel_yaw_rad, config)
-        if why:
-            fit, why = _one_sided(camera, problems[tid], fit, why, out.travel_yaw_rad, config)
-        if why:
-            fit, why = _crosswise(camera, problems[tid], fit, why, out.travel_yaw_rad, config)
+        fit, why = _verdict_chain(camera, problems[tid], fit, out.travel_yaw_rad, config)
         if why:
             out.rejected[tid] = why
         else:
             out.fits[tid] = fit
+    _admit_on_the_surface(camera, problems, fits, out, config)
     return out
+
+
+def _verdict_chain(camera: Camera, problem: _StandingProblem, fit: StandingFit,
+                   travel_yaw_rad: float, config: RangingConfig
+                   ) -> tuple[StandingFit, str | None]:
+    """A track's standing fit as it is, else refitted without one side, else crosswise: the
+    first plausible one, or the reason none is."""
+    why = problem.verdict(fit, camera, travel_yaw_rad, config)
+    if why:
+        fit, why = _one_sided(camera, problem, fit, why, travel_yaw_rad, config)
+    if why:
+        fit, why = _crosswise(camera, problem, fit, why, travel_yaw_rad, config)
+    return fit, why
+
+
+def _admit_on_the_surface(camera: Camera, problems: dict[int, _StandingProblem],
+                          fits: dict[int, StandingFit], out: StandingTracks,
+                          config: RangingConfig) -> None:
+    """The rejected tracks tried again against the road surface the accepted ones measured.
+
+    The bound on a standing vehicle's ground is for what stands off the road under it
+    (kerbs, strips, crowns); far to the side of a road that falls across, the road itself
+    has left the ego's plane (KITTI raw 0001: 3.5 % to the left, 0.75 m at the car park 21 m
+    away, whose tracklets stand 0.5-0.6 m below). So a rejected track beside the ego's lane
+    is judged again with the cross slope's height at its offset
+    (:func:`cross_slopes`, from the accepted fits) as the reference of that bound, of its
+    ground prior and of the scale test; it stands if then plausible."""
+    slopes = cross_slopes([(float(f.theta[1]), f.ground_m, f.ground_std_m)
+                           for f in out.fits.values()], config)
+    for tid in list(out.rejected):
+        if tid not in fits:
+            continue  # untestable
+        lat = float(fits[tid].theta[1])
+        slope = slopes[1 if lat > 0 else -1]
+        if slope is None or abs(lat) <= config.lane_width_m / 2:
+            continue
+        ref = slope.at(lat)[0]
+        if abs(ref) < config.surface_floor_std_m:
+            continue
+        pr = problems[tid]
+        mean = pr.prior_mean.copy()
+        mean[3] = ref
+        moved = replace(pr, prior_mean=mean, ground_ref_m=ref,
+                        start=np.append(pr.start[:5], ref))
+        fit, why = _verdict_chain(camera, moved, moved.fit(camera, out.travel_yaw_rad, config),
+                                  out.travel_yaw_rad, config)
+        if why is None:
+            out.fits[tid] = fit
+            del out.rejected[tid]
 
 
 def _one_sided(camera: Camera, problem: _StandingProblem, fit: StandingFit, why: str,
@@ -230,6 +280,8 @@ class _StandingProblem:
     ground_std_m: float
     #: the vehicle's heading relative to the ego's travel (0 parallel, pi / 2 crosswise)
     body_yaw_rad: float = 0.0
+    #: the road surface's height where it stands, the reference of its ground's bound [m]
+    ground_ref_m: float = 0.0
 
     @classmethod
     def build(cls, camera: Camera, ba: BoxArrays, t_s: np.ndarray, idx: np.ndarray,
@@ -264,7 +316,7 @@ class _StandingProblem:
             free = replace(self, prior_std=free_std).fit(camera, travel_yaw_rad, config,
                                                          fit.theta)
         return standing_verdict(fit, free, self.prior_mean, self.prior_std, camera.height_m,
-                                self.ground_std_m, config)
+                                self.ground_std_m, config, self.ground_ref_m)
 
     def cost(self, fit: StandingFit) -> float:
         """The fit's robust residual sum (chi2 per degree of freedom times the degrees)."""
