@@ -24,10 +24,11 @@ import argparse
 import json
 import multiprocessing as mp
 import os
-import resource
 import tempfile
 import time
 from pathlib import Path
+
+from peakrss import own_peak_mib
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -54,7 +55,7 @@ def _run_case(case: str, shared: Path, model_dir: Path | None, queue) -> None:
         else:
             raise SystemExit(f"unknown case {case}")
     wall = time.perf_counter() - t0
-    peak_mib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    peak_mib = own_peak_mib()
     queue.put({"case": case, "wall_s": wall, "peak_rss_mib": peak_mib,
                "stages_s": result.stage_seconds,
                "f1": (result.metrics or {}).get("f1"),

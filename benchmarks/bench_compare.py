@@ -26,6 +26,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from peakrss import VidCommand
+
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / "shared"
 
@@ -77,13 +79,14 @@ def export(commit: str | None, into: Path) -> Path:
 
 def run_cli(tree: Path, args: list[str], env: dict) -> tuple[float, float, float]:
     t0 = time.perf_counter()
-    proc = subprocess.Popen([sys.executable, "-m", "vid2sim", "-q", *args], cwd=tree,
-                            env={**env, "PYTHONPATH": str(tree)}, stdout=subprocess.DEVNULL)
+    cmd = VidCommand(["-q", *args], {**env, "PYTHONPATH": str(tree)})
+    proc = subprocess.Popen(cmd.argv, cwd=tree, env=cmd.env, stdout=subprocess.DEVNULL)
     _, status, usage = os.wait4(proc.pid, 0)
+    peak = cmd.peak_mib()
     if os.waitstatus_to_exitcode(status) != 0:
         raise SystemExit(f"{tree}: vid2sim {args[0]} failed")
     return (time.perf_counter() - t0, usage.ru_utime + usage.ru_stime,
-            usage.ru_maxrss / 1024.0)
+            peak)
 
 
 def main(argv: list[str] | None = None) -> int:

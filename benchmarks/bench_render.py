@@ -31,6 +31,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from peakrss import own_peak_mib
+
 REPO = Path(__file__).resolve().parents[1]
 
 
@@ -58,7 +60,7 @@ def _render_child(build_dir: str, video: str, out: str, queue) -> None:
     wall = time.perf_counter() - t0
     ru = resource.getrusage(resource.RUSAGE_SELF)
     queue.put({"wall_s": wall, "cpu_s": ru.ru_utime + ru.ru_stime,
-               "peak_rss_mib": ru.ru_maxrss / 1024.0, "summary": summary,
+               "peak_rss_mib": own_peak_mib(), "summary": summary,
                "rss_samples": samples})
 
 

@@ -58,6 +58,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from peakrss import VidCommand
 
 from vid2sim.app.demo import run_demo
 from vid2sim.app.inputs import Inputs
@@ -214,16 +215,17 @@ def cli_runs(raw: Path, model_dir: Path, repeat: int) -> None:
             best = (np.inf, 0.0, 0.0)
             for _ in range(repeat):
                 t0 = time.perf_counter()
-                proc = subprocess.Popen([sys.executable, "-m", "vid2sim", "-q", *args], env=env,
-                                        stdout=subprocess.DEVNULL)
+                cmd = VidCommand(["-q", *args], env)
+                proc = subprocess.Popen(cmd.argv, env=cmd.env, stdout=subprocess.DEVNULL)
                 _, status, usage = os.wait4(proc.pid, 0)
+                peak = cmd.peak_mib()
                 proc.returncode = os.waitstatus_to_exitcode(status)
                 wall = time.perf_counter() - t0
                 if proc.returncode != 0:
                     print(f"  {name}: exit {proc.returncode}")
                     break
                 best = min(best, (wall, usage.ru_utime + usage.ru_stime,
-                                  usage.ru_maxrss / 1024.0))
+                                  peak))
             results[name] = best
             print(f"  vid2sim {name}: {best[0]:.2f} s wall, CPU {best[1]:.2f} s, peak RSS "
                   f"{best[2]:.0f} MiB")

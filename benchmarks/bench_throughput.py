@@ -5,7 +5,8 @@
 
 Every figure is a command in a fresh process (interpreter start, imports and model load
 included), timed with its CPU (user + system of all its threads, from ``wait4``) and peak
-resident memory (``ru_maxrss``); the machine's load average is printed beside each run, since
+resident memory (the command's own ``VmHWM``, see ``peakrss.py``: ``ru_maxrss`` of a child
+includes the peak of the parent it replaced); the machine's load average is printed beside each run, since
 wall time on a shared machine says as much about the others as about us.
 
 speed:
@@ -43,6 +44,7 @@ import yaml
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_compare import export
 from bench_scale import looped_inputs, raw_detections
+from peakrss import VidCommand
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / "shared"
@@ -133,15 +135,15 @@ def run(args: list[str], env: dict, tree: Path | None = None) -> dict:
     """One ``vid2sim`` command in a fresh process: wall, CPU, peak RSS, load before/after."""
     load0 = load_average()
     t0 = time.perf_counter()
-    proc = subprocess.Popen([sys.executable, "-m", "vid2sim", "-q", *args],
-                            cwd=tree or REPO, stdout=subprocess.DEVNULL,
-                            env={**env, **({"PYTHONPATH": str(tree)} if tree else {})})
+    cmd = VidCommand(["-q", *args], {**env, **({"PYTHONPATH": str(tree)} if tree else {})})
+    proc = subprocess.Popen(cmd.argv, cwd=tree or REPO, stdout=subprocess.DEVNULL, env=cmd.env)
     _, status, usage = os.wait4(proc.pid, 0)
+    peak = cmd.peak_mib()
     wall = time.perf_counter() - t0
     if os.waitstatus_to_exitcode(status) != 0:
         raise SystemExit(f"vid2sim {' '.join(args)} failed")
     return {"wall_s": wall, "cpu_s": usage.ru_utime + usage.ru_stime,
-            "rss_mib": usage.ru_maxrss / 1024.0, "load": (load0 + load_average()) / 2}
+            "rss_mib": peak, "load": (load0 + load_average()) / 2}
 
 
 def _line(label: str, seconds: float, r: dict) -> str:

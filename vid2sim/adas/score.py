@@ -47,7 +47,6 @@ import math
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
-from scipy.signal import savgol_filter
 
 from vid2sim.core.lanelayout import BACKWARD, DRIVING
 from vid2sim.core.polyline import signed_offsets
@@ -217,6 +216,10 @@ def comfortable(trace: EpisodeTrace, bounds: ComfortBounds, window_s: float) -> 
     win = min(win, len(t) if len(t) % 2 else len(t) - 1)
     if win < 3:
         return True
+
+    # scipy.signal takes 1-3 s to import; the settings tree imports this module in every
+    # command, the video commands included, so it is loaded where it is used.
+    from scipy.signal import savgol_filter
 
     def deriv(y, order=1):
         return savgol_filter(np.asarray(y, float), win, 2, deriv=order, delta=dt)

@@ -58,30 +58,9 @@ def atomic_open(path: str | Path, mode: str = "w", **kwargs) -> Iterator[IO]:
     is followed (its target is replaced, the link stays). A read-only location or a full disk
     raises :class:`InputError` naming ``path``.
     """
-    path = Path(path)
-    if path.is_symlink():
-        # Replacing the link itself would turn the user's link into a file; write where it
-        # points, beside its target, so the rename stays on the target's filesystem.
-        path = path.resolve()
-    tmp = None
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-        os.close(fd)
-        # mkstemp creates the file 0600; an output must get the permissions of any file the
-        # user creates (0666 less the umask), or colleagues cannot read a shared build.
-        os.chmod(tmp, 0o666 & ~_umask())
-        with open(tmp, mode, **kwargs) as fh:
-            yield fh
-        os.replace(tmp, path)
-    except OSError as exc:
-        _remove_quietly(tmp)
-        if exc.errno in OUTPUT_ERRNOS:
-            raise output_error(path, exc) from exc
-        raise
-    except BaseException:
-        _remove_quietly(tmp)
-        raise
+    # The file is closed (inner context) before the staged path is renamed (outer one).
+    with _staged(path, keep_suffix=False) as tmp, open(tmp, mode, **kwargs) as fh:
+        yield fh
 
 
 @contextlib.contextmanager
@@ -90,15 +69,30 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     (a video encoder); renamed over ``path`` only if the block succeeds (as
     :func:`atomic_open`: a failure leaves any existing ``path`` untouched and removes the
     temporary file; a read-only location or a full disk raises :class:`InputError`)."""
+    with _staged(path, keep_suffix=True) as tmp:
+        yield tmp
+
+
+@contextlib.contextmanager
+def _staged(path: str | Path, keep_suffix: bool) -> Iterator[Path]:
+    """The temporary file of :func:`atomic_open` / :func:`atomic_path`: made beside ``path``
+    (``.<name>.XXXX.tmp``, or ``.<stem>.XXXX<suffix>`` when the writer picks its format by
+    the suffix) with a user file's permissions, renamed over ``path`` when the block succeeds
+    and removed when it fails."""
     path = Path(path)
     if path.is_symlink():
+        # Replacing the link itself would turn the user's link into a file; write where it
+        # points, beside its target, so the rename stays on the target's filesystem.
         path = path.resolve()
     tmp = None
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix or ".tmp",
-                                   dir=path.parent)
+        prefix, suffix = ((f".{path.stem}.", path.suffix or ".tmp") if keep_suffix
+                          else (f".{path.name}.", ".tmp"))
+        fd, tmp = tempfile.mkstemp(prefix=prefix, suffix=suffix, dir=path.parent)
         os.close(fd)
+        # mkstemp creates the file 0600; an output must get the permissions of any file the
+        # user creates (0666 less the umask), or colleagues cannot read a shared build.
         os.chmod(tmp, 0o666 & ~_umask())
         yield Path(tmp)
         os.replace(tmp, path)

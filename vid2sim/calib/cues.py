@@ -73,21 +73,25 @@ class CameraPrior:
         v = self.values
         for key, x in v.items():
             if not math.isfinite(x):
-                raise ImpossibleValueError(self.path, f"camera prior {key} is {x}, not finite")
+                raise ImpossibleValueError(self.path, f"camera prior {key} is {x}, not finite",
+                                           "give a number or leave the key out to estimate it")
         lo, hi = FOV_RANGE_DEG
         for key, side in (("fx", width_px), ("fy", height_px)):
             if key in v:
                 if v[key] <= 0:
-                    raise ImpossibleValueError(self.path, f"{key} {v[key]:g} must be positive")
+                    raise ImpossibleValueError(self.path, f"{key} {v[key]:g} must be positive",
+                                               "the focal length in pixels")
                 fov = math.degrees(2 * math.atan(side / (2 * v[key])))
                 if not lo <= fov <= hi:
                     raise ImpossibleValueError(
                         self.path, f"{key} {v[key]:g} px gives a {fov:.1f} deg field of view "
                         f"over {side} px", f"a camera's is {lo:g}-{hi:g} deg")
         if "cx" in v and not 0 <= v["cx"] <= width_px:
-            raise ImpossibleValueError(self.path, f"cx {v['cx']:g} lies outside the image")
+            raise ImpossibleValueError(self.path, f"cx {v['cx']:g} lies outside the image",
+                                       f"0-{width_px} px; leave it out for the image centre")
         if "cy" in v and not 0 <= v["cy"] <= height_px:
-            raise ImpossibleValueError(self.path, f"cy {v['cy']:g} lies outside the image")
+            raise ImpossibleValueError(self.path, f"cy {v['cy']:g} lies outside the image",
+                                       f"0-{height_px} px; leave it out for the image centre")
         for key in ("k1", "k2"):
             if key in v and abs(v[key]) > MAX_PRIOR_DISTORTION:
                 raise ImpossibleValueError(self.path, f"{key} {v[key]:g} is not a lens's "

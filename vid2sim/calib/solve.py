@@ -28,14 +28,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.optimize import least_squares
-from scipy.sparse import lil_matrix
 
 from vid2sim.calib import cameramodel as geo
 from vid2sim.calib.groundmotion import GLOBALS, PAIR_PARAMS, G, P, PairSet, predict_b, unpack
 from vid2sim.calib.lines import plumb_residuals
+
+if TYPE_CHECKING:
+    from scipy.sparse import lil_matrix
 
 NG, NP = len(GLOBALS), len(PAIR_PARAMS)
 #: Where the globals may go: a focal length of 0.1-20 image widths' worth of ln, a lens
@@ -150,9 +152,13 @@ def residual_blocks(pr: Problem, g: np.ndarray, m: np.ndarray) -> dict[str, np.n
     return out
 
 
-def _sparsity(pr: Problem, lay: _Layout, blocks: dict[str, np.ndarray]) -> tuple[lil_matrix,
-                                                                                  dict]:
+def _sparsity(pr: Problem, lay: _Layout, blocks: dict[str, np.ndarray]
+              ) -> tuple[lil_matrix, dict]:
     """The Jacobian's pattern, and each block's row range."""
+    # scipy.optimize/sparse cost about 1 s to import; every command imports this stage (the
+    # settings tree holds its config), so they load only when a camera is solved for.
+    from scipy.sparse import lil_matrix
+
     spans, r0 = {}, 0
     for name, r in blocks.items():
         spans[name] = (r0, r0 + len(r))
@@ -209,6 +215,8 @@ def solve(pr: Problem, g0: np.ndarray, m0: np.ndarray, free_g: np.ndarray,
     lo = np.concatenate((GLOBAL_BOUNDS[0][lay.free_g], np.full(lay.n_pair_free, -np.inf)))
     hi = np.concatenate((GLOBAL_BOUNDS[1][lay.free_g], np.full(lay.n_pair_free, np.inf)))
     x0 = np.clip(lay.join(g0, m0), lo + 1e-9, hi - 1e-9)
+    from scipy.optimize import least_squares  # see _sparsity: loaded when a camera is solved
+
     # scipy's bounded trust-region step fails for a single unknown; dogbox takes it
     res = least_squares(fun, x0, jac_sparsity=sp, method="trf" if lay.n > 1 else "dogbox",
                         bounds=(lo, hi),

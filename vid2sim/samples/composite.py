@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -45,6 +44,7 @@ from vid2sim.base.fileio import write_text_atomic
 from vid2sim.core.boxes import iou_matrix
 from vid2sim.core.camera import Camera, fit_camera_to_frames, load_camera
 from vid2sim.geo.readers import OXTS_PITCH, read_kitti_oxts_table
+from vid2sim.samples.clipfile import staged_video
 from vid2sim.samples.cutout import (  # noqa: F401 - re-exported: composite is the samples' API
     CARS,
     CarCutout,
@@ -187,18 +187,6 @@ class CompositeClip:
     cutout_source: str
 
 
-def _open_writer(out_path: Path, width: int, height: int, fps: float
-                 ) -> tuple[cv2.VideoWriter, Path]:
-    fourcc = "mp4v" if out_path.suffix.lower() == ".mp4" else "MJPG"
-    tmp = out_path.parent / f".{out_path.stem}.partial{out_path.suffix}"
-    writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*fourcc), fps, (width, height))
-    if not writer.isOpened():
-        writer.release()
-        tmp.unlink(missing_ok=True)
-        raise RuntimeError(f"OpenCV cannot write {fourcc} video to {tmp}")
-    return writer, tmp
-
-
 def write_composite_clip(raw_dir: Path, cutout: CarCutout, truth: LeadTruth, out_path: Path,
                          *, use_body_pitch: bool = True) -> CompositeClip:
     """Composite the car into every frame of the drive and write the clip and its truth.
@@ -236,24 +224,18 @@ def write_composite_clip(raw_dir: Path, cutout: CarCutout, truth: LeadTruth, out
     pitch = read_oxts_pitch(raw_dir) if use_body_pitch else None
     cams = frame_cameras(camera, pitch, n_frames)
     boxes: list[tuple[float, float, float, float] | None] = []
-    writer, tmp = _open_writer(out_path, width, height, fps)
     try:
-        for i in range(n_frames):
-            ok, frame = cap.read()
-            if not ok:
-                raise InconsistentInputError(
-                    video, f"video ends at frame {i}, truth has {n_frames}")
-            r, y = float(truth.range_m[i]), float(truth.lateral_m[i])
-            writer.write(paste_car(frame, cutout, cams[i], r, y))
-            boxes.append(truth_box(cutout, cams[i], r, y))
-    except BaseException:
-        writer.release()
-        tmp.unlink(missing_ok=True)
-        raise
+        with staged_video(out_path, (width, height), fps) as writer:
+            for i in range(n_frames):
+                ok, frame = cap.read()
+                if not ok:
+                    raise InconsistentInputError(
+                        video, f"video ends at frame {i}, truth has {n_frames}")
+                r, y = float(truth.range_m[i]), float(truth.lateral_m[i])
+                writer.write(paste_car(frame, cutout, cams[i], r, y))
+                boxes.append(truth_box(cutout, cams[i], r, y))
     finally:
         cap.release()
-    writer.release()
-    os.replace(tmp, out_path)
     truth_path = out_path.with_name(out_path.name + ".truth.json")
     write_text_atomic(truth_path, truth_to_json(truth, boxes, cutout, use_body_pitch))
     return CompositeClip(out_path, truth_path, truth, boxes, camera, cams, cutout.source)

@@ -18,7 +18,6 @@ source image are black; :func:`draw_target_camera` only draws cameras that see i
 from __future__ import annotations
 
 import math
-import os
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -27,6 +26,7 @@ import numpy as np
 
 from vid2sim.base.errors import FormatError
 from vid2sim.core.camera import Camera
+from vid2sim.samples.clipfile import staged_video
 
 # Ranges of the random target cameras (:func:`draw_target_camera`), those of consumer
 # dash-cams and phones after their own cropping: horizontal field of view, barrel
@@ -181,22 +181,13 @@ def write_reimaged_video(video: Path, source: Camera, target: Camera, out_path: 
     src = source if (source.image_width, source.image_height) == (width, height) else replace(
         source, image_width=width, image_height=height)
     maps = reimage_maps(target, src)
-    out_path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out_path.parent / f".{out_path.stem}.partial{out_path.suffix}"
-    writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*"mp4v"), rate,
-                             (target.image_width, target.image_height))
     try:
-        while True:
-            ok, frame = cap.read()
-            if not ok:
-                break
-            writer.write(reimage_frame(frame, maps))
-    except BaseException:
-        writer.release()
-        tmp.unlink(missing_ok=True)
-        raise
+        with staged_video(out_path, (target.image_width, target.image_height), rate) as writer:
+            while True:
+                ok, frame = cap.read()
+                if not ok:
+                    break
+                writer.write(reimage_frame(frame, maps))
     finally:
         cap.release()
-    writer.release()
-    os.replace(tmp, out_path)
     return out_path

@@ -82,9 +82,11 @@ def _number(el: ET.Element, tag: str, path: Path, where: str) -> float:
     try:
         value = float(text)
     except ValueError:
-        raise FormatError(path, f"{where}: <{tag}> is not a number ({text[:20]!r})") from None
+        raise FormatError(path, f"{where}: <{tag}> is not a number ({text[:20]!r})",
+                          "is this KITTI's tracklet_labels.xml?") from None
     if not math.isfinite(value):
-        raise ImpossibleValueError(path, f"{where}: <{tag}> is {value}")
+        raise ImpossibleValueError(path, f"{where}: <{tag}> is {value}",
+                                   "a tracklet's sizes and poses are finite numbers")
     return value
 
 
