@@ -43,7 +43,7 @@ from vid2sim.detect.ranging.scalefilter import (
     RangeMeasurements,
     filter_range_adaptive,
     log_width_var,
-    rigid_scale_breaks,
+    rigid_runs,
 )
 from vid2sim.detect.ranging.smoother import smooth_track
 from vid2sim.detect.ranging.surface import (
@@ -74,20 +74,6 @@ def _log_width_model(camera: Camera, fit: BoxFit, ba: BoxArrays, road_z: np.ndar
     b = (log_width(fit.range_m * (1 + step), fit.width_m) - a) / (fit.range_m * step)
     e = (log_width(fit.range_m, fit.width_m * (1 + step)) - a) / math.log1p(step)
     return {"a": a, "b": b, "e": e, "c": np.log(fit.width_m)}
-
-
-def _rigid_runs(members: np.ndarray, ba: BoxArrays, t_box: np.ndarray, fit: BoxFit,
-                config: RangingConfig) -> list[np.ndarray]:
-    """One track's boxes split where they stop being one rigid vehicle
-    (:func:`rigid_scale_breaks`)."""
-    whole = ~(ba.cut_left[members] | ba.cut_right[members] | ba.cut_top[members]
-              | ba.cut_bottom[members])
-    breaks = rigid_scale_breaks(t_box[members], ba.x2[members] - ba.x1[members],
-                                ba.y2[members] - ba.y1[members], whole,
-                                fit.range_m[members], config.edge_noise_px,
-                                config.edge_noise_frac, config.filter_max_receding_mps,
-                                config.filter_scale_break_sigmas)
-    return np.split(members, np.flatnonzero(breaks))
 
 
 def _track_pieces(t_s: np.ndarray, valid: np.ndarray, max_gap_s: float, index: np.ndarray
@@ -580,7 +566,7 @@ def range_tracks(boxes: list[TrackedBox], camera: Camera, *,
     _standing_rates(cues, t_box, standing, tracks, ego_path, config)
     out = _Output.empty(len(boxes))
     for members in tracks.values():
-        for run in _rigid_runs(members, ba, t_box, fit, config):
+        for run in rigid_runs(members, ba, t_box, fit.range_m, config):
             for piece in _track_pieces(t_box[run], fit.valid[run], config.filter_max_gap_s,
                                        run):
                 _filter_piece(piece, t_box, cues, sizes, config, out)

@@ -28,6 +28,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from vid2sim.detect.ranging.boxfit import BoxArrays
+from vid2sim.detect.ranging.config import RangingConfig
 from vid2sim.detect.ranging.smoother import (
     DIFFUSE_PRIOR,
     INNOVATION_GATE_NIS,
@@ -296,3 +298,17 @@ def rigid_scale_breaks(t_s: np.ndarray, width_px: np.ndarray, height_px: np.ndar
 
     out[b] = (shrink_sigmas(width_px) > sigmas) & (shrink_sigmas(height_px) > sigmas)
     return out
+
+
+def rigid_runs(members: np.ndarray, ba: BoxArrays, t_box: np.ndarray, range_m: np.ndarray,
+               config: RangingConfig) -> list[np.ndarray]:
+    """One track's boxes (``members``, time order) split where they stop being one rigid
+    vehicle (:func:`rigid_scale_breaks`); ``range_m``: every box's single-frame range."""
+    whole = ~(ba.cut_left[members] | ba.cut_right[members] | ba.cut_top[members]
+              | ba.cut_bottom[members])
+    breaks = rigid_scale_breaks(t_box[members], ba.x2[members] - ba.x1[members],
+                                ba.y2[members] - ba.y1[members], whole, range_m[members],
+                                config.edge_noise_px, config.edge_noise_frac,
+                                config.filter_max_receding_mps,
+                                config.filter_scale_break_sigmas)
+    return np.split(members, np.flatnonzero(breaks))
