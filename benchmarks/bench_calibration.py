@@ -18,7 +18,9 @@ Per clip: signed errors of fx [%], height [%], horizon row at the true principal
 yaw [deg], k1; which cue fixed fx and the height; and the RANGE error the estimate alone
 gives a point on the road straight ahead at 10, 20 and 40 m (seen through the true camera,
 back-projected through the estimate): what the camera costs the ranging. CPU seconds of the
-calibration (measurement + fit).
+calibration (measurement + fit). Optional parts: (d) composite builds, (e) ``--ego-speed``,
+(f) ``--sync``, (g) ``--cost`` (whole builds), (h) ``--stage-cost`` (the calibration stages
+alone, CPU seconds).
 
 Re-imaged clips are written to ``--cache`` (default /tmp/vid2sim-calib) and reused.
 """
@@ -233,7 +235,7 @@ def _oxts_csv(raw: Path, skip: int, out: Path, container_clock: bool = False) ->
 
     KITTI's ``video.mp4`` plays its frames at 10 fps while the camera captured them every
     0.1032 s: video time runs 3.1 % slow against the OXTS's, which one offset cannot
-    absorb (the sync fits an offset, as a dash-cam's clocks differ by one). With
+    absorb (the sync fits a clock rate with the offset where the motion pins it). With
     ``container_clock`` the fixes are re-timed onto the video's clock through the camera's
     timestamps (the drive as a camera with a true frame clock would have recorded it)."""
     from vid2sim.geo.oxts import OXTS_LAT, OXTS_LON, OXTS_VE, OXTS_VN, OXTS_YAW
@@ -284,11 +286,13 @@ def sync_check(raw: Path, cache: Path) -> list[dict]:
 
         rec = yaml.safe_load(out.read_text())
         off = rec.get("gps_offset_s") or {}
+        rate = rec.get("gps_clock_rate") or {}
         est = load_camera(out)
         cam = load_camera(raw / "camera.yaml")
         rows.append({"clip": f"kitti 0001 gps -{skip / 10:.1f} s, {label}", "truth_s": truth_s,
                      "offset_s": off.get("value"), "std_s": off.get("std"),
-                     "observable": off.get("observable"),
+                     "observable": off.get("observable"), "rate": rate.get("value"),
+                     "rate_std": rate.get("std"), "rate_fitted": rate.get("fitted"),
                      "fx_pct": 100 * (est.fx / cam.fx - 1),
                      "h_pct": 100 * (est.height_m / cam.height_m - 1), "cpu_s": cpu,
                      "note": next((ln for ln in text.splitlines() if "time offset" in ln), "")})
@@ -296,7 +300,8 @@ def sync_check(raw: Path, cache: Path) -> list[dict]:
         err = (r["offset_s"] - r["truth_s"]) if r["offset_s"] is not None else float("nan")
         print(f"time sync {r['clip']}: first fix at {r['offset_s']} s (std {r['std_s']}, "
               f"observable {r['observable']}), truth {r['truth_s']:+.3f} s, error "
-              f"{err:+.3f} s; fx {r['fx_pct']:+.1f} %, height {r['h_pct']:+.1f} %, "
+              f"{err:+.3f} s; clock rate {r['rate']} (std {r['rate_std']}, fitted "
+              f"{r['rate_fitted']}); fx {r['fx_pct']:+.1f} %, height {r['h_pct']:+.1f} %, "
               f"{r['cpu_s']:.1f} s CPU\n  {r['note']}")
     return rows
 
@@ -351,6 +356,50 @@ def cost_check(raw: Path, shared: Path, cache: Path) -> dict:
     return out
 
 
+def stage_cost(raw: Path, cache: Path) -> dict:
+    """(h) CPU seconds (user + sys, all threads) of the calibration stages alone: the 60 s
+    720p clip of (g) without GPS or camera file (calibration cues, calibrate camera), and
+    the GPS-video time sync of KITTI raw 0001 with its camera file and the OXTS of (f) with
+    its first 1.5 s removed (the cues measured for the sync alone)."""
+    import resource
+
+    from vid2sim.app import selfcal
+    from vid2sim.app.loaders import load_trace, load_video_info
+
+    def cpu() -> float:
+        r = resource.getrusage(resource.RUSAGE_SELF)
+        return r.ru_utime + r.ru_stime
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from bench_speed import make_720p_clip
+
+    clip = cache / "clip60_720p.mp4"
+    if not clip.exists():
+        make_720p_clip(raw, clip)
+    settings = Settings(progress=False, camera_cache=False, allow_download=False)
+    inputs = Inputs(video=clip)
+    info = load_video_info(inputs)
+    choice = selfcal.start_camera(inputs, info, settings)
+    c0 = cpu()
+    selfcal.measure_cues_for(choice, inputs, info, settings)
+    c1 = cpu()
+    selfcal.finish_camera(choice, inputs, info, settings)
+    out = {"cues_s": c1 - c0, "calibrate_s": cpu() - c1}
+    gps = cache / "oxts_skip15_False.csv"
+    truth = _oxts_csv(raw, 15, gps)
+    inputs = Inputs(video=raw / "video.mp4", gps=gps, camera=raw / "camera.yaml")
+    info = load_video_info(inputs)
+    choice = selfcal.start_camera(inputs, info, settings)
+    c0 = cpu()
+    selfcal.sync_offset(choice, inputs, info, settings, load_trace(inputs))
+    out.update(sync_s=cpu() - c0, sync_error_s=choice.offset.offset_s - truth)
+    print(f"stage cost: 60 s 720p clip, no GPS: calibration cues {out['cues_s']:.2f} s CPU, "
+          f"calibrate camera {out['calibrate_s']:.2f} s CPU; KITTI raw 0001 with its camera "
+          f"file, GPS 1.5 s late: time sync {out['sync_s']:.2f} s CPU (offset error "
+          f"{out['sync_error_s']:+.3f} s)")
+    return out
+
+
 def print_composite(rows: list[dict]) -> None:
     print(f"\n{'clip':<22}{'range m':>12}{'|err| med %':>12}{'bias %':>8}{'present':>8}"
           f"{'IoU':>6}{'(n)':>5}{'fx %':>7}{'h %':>7}{'k1':>7}{'(true)':>7}{'calib s':>8}")
@@ -397,6 +446,9 @@ def main(argv: list[str] | None = None) -> int:
                              "its first 1.5 s removed)")
     parser.add_argument("--cost", action="store_true",
                         help="also build the 60 s 720p clip with and without a camera file")
+    parser.add_argument("--stage-cost", action="store_true",
+                        help="also the CPU of the calibration stages alone (60 s 720p clip "
+                             "without GPS; the sync of KITTI raw 0001 with its camera file)")
     parser.add_argument("--json", type=Path, default=None, help="also write the rows here")
     args = parser.parse_args(argv)
     raw = args.shared / "kitti_raw_0001"
@@ -420,6 +472,8 @@ def main(argv: list[str] | None = None) -> int:
         extra["sync"] = sync_check(raw, args.cache)
     if args.cost:
         extra["cost"] = cost_check(raw, args.shared, args.cache)
+    if args.stage_cost:
+        extra["stage_cost"] = stage_cost(raw, args.cache)
     comp = [composite_build(raw, args.shared, args.cache, s, 10 + s) for s in args.composite]
     if comp:
         print_composite(comp)

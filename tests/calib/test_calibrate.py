@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import pytest
 
 from tests.calib import synthetic
 from vid2sim.base.errors import ImpossibleValueError
-from vid2sim.calib import CalibrationInput, CameraPrior, calibrate
+from vid2sim.calib import CalibrationConfig, CalibrationInput, CameraPrior, calibrate
 from vid2sim.core.calibration import ParameterSource
 
 T = synthetic.TRUTH
@@ -70,3 +71,29 @@ def test_a_partial_prior_is_held_and_the_rest_estimated(cues):
 def test_impossible_priors_are_refused(cues, values):
     with pytest.raises(ImpossibleValueError):
         calibrate(_input(cues, prior=CameraPrior(values)))
+
+
+def test_a_pinhole_lens_is_not_given_a_distortion():
+    # The same drive through a lens without distortion: the plumb lines' k1 cannot tell a
+    # bow of a few hundredths from the world's curves (their systematic spread), so k1 is
+    # refused and held at 0, and the scale is still measured.
+    pinhole = replace(T, dist=(0.0, 0.0, 0.0, 0.0, 0.0))
+    pairs, motion = synthetic.drive(pinhole)
+    est, sol = calibrate(CalibrationInput(T.image_width, T.image_height, pairs,
+                                          synthetic.lines(pinhole), CameraPrior(), motion))
+    k1 = est.parameters["k1"]
+    assert est.camera.dist[0] == 0.0 and k1.source is ParameterSource.PRIOR
+    assert k1.std >= CalibrationConfig().k1_systematic_std
+    assert "k1" in sol.refused
+    assert any("does not exclude 0" in str(n) for n in est.notes)
+    assert abs(est.camera.fx / T.fx - 1) < 0.03
+    assert abs(est.camera.height_m / T.height_m - 1) < 0.03
+
+
+def test_a_real_distortion_is_kept_with_its_systematic_spread(cues):
+    est, sol = calibrate(_input(cues))
+    k1 = est.parameters["k1"]
+    assert k1.source is ParameterSource.ESTIMATED and not sol.refused
+    # the one-sigma includes the plumb lines' systematic spread, and holds the truth
+    assert k1.std >= CalibrationConfig().k1_systematic_std
+    assert abs(est.camera.dist[0] - T.dist[0]) < 2 * k1.std

@@ -30,6 +30,7 @@ from vid2sim.app.buildgeo import (  # noqa: F401 - ego_without_gps, clip_ego_to_
     ego_without_gps,
     geo_and_camera,
 )
+from vid2sim.app.calibrate import detector_boxes
 from vid2sim.app.camerafile import camera_record, write_camera_file
 from vid2sim.app.figures import stage_figures
 from vid2sim.app.inputs import Inputs
@@ -218,6 +219,7 @@ def build(inputs: Inputs, out_dir: Path, settings: Settings | None = None,
                            inputs.keyframe_calib, inputs.keyframe_rate_hz)
     # The detector (or imported boxes) before any long work: missing weights fail fast.
     detector, imported, boxes_label = load_boxes(inputs, settings)
+    choice.vehicles = detector_boxes(detector, imported)  # cars ahead are not road
     # The output folder last of the checks, first of the work: a read-only or full disk
     # fails now, and everything is written into a staging folder moved into place at the
     # end (removed on an error, Ctrl-C or SIGTERM).

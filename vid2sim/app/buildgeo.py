@@ -111,8 +111,8 @@ def _gps_stages(stages, inputs: Inputs, settings: Settings, info: VideoInfo,
                 choice: selfcal.CameraChoice, duration_s: float, notes: list) -> GeoStage:
     trace = stages.run("read GPS", load_trace, inputs)
     if selfcal.needs_sync(inputs, trace):
-        inputs = stages.run("GPS-video time sync", selfcal.sync_offset, choice, inputs, info,
-                            settings, trace)
+        inputs, trace = stages.run("GPS-video time sync", selfcal.sync_offset, choice,
+                                   inputs, info, settings, trace)
     ego, trace_stats = stages.run("smooth ego trajectory", smooth_trace, trace, inputs,
                                   settings)
     notes.extend(trace_stats.warnings)

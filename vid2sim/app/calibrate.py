@@ -12,6 +12,7 @@ without ``--gps-offset`` and without a clock in the GPS file, the clocks are syn
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -29,7 +30,7 @@ from vid2sim.calib import (
     with_lanes,
 )
 from vid2sim.calib import calibrate as fit_camera
-from vid2sim.calib.sync import estimate_time_offset
+from vid2sim.calib.sync import SyncConfig, estimate_time_offset
 from vid2sim.core.calibration import (
     CameraEstimate,
     EgoMotionSample,
@@ -71,6 +72,39 @@ class Cues:
     lines: list[FrameLines]
     held: dict[int, np.ndarray] = field(default_factory=dict)
     brightness: float = float("nan")
+    #: flow points dropped inside vehicle boxes, and the pairs whose frames were searched
+    masked_points: int = 0
+    masked_pairs: int = 0
+
+
+#: Vehicle boxes (x1, y1, x2, y2) [px] of a frame: (frame index, BGR image) -> boxes.
+VehicleBoxes = Callable[[int, np.ndarray], list[tuple[float, float, float, float]]]
+
+
+def detector_boxes(detector, imported: dict | None = None) -> VehicleBoxes | None:
+    """The vehicle boxes of a frame from the build's imported boxes (by frame) or its
+    detector; None when it has neither."""
+    if imported is not None:
+        return lambda i, _img: [d.box_px for d in imported.get(i, [])]
+    if detector is None:
+        return None
+    return lambda _i, img: [d.box_px for d in detector.detect(img)]
+
+
+def without_vehicles(pair: FlowPair, boxes: list[tuple[float, float, float, float]],
+                     pad: float) -> tuple[FlowPair, int]:
+    """The pair without its points inside any box widened by ``pad`` of its size (in
+    either frame): a car ahead is not road, and the rest of the pair's road still counts."""
+    if not boxes or not len(pair.points_a):
+        return pair, 0
+    keep = np.ones(len(pair.points_a), bool)
+    for x1, y1, x2, y2 in boxes:
+        dx, dy = pad * (x2 - x1), pad * (y2 - y1)
+        for pts in (pair.points_a, pair.points_b):
+            keep &= ~((pts[:, 0] >= x1 - dx) & (pts[:, 0] <= x2 + dx)
+                      & (pts[:, 1] >= y1 - dy) & (pts[:, 1] <= y2 + dy))
+    n = int((~keep).sum())
+    return replace(pair, points_a=pair.points_a[keep], points_b=pair.points_b[keep]), n
 
 
 def plan_frames(info: VideoInfo, cfg: CalibrationConfig) -> tuple[list[int], int, list[int]]:
@@ -86,12 +120,16 @@ def plan_frames(info: VideoInfo, cfg: CalibrationConfig) -> tuple[list[int], int
     return starts, gap, lines
 
 
-def measure_cues(video: Path, info: VideoInfo, fps: float | None, cfg: CalibrationConfig
-                 ) -> Cues:
-    """Stream the planned frames once and measure flow pairs and line evidence."""
+def measure_cues(video: Path, info: VideoInfo, fps: float | None, cfg: CalibrationConfig,
+                 vehicles: VehicleBoxes | None = None, for_sync: bool = False) -> Cues:
+    """Stream the planned frames once and measure flow pairs and line evidence (with
+    ``vehicles``, each pair's points on the vehicles of its earlier frame dropped;
+    ``for_sync``: only what the time sync uses, no edge chains and no frames kept for the lane
+    width)."""
     starts, gap, line_frames = plan_frames(info, cfg)
     ends = {s + gap: s for s in starts}
-    chains_at = set(line_frames[::2])  # edge chains cost ~0.1 s a frame: every other one
+    # edge chains cost ~0.1 s a frame: every other one
+    chains_at = set() if for_sync else set(line_frames[::2])
     wanted = set(starts) | set(ends) | set(line_frames)
     cues = Cues(pairs=[], lines=[])
     pending: dict[int, tuple[np.ndarray, float]] = {}
@@ -105,10 +143,17 @@ def measure_cues(video: Path, info: VideoInfo, fps: float | None, cfg: Calibrati
             pending[i] = (img, frame.t_s)
         if i in ends and ends[i] in pending:
             a, t_a = pending.pop(ends[i])
-            cues.pairs.append(lower_image_flow(a, img, ends[i], i, t_a, frame.t_s))
+            pair = lower_image_flow(a, img, ends[i], i, t_a, frame.t_s)
+            if vehicles is not None:
+                pair, n = without_vehicles(pair, vehicles(ends[i], a), cfg.vehicle_mask_pad)
+                cues.masked_points += n
+                cues.masked_pairs += 1
+            cues.pairs.append(pair)
         if i in line_frames:
             cues.lines.append(frame_lines(img, i, frame.t_s, with_chains=i in chains_at))
             grey_means.append(float(cv2.cvtColor(img, cv2.COLOR_BGR2GRAY).mean()))
+            if for_sync:
+                continue
             scale = min(1.0, HELD_FRAME_WIDTH_PX / img.shape[1])
             cues.held[i] = cv2.resize(img, None, fx=scale, fy=scale,
                                       interpolation=cv2.INTER_AREA) if scale < 1 else img
@@ -233,7 +278,8 @@ def fit_cues(cues: Cues, info: VideoInfo, prior: CameraPrior, cfg: CalibrationCo
     """The camera of the cues (the lane width folded in from the kept frames)."""
     inp = CalibrationInput(width_px=info.width, height_px=info.height, pairs=cues.pairs,
                            lines=cues.lines, prior=prior, motion=motion or None,
-                           lane_prior=lane_prior, gps_label=gps_label)
+                           lane_prior=lane_prior, gps_label=gps_label,
+                           vehicle_points_masked=cues.masked_points)
     est, sol = fit_camera(inp, cfg)
     samples = lane_widths(est.camera, cues.held)
     est = with_lanes(sol, inp, samples, cfg)
@@ -243,14 +289,20 @@ def fit_cues(cues: Cues, info: VideoInfo, prior: CameraPrior, cfg: CalibrationCo
 
 
 def sync_clock(cues: Cues, info: VideoInfo, prior: CameraPrior, trace: GpsTrace,
-               ego_gps_clock: EgoTrack, cfg: CalibrationConfig) -> TimeOffset:
+               ego_gps_clock: EgoTrack, cfg: CalibrationConfig,
+               sync_cfg: SyncConfig | None = None) -> TimeOffset:
     """The video time of the GPS's first fix, from the visual and GPS motion profiles
-    (``ego_gps_clock``: the trajectory smoothed with the first fix at t = 0)."""
-    visual = fit_cues(replace(cues, held={}), info, prior, cfg)
+    (``ego_gps_clock``: the trajectory smoothed with the first fix at t = 0).
+
+    The provisional fit leaves out the edge chains (the plumb-line distortion): on KITTI
+    raw 0001 the four sync cases read the same offsets to 1 ms without them, at 0.7 of
+    the fit's 2.2 CPU s less (docs/calibration.md)."""
+    visual = fit_cues(replace(cues, held={}, lines=[replace(fl, chains=()) for fl in cues.lines]),
+                      info, prior, cfg)
     ta, tb, v, w = visual_profiles(visual, cues.pairs)
     first = min(f.t_utc_s for f in trace.fixes)
     series = gps_series(trace, first, ego_gps_clock)
-    return estimate_time_offset(ta, tb, v, w, *series)
+    return estimate_time_offset(ta, tb, v, w, *series, config=sync_cfg)
 
 
 def lane_prior_from_roads(roads: list, road_source: str | None,

@@ -76,6 +76,8 @@ def camera_record(estimate: CameraEstimate, video: str | None = None,
         t = estimate.time_offset
         rec["gps_offset_s"] = {"value": _number(t.offset_s), "std": _number(t.std_s),
                                "observable": bool(t.observable)}
+        rec["gps_clock_rate"] = {"value": _number(t.rate), "std": _number(t.rate_std),
+                                 "fitted": bool(t.rate_fitted)}
     return rec
 
 

@@ -29,6 +29,7 @@ from vid2sim.app.settings import Settings
 from vid2sim.base.errors import MissingInputError
 from vid2sim.base.fileio import check_output_file
 from vid2sim.calib import CameraPrior, LaneWidthPrior
+from vid2sim.calib.sync import on_video_clock
 from vid2sim.core.calibration import CameraEstimate, TimeOffset
 from vid2sim.core.camera import Camera, fit_camera_to_frames
 from vid2sim.core.records import EgoTrack, GpsTrace, Note, VideoInfo
@@ -44,6 +45,8 @@ class CameraChoice:
     :param cues: the measured cues, when calibrating
     :param estimate: the self-calibration, once made
     :param offset: the GPS clock's estimated offset, when synced
+    :param vehicles: the vehicle boxes of a frame (the run's detector or imported boxes),
+        whose points the road's flow drops; None: no mask (``vid2sim calibrate``)
     """
 
     camera: Camera | None
@@ -53,6 +56,7 @@ class CameraChoice:
     estimate: CameraEstimate | None = None
     offset: TimeOffset | None = None
     cache_key: str | None = None
+    vehicles: cal.VehicleBoxes | None = None
 
     @property
     def calibrating(self) -> bool:
@@ -79,7 +83,7 @@ def measure_cues_for(choice: CameraChoice, inputs: Inputs, info: VideoInfo,
     """Measure the clip's cues (once)."""
     if choice.cues is None:
         choice.cues = cal.measure_cues(Path(inputs.video), info, inputs.fps,
-                                       cal.calibration_config(settings))
+                                       cal.calibration_config(settings), choice.vehicles)
 
 
 def visual_ego_speeds(choice: CameraChoice, info: VideoInfo, settings: Settings
@@ -103,30 +107,37 @@ def needs_sync(inputs: Inputs, trace: GpsTrace | None) -> bool:
 
 
 def sync_offset(choice: CameraChoice, inputs: Inputs, info: VideoInfo, settings: Settings,
-                trace: GpsTrace) -> Inputs:
-    """Estimate the GPS offset from the motion profiles; the inputs with it if observable.
+                trace: GpsTrace) -> tuple[Inputs, GpsTrace]:
+    """Estimate the GPS offset (and clock rate) from the motion profiles; the inputs with
+    the offset and the trace re-timed by the rate (:func:`vid2sim.calib.sync.on_video_clock`)
+    if observable, else both as given.
 
     Measures the cues first if a camera file made that unnecessary so far."""
     cfg = cal.calibration_config(settings)
-    cues = choice.cues or cal.measure_cues(Path(inputs.video), info, inputs.fps, cfg)
+    cues = choice.cues or cal.measure_cues(Path(inputs.video), info, inputs.fps, cfg,
+                                           for_sync=True)
     if cal.check_cues(cues, Path(inputs.video)) is not None:
         choice.notes.append(Note.warning("GPS-video time offset not estimated: the clip "
                                          "shows too little road motion"))
-        return inputs
+        return inputs, trace
     ego0, _ = smooth_ego(trace, rate_hz=settings.rate_hz, gps_offset_s=0.0,
                          params=settings.trace)
     prior = choice.prior if choice.prior is not None else _prior_of(choice.camera)
-    off = cal.sync_clock(cues, info, prior, trace, ego0, cfg)
+    off = cal.sync_clock(cues, info, prior, trace, ego0, cfg, settings.sync)
     choice.offset = off
     if off.observable:
+        rate = (f"; the GPS clock runs at {off.rate:.3f} +- {off.rate_std:.3f} s per video "
+                "second, its fixes re-timed onto the video clock") if off.rate_fitted else ""
         choice.notes.append(Note.estimate(
             f"GPS-video time offset {off.offset_s:+.2f} +- {off.std_s:.2f} s from the motion "
-            f"profiles ({off.reason}): the first fix at video time {off.offset_s:+.2f} s"))
-        return replace(inputs, gps_offset_s=float(off.offset_s))
+            f"profiles ({off.reason}): the first fix at video time {off.offset_s:+.2f} s"
+            + rate))
+        return (replace(inputs, gps_offset_s=float(off.offset_s)),
+                on_video_clock(trace, off.rate) if off.rate_fitted else trace)
     choice.notes.append(Note.warning(
         f"GPS-video time offset not observable: {off.reason}; the first fix is taken as the "
         "first frame (pass --gps-offset)"))
-    return inputs
+    return inputs, trace
 
 
 def _prior_of(camera: Camera | None) -> CameraPrior:
@@ -186,8 +197,11 @@ def camera_line(choice: CameraChoice) -> str:
 # --------------------------------------------------------------------------- the command
 
 
-def run_calibrate(inputs: Inputs, out_path: Path, settings: Settings | None = None) -> str:
-    """``vid2sim calibrate``: self-calibrate the camera of a clip and write its camera file.
+def run_calibrate(inputs: Inputs, out_path: Path, settings: Settings | None = None,
+                  vehicles: cal.VehicleBoxes | None = None) -> str:
+    """``vid2sim calibrate``: self-calibrate the camera of a clip and write its camera file
+    (``vehicles``: a frame's vehicle boxes, whose points the road's flow drops; the command
+    itself loads no detector).
 
     Raises
     ------
@@ -207,6 +221,7 @@ def run_calibrate(inputs: Inputs, out_path: Path, settings: Settings | None = No
     choice = start_camera(replace(inputs, camera=inputs.camera), info, settings)
     if not choice.calibrating:  # a whole camera file: calibrate with it as a prior
         choice = CameraChoice(camera=None, prior=_prior_of(choice.camera))
+    choice.vehicles = vehicles
     check_output_file(out_path)
     measure_cues_for(choice, inputs, info, settings)
     why = cal.check_cues(choice.cues, video)
@@ -217,7 +232,7 @@ def run_calibrate(inputs: Inputs, out_path: Path, settings: Settings | None = No
     if inputs.gps is not None:
         trace = load_trace(inputs)
         if needs_sync(inputs, trace):
-            inputs = sync_offset(choice, inputs, info, settings, trace)
+            inputs, trace = sync_offset(choice, inputs, info, settings, trace)
         ego, _ = smooth_ego(trace, rate_hz=settings.rate_hz, gps_offset_s=inputs.gps_offset_s,
                             params=settings.trace)
     finish_camera(choice, inputs, info, settings, trace, ego)

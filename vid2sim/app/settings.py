@@ -15,6 +15,7 @@ from vid2sim.adas.sensor import SensorConfig
 from vid2sim.base.defaults import EGO_RATE_HZ
 from vid2sim.base.errors import ImpossibleValueError
 from vid2sim.calib.calibconfig import CalibrationConfig
+from vid2sim.calib.sync import SyncConfig
 from vid2sim.detect.lanes.markings import LaneMarkingConfig
 from vid2sim.detect.lanes.track import LaneTrackConfig
 from vid2sim.detect.rail import RailConfig
@@ -150,6 +151,7 @@ class Settings:
     :param commonroad: the CommonRoad export's goal region and header
     :param score: thresholds and weights of test-policy's episode score
     :param calibration: camera self-calibration (priors, noise, frame sampling)
+    :param sync: the GPS-video time sync (grids, noise floors, the clock rate's bound)
     :param camera_cache: keep and reuse self-calibrations per camera (frame size, rate,
         codec) as the prior of that camera's later clips
     :param rate_hz: ego trajectory sample rate [Hz]
@@ -180,6 +182,7 @@ class Settings:
     commonroad: CommonRoadConfig = field(default_factory=CommonRoadConfig)
     score: ScoreConfig = field(default_factory=ScoreConfig)
     calibration: CalibrationConfig = field(default_factory=CalibrationConfig)
+    sync: SyncConfig = field(default_factory=SyncConfig)
     camera_cache: bool = True
     rate_hz: float = EGO_RATE_HZ
     allow_download: bool = True

@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from vid2sim.app.calibrate import detector_boxes
 from vid2sim.app.camerafile import write_camera_file
 from vid2sim.app.inputs import Inputs
 from vid2sim.app.loaders import load_boxes, load_video_info, need_video
@@ -150,6 +151,7 @@ def run_track(inputs: Inputs, out_path: Path, settings: Settings | None = None,
     info = load_video_info(inputs)
     choice = start_camera(inputs, info, settings)
     detector, imported, source = load_boxes(inputs, settings)
+    choice.vehicles = detector_boxes(detector, imported)  # cars ahead are not road
     check_output_file(out_path)
     if plot_dir is not None:
         check_output_folder(plot_dir)

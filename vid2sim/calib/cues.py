@@ -119,6 +119,7 @@ class CalibrationInput:
     """Everything one calibration sees.
 
     :param motion: the GPS motion of each flow pair (same order), None without GPS
+    :param vehicle_points_masked: flow points dropped inside vehicle boxes before the fit
     :param gps_yaw_usable: the GPS's heading is good enough to weigh a turn's image shift
         against (an INS or a smoothed course; see :class:`~vid2sim.calib.CalibrationConfig`)
     """
@@ -132,3 +133,4 @@ class CalibrationInput:
     lane_prior: LaneWidthPrior | None = None
     lane_widths: list[LaneWidthSample] = field(default_factory=list)
     gps_label: str = ""
+    vehicle_points_masked: int = 0

@@ -72,6 +72,8 @@ class Solution:
     n_points: int = 0
     n_chains: int = 0
     n_vp_frames: int = 0
+    #: why an estimated parameter was refused and held at its prior (name -> reason)
+    refused: dict[str, str] = field(default_factory=dict)
 
 
 def _prior(inp: CalibrationInput, cfg: CalibrationConfig) -> tuple[np.ndarray, np.ndarray,
@@ -253,13 +255,10 @@ def _refresh_vp(pr: fit.Problem, inp: CalibrationInput, g: np.ndarray,
     return n
 
 
-def solve_camera(inp: CalibrationInput, cfg: CalibrationConfig | None = None) -> Solution:
-    """Fit the camera to the cues (see the module docstring)."""
-    cfg = cfg or CalibrationConfig()
-    pr, g, m, n_vp = _start(inp, cfg)
-    g = _plumb_start(pr, g)
-    n_vp = _refresh_vp(pr, inp, g, cfg) or n_vp
-    has_flow = pr.pairs is not None and len(pr.pairs.pair) > 0
+def _fit_rounds(pr: fit.Problem, g: np.ndarray, m: np.ndarray, has_flow: bool,
+                cfg: CalibrationConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict,
+                                                 dict]:
+    """The rounds of fits with rejection between them, then the covariance of the last."""
     rounds = [_free(), _free("pitch", "yaw", "log_h"),
               _free("log_f", "k1", "pitch", "yaw", "roll", "log_h")]
     if not has_flow:
@@ -269,8 +268,63 @@ def solve_camera(inp: CalibrationInput, cfg: CalibrationConfig | None = None) ->
         _reject(pr, g, m, cfg)
     g, m, (res, lay), spans = fit.solve(pr, g, m, rounds[-1])
     cov, cue, observable = fit.covariance(pr, g, m, res, lay, spans, cfg.useful_std())
+    return g, m, cov, cue, observable
+
+
+def _k1_refused(pr: fit.Problem, g: np.ndarray, cov: np.ndarray, cfg: CalibrationConfig
+                ) -> str | None:
+    """Why the estimated k1 is refused (within ``k1_exclusion_sigmas`` honest sigmas of
+    0), or None to keep it. The honest sigma adds the plumb lines' systematic scatter."""
+    i = G["k1"]
+    if pr.fixed[i]:
+        return None
+    sd = math.sqrt(max(float(cov[i, i]), 0.0) + cfg.k1_systematic_std ** 2)
+    if abs(float(g[i])) >= cfg.k1_exclusion_sigmas * sd:
+        return None
+    return (f"k1 {g[i]:+.3f} +- {sd:.3f} does not exclude 0 (within "
+            f"{cfg.k1_exclusion_sigmas:g} sigma): held at 0, no distortion")
+
+
+def _without_distortion(pr: fit.Problem, g: np.ndarray, m: np.ndarray, cfg: CalibrationConfig
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict, dict]:
+    """The final fit again with k1 and k2 held at 0 (not a camera file's value: the
+    fixed flags are restored, and k1 reported as the prior)."""
+    held = pr.fixed.copy()
+    mean = pr.prior_mean.copy()
+    pr.fixed[[G["k1"], G["k2"]]] = True
+    pr.prior_mean[[G["k1"], G["k2"]]] = 0.0
+    g = g.copy()
+    g[[G["k1"], G["k2"]]] = 0.0
+    try:
+        g, m, (res, lay), spans = fit.solve(pr, g, m, _free("log_f", "pitch", "yaw", "roll",
+                                                           "log_h"))
+        cov, cue, observable = fit.covariance(pr, g, m, res, lay, spans, cfg.useful_std())
+    finally:
+        pr.fixed, pr.prior_mean = held, mean
+    observable["k1"] = observable["k2"] = False
+    return g, m, cov, cue, observable
+
+
+def solve_camera(inp: CalibrationInput, cfg: CalibrationConfig | None = None) -> Solution:
+    """Fit the camera to the cues (see the module docstring)."""
+    cfg = cfg or CalibrationConfig()
+    pr, g, m, n_vp = _start(inp, cfg)
+    g = _plumb_start(pr, g)
+    n_vp = _refresh_vp(pr, inp, g, cfg) or n_vp
+    has_flow = pr.pairs is not None and len(pr.pairs.pair) > 0
+    g, m, cov, cue, observable = _fit_rounds(pr, g, m, has_flow, cfg)
+    refused = {}
+    why = _k1_refused(pr, g, cov, cfg)
+    if why is not None:
+        k1_std2 = float(cov[G["k1"], G["k1"]]) + cfg.k1_systematic_std ** 2
+        g, m, cov, cue, observable = _without_distortion(pr, g, m, cfg)
+        cov[G["k1"], G["k1"]] = k1_std2
+        refused["k1"] = why
+    elif not pr.fixed[G["k1"]]:
+        cov[G["k1"], G["k1"]] += cfg.k1_systematic_std ** 2
     sol = Solution(g=g, cov=cov, m=m, problem=pr, cue=cue, observable=observable,
-                   n_vp_frames=n_vp, n_chains=0 if pr.chains is None else len(pr.chains[0]))
+                   n_vp_frames=n_vp, n_chains=0 if pr.chains is None else len(pr.chains[0]),
+                   refused=refused)
     if pr.pairs is not None and len(pr.pairs.pair):
         pred, _ = predict_b(g, m, pr.pairs, pr.c)
         sol.flow_rms_px = float(np.sqrt(np.mean(np.sum((pr.pairs.points_b - pred) ** 2, 1))))

@@ -139,7 +139,10 @@ def visual_speeds(sol: Solution, height_m: float) -> list[tuple[float, float]]:
 def _cues_used(sol: Solution, inp: CalibrationInput) -> list[str]:
     out = []
     if sol.n_points:
-        out.append(f"road flow ({sol.n_points} points in {len(inp.pairs)} frame pairs)")
+        masked = (f"; {inp.vehicle_points_masked} points on vehicles dropped"
+                  if inp.vehicle_points_masked else "")
+        out.append(f"road flow ({sol.n_points} points in {len(inp.pairs)} frame pairs"
+                   f"{masked})")
     if inp.motion:
         out.append(f"GPS motion ({inp.gps_label or 'GPS'})")
     if sol.n_vp_frames:
@@ -168,7 +171,11 @@ def _notes(params: dict[str, ParameterEstimate], sol: Solution, inp: Calibration
               "height_m": f"{cfg.height_prior_m:g} m (passenger-car windscreen prior)",
               "k1": "no distortion", "roll_deg": "level", "pitch_deg": "level",
               "yaw_deg": "straight ahead"}
+    for why in sol.refused.values():
+        notes.append(Note.estimate(f"camera {why}"))
     for key, p in params.items():
+        if key in sol.refused:
+            continue
         if p.source is ParameterSource.PRIOR and key in priors and key != "k2":
             z = _prior_sigmas(key, p.value, inp, cfg)
             kept = (f"prior {p.value:.4g} {_KEYS[key][2]} = {priors[key]}" if abs(z) <= 1.0

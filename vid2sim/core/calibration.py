@@ -118,16 +118,24 @@ class ParameterEstimate:
 
 @dataclass(slots=True)
 class TimeOffset:
-    """The GPS clock against the video's: video time of the GPS's t = 0 shift.
+    """The GPS clock against the video's: a fix ``u`` seconds after the first is at video
+    time ``offset_s + u / rate``.
 
-    :param offset_s: add to the GPS file's video times to put them on the video clock [s]
+    :param offset_s: video time of the GPS's first fix [s]
     :param observable: False when the motion was too uniform to tell (``reason`` says why)
+    :param rate: GPS seconds per video second (1: the clocks tick alike; KITTI's video.mp4
+        plays frames captured every 0.1032 s at 0.1 s: 1.03), 1 where not fitted
+    :param rate_std: its one-sigma, 0 where not fitted
+    :param rate_fitted: the rate was observable and is used
     """
 
     offset_s: float
     std_s: float
     observable: bool
     reason: str = ""
+    rate: float = 1.0
+    rate_std: float = 0.0
+    rate_fitted: bool = False
 
 
 @dataclass(slots=True)

@@ -163,13 +163,32 @@ def _corners(grey: np.ndarray, cfg: GroundFlowConfig) -> np.ndarray:
     # Not on an edge: along a painted line or a kerb the motion cannot be seen (the
     # aperture problem) and Lucas-Kanade reports none; a corner's structure tensor has two
     # comparable eigenvalues, an edge's one.
-    eig = cv2.cornerEigenValsAndVecs(grey, cfg.corner_block_px, 3)
     xi = np.clip(np.rint(pts[:, 0]).astype(int), 0, w - 1)
     yi = np.clip(np.rint(pts[:, 1]).astype(int), 0, h - 1)
-    lam = eig[yi, xi, :2]
-    big, small = np.maximum(lam[:, 0], lam[:, 1]), np.minimum(lam[:, 0], lam[:, 1])
+    big, small = _tensor_eigenvalues(grey, xi, yi, cfg.corner_block_px)
     keep = small >= cfg.min_corner_ratio * np.maximum(big, 1e-12)
     return pts[keep].reshape(-1, 1, 2).astype(np.float32)
+
+
+def _tensor_eigenvalues(grey: np.ndarray, xi: np.ndarray, yi: np.ndarray, block: int
+                        ) -> tuple[np.ndarray, np.ndarray]:
+    """The larger and smaller eigenvalue of the structure tensor (3x3 Sobel gradients
+    summed over a ``block`` square, borders reflected) at pixels (``xi``, ``yi``): what
+    ``cv2.cornerEigenValsAndVecs`` gives there, up to a common scale, from a small patch
+    about each point instead of every pixel's 2x2 eigenproblem (a third of the flow's
+    time at 960 px)."""
+    half = block // 2 + 1
+    padded = cv2.copyMakeBorder(grey, half, half, half, half, cv2.BORDER_REFLECT_101)
+    off = np.arange(-half, half + 1)
+    patch = padded[(yi + half)[:, None, None] + off[None, :, None],
+                   (xi + half)[:, None, None] + off[None, None, :]].astype(np.float64)
+    dx = (patch[:, :-2, 2:] - patch[:, :-2, :-2]) + 2 * (patch[:, 1:-1, 2:] - patch[:, 1:-1, :-2]) \
+        + (patch[:, 2:, 2:] - patch[:, 2:, :-2])
+    dy = (patch[:, 2:, :-2] - patch[:, :-2, :-2]) + 2 * (patch[:, 2:, 1:-1] - patch[:, :-2, 1:-1]) \
+        + (patch[:, 2:, 2:] - patch[:, :-2, 2:])
+    a, b, c = ((m * n).sum(axis=(1, 2)) for m, n in ((dx, dx), (dx, dy), (dy, dy)))
+    mean, root = 0.5 * (a + c), np.sqrt((0.5 * (a - c)) ** 2 + b * b)
+    return mean + root, mean - root
 
 
 def _track(grey_from: np.ndarray, grey_to: np.ndarray, pts: np.ndarray,
