@@ -15,6 +15,7 @@ from vid2sim.detect.ranging.scalefilter import (
     filter_range,
     filter_range_adaptive,
     log_width_var,
+    rigid_scale_breaks,
 )
 from vid2sim.detect.ranging.smoother import _kf_rts_cv
 
@@ -102,3 +103,24 @@ def test_rate_survives_a_pitch_drift_the_horizon_does_not_see():
     rate = np.array([b.range_rate_mps for b in res.boxes])
     print(f"pitch drift: rate RMSE {np.sqrt(np.mean((rate + 1) ** 2)):.2f} m/s")
     assert np.sqrt(np.mean((rate + 1) ** 2)) < 0.25
+
+
+def test_a_track_that_takes_up_a_further_object_is_split_where_its_box_shrinks():
+    # a tram receding from 60 to 64 m at 1 m/s (box ~ 1 / Z), a one-second gap, then a car
+    # at 110 m that the tracker gave the same id: both sides of the box halve at once
+    t = np.concatenate((np.arange(40) * 0.1, 5.0 + np.arange(10) * 0.1))
+    z = np.concatenate((60.0 + t[:40], 110.0 + np.zeros(10)))
+    w = np.where(np.arange(50) < 40, 721.5 * 3.6 / z, 721.5 * 1.8 / z)
+    h = np.where(np.arange(50) < 40, 721.5 * 3.5 / z, 721.5 * 1.5 / z)
+    whole = np.ones(50, dtype=bool)
+    args = (1.0, 0.02, 20.0, 3.0)
+    breaks = rigid_scale_breaks(t, w, h, whole, z, *args)
+    assert np.flatnonzero(breaks).tolist() == [40]
+    # a car pulling away at 15 m/s from 20 m is one vehicle throughout
+    t2 = np.arange(30) * 0.1
+    z2 = 20.0 + 15.0 * t2
+    assert not rigid_scale_breaks(t2, 721.5 * 1.8 / z2, 721.5 * 1.5 / z2, np.ones(30, bool),
+                                  z2, *args).any()
+    # a box cut by the border is not compared
+    whole[40] = False
+    assert np.flatnonzero(rigid_scale_breaks(t, w, h, whole, z, *args)).tolist() == [41]

@@ -27,6 +27,8 @@ from vid2sim.detect.ranging.parallax import (
 from vid2sim.detect.ranging.scalefilter import RangeMeasurements, filter_range
 from vid2sim.detect.ranging.surface import (
     StandingTracks,
+    cross_slopes,
+    fit_cross_slope,
     scale_sigmas,
     standing_verdict,
     track_grounds,
@@ -187,6 +189,62 @@ def test_track_grounds_carry_the_neighbours_surface():
     assert lead.height_m == 0.0 and lead.source == "ego plane"
 
 
+def _standing(lateral_m: float, ground_m: float, std_m: float = 0.02) -> StandingFit:
+    return StandingFit(np.array([25.0, lateral_m, W, H, L, ground_m]),
+                       np.diag([1e-4] * 5 + [std_m ** 2]), 1.0, np.zeros(1), np.zeros(1), True)
+
+
+def test_cross_slope_of_a_plane_through_the_ego_lane_with_a_hidden_bottom():
+    cfg = RangingConfig()
+    y = np.array([7.6, 8.0, 8.4, 8.8, 9.2, 8.6])
+    g = -0.04 * y
+    g[-1] += 0.6  # a car whose bottom a hedge hides: its ground reads 0.6 m high
+    c = fit_cross_slope(y, g, np.full(y.size, 0.02), cfg)
+    assert c.slope == pytest.approx(-0.04, abs=0.002)
+    mean, spread = c.at(-5.0)
+    assert mean == pytest.approx(0.20, abs=0.01)
+    assert spread >= cfg.surface_floor_std_m
+    assert fit_cross_slope(y[:2], g[:2], np.full(2, 0.02), cfg) is None
+
+
+@given(st.floats(-0.08, 0.08), st.lists(st.floats(2.0, 6.0), min_size=3, max_size=8))
+def test_cross_slope_recovers_any_plane(slope, offsets):
+    y = 1.8 + np.array(offsets)
+    c = fit_cross_slope(y, slope * y, np.full(y.size, 0.02), RangingConfig())
+    assert c.slope == pytest.approx(slope, abs=1e-4)
+
+
+def test_cross_slope_from_the_surface_next_to_the_ego_lane():
+    cfg = RangingConfig()
+    row = [(y, -0.04 * y, 0.02) for y in (8.0, 8.5, 9.0)]
+    park = [(y, 0.3, 0.02) for y in (18.0, 19.0, 20.0)]  # beyond a hedge: not the road
+    slopes = cross_slopes(row + park, cfg)
+    assert slopes[1].slope == pytest.approx(-0.04, abs=1e-3) and slopes[1].n == 3
+    # no standing vehicle on the right: the same plane (no crown is seen, none assumed)
+    assert slopes[-1] is slopes[1]
+    # a crown: each side its own fall
+    right = [(y, 0.03 * y, 0.02) for y in (-6.0, -6.5, -7.0)]
+    slopes = cross_slopes(row + right, cfg)
+    assert slopes[-1].slope == pytest.approx(0.03, abs=1e-3)
+
+
+def test_a_moving_vehicle_far_from_any_standing_one_takes_the_cross_slope():
+    cfg = RangingConfig()
+    fits = {t: _standing(y, -0.04 * y) for t, y in ((1, 8.0), (2, 8.5), (3, 9.0))}
+    lateral = {1: 8.0, 2: 8.5, 3: 9.0, 4: -5.0, 5: 0.5}
+    grounds = track_grounds(StandingTracks(fits), lateral, cfg)
+    assert grounds[4].source == "road cross slope"
+    slope = cross_slopes([(y, -0.04 * y, 0.02) for y in (8.0, 8.5, 9.0)], cfg)[-1]
+    mean, spread = slope.at(-5.0)
+    prior = math.hypot(cfg.road_height_std_m, cfg.road_height_std_per_lateral_m * (5.0 - 1.8))
+    info = 1 / prior ** 2 + 1 / spread ** 2
+    assert grounds[4].height_m == pytest.approx(mean / spread ** 2 / info)
+    assert 0.1 < grounds[4].height_m < 0.2
+    assert grounds[4].std_m == pytest.approx(info ** -0.5)
+    # in the ego's lane the markings' plane, whatever the slope beside it
+    assert grounds[5].height_m == 0.0 and grounds[5].source == "ego plane"
+
+
 def test_filter_takes_the_ego_speed_as_the_rate_of_a_standing_vehicle():
     # One absolute range, then only the rate a standing vehicle has: the filter's range
     # follows the ego's motion exactly.
@@ -293,3 +351,40 @@ def test_a_car_parked_crosswise_beside_the_road_stands_at_its_nearest_face():
     assert np.median(np.abs(rel)) < 0.03
     rates = np.array([b.range_rate_mps for b in result.boxes])
     assert np.nanmedian(np.abs(rates + 8.0)) < 0.3
+
+
+def _crosswise_boxes(path: EgoPath, centre: tuple[float, float], ground_m: float,
+                     track_id: int, t_end: float = 2.5) -> list[TrackedBox]:
+    """Boxes of a car standing across the road (long axis across the ego's travel)."""
+    shape = shape_matrix([CLASS_SHAPES["car"]])
+    rng = np.random.default_rng(track_id)
+    boxes = []
+    for k, t in enumerate(path.t_s):
+        if t > t_end + 1e-9:
+            break
+        cx = centre[0] - float(np.interp(t, path.t_s, path.x_m))
+        box = outline_boxes(CAM, np.array([cx - L / 2]), np.array([centre[1]]), np.array([W]),
+                            np.array([H]), np.array([L]), shape, math.pi / 2, z_m=ground_m)[0]
+        if box[0] < 10:
+            break
+        boxes.append(TrackedBox(k, round(float(t), 6), track_id, "car", 0.9,
+                                *(box + rng.normal(0, 0.5, 4))))
+    return boxes
+
+
+def test_a_car_park_on_a_road_that_falls_across_stands_on_that_fall():
+    # The road falls 4.75 % to the left: a parked row 8 m to the left stands 0.38 m below
+    # the ego's plane, a car park 20 m to the left 0.95 m below, beyond the 0.8 m that a
+    # kerb or a strip puts a car off the road under it. Alone the car-park car is no
+    # plausible standing car; with the row measuring the fall it stands on it.
+    path = straight_path(8.0)
+    car_park = _crosswise_boxes(path, (45.0, 20.0), -0.95, 9)
+    alone = range_tracks(car_park, CAM, ego_path=path)
+    assert 9 not in alone.standing_tracks
+    row = [b for i, x in enumerate((30.0, 36.0, 42.0))
+           for b in standing_boxes(path, (x, 8.0), track_id=i + 1, ground_m=-0.38,
+                                   t_span=(0.0, 2.5), seed=i)[0]]
+    result = range_tracks(row + car_park, CAM, ego_path=path)
+    assert {1, 2, 3, 9} <= result.standing_tracks
+    assert result.ground_m_by_track[9][0] == pytest.approx(-0.95, abs=0.1)
+    assert result.ground_m_by_track[9][2] == "standing fit"

@@ -203,6 +203,13 @@ class RangingConfig:
         separate pieces: across a longer gap its range and rate are unknown, and carrying
         them over extrapolates a passing car through the camera (a track kept alive by the
         tracker is bridged for at most about a second).
+    filter_max_receding_mps : float
+        The fastest a vehicle draws away from the ego [m/s] (20: 72 km/h faster than the
+        ego); a track whose whole box shrinks faster in width and height than that allows
+        has become another object and is filtered in separate pieces.
+    filter_scale_break_sigmas : float
+        How many edge-noise sigmas beyond that bound a shrink must go, in both width and
+        height, to split the track (3).
     top_alone_max_rel_error : float
         The top edge is a cue without the bottom edge (a near lead whose tyres are below the
         image) only when the vehicle's height is known to better than this share of its
@@ -289,6 +296,17 @@ class RangingConfig:
         Least spread of a ground height from standing vehicles [m]: the road under one car
         differs from its neighbour's by a few centimetres even on a smooth strip (camber,
         drainage gutters, 0.03 m).
+    surface_cross_slope_min_tracks : int
+        Standing vehicles beside the ego's lane that it takes to measure the road's cross
+        slope for the moving vehicles no standing one is near (3: two points and the ego's
+        lane fix a line with one to spare against an outlier).
+    surface_robust_sigmas : float
+        Cauchy scale of that fit, in residual sigmas (2.385: 95 % efficiency on Gaussian
+        residuals, Holland & Welsch 1977); a car whose bottom a hedge hides reads its ground
+        up to half its height too high.
+    surface_band_m : float
+        Lateral width of the surface next to the ego's lane whose standing vehicles give the
+        cross slope [m] (4: a parking strip and a lane's width of scatter about it).
     """
 
     priors: dict[str, VehiclePrior] = field(default_factory=lambda: dict(DEFAULT_PRIORS))
@@ -336,6 +354,8 @@ class RangingConfig:
     loose_size_std_m: float = 1.0
     scale_cue_min_width_share: float = 0.7
     filter_max_gap_s: float = 2.0
+    filter_max_receding_mps: float = 20.0
+    filter_scale_break_sigmas: float = 3.0
     top_alone_max_rel_error: float = 0.25
     max_log_range_std: float = 0.5
     carry_frames: int = 10
@@ -357,6 +377,9 @@ class RangingConfig:
     ego_speed_std_mps: float = 0.1
     surface_lateral_window_m: float = 2.0
     surface_floor_std_m: float = 0.03
+    surface_cross_slope_min_tracks: int = 3
+    surface_robust_sigmas: float = 2.385
+    surface_band_m: float = 4.0
 
     def prior_for(self, category: VehicleCategory) -> VehiclePrior:
         return self.priors.get(category, self.priors[VehicleCategory.CAR])

@@ -51,6 +51,7 @@ from vid2sim.detect.ranging.scalefilter import (
     RangeMeasurements,
     filter_range_adaptive,
     log_width_var,
+    rigid_runs,
 )
 from vid2sim.detect.ranging.smoother import smooth_track
 from vid2sim.detect.ranging.surface import (
@@ -458,9 +459,11 @@ def _range_group(cam: Camera, ba: BoxArrays, t_box: np.ndarray, sizes: BoxSizes,
         fits={t: f for t, f in standing.fits.items() if t in g.tracks}), g.tracks, path, config)
     part = RangeOutput.empty(g.index.size)
     for members in g.tracks.values():
-        for piece in track_pieces(gt[members], fit.valid[members], config.filter_max_gap_s,
-                                  members):
-            _filter_piece(piece, gt, cues, gs, config, part)
+        # a track that changes object (its box shrinks faster than a rigid vehicle can) is
+        # filtered in separate runs
+        for run in rigid_runs(members, gba, gt, fit.range_m, config):
+            for piece in track_pieces(gt[run], fit.valid[run], config.filter_max_gap_s, run):
+                _filter_piece(piece, gt, cues, gs, config, part)
     out.put(g.index, part)
     return int((~fit.valid).sum()), carried
 

@@ -23,10 +23,13 @@ kept as in :func:`vid2sim.detect.ranging.smoother.smooth_track_adaptive`.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from vid2sim.detect.ranging.boxfit import BoxArrays
+from vid2sim.detect.ranging.config import RangingConfig
 from vid2sim.detect.ranging.smoother import (
     DIFFUSE_PRIOR,
     INNOVATION_GATE_NIS,
@@ -260,3 +263,52 @@ def log_width_var(sig_left_px: np.ndarray, sig_right_px: np.ndarray, width_px: n
                   ) -> np.ndarray:
     """Variance of ln(width) of a box whose sides have independent pixel noise."""
     return (sig_left_px ** 2 + sig_right_px ** 2) / np.maximum(width_px, 1.0) ** 2
+
+
+def rigid_scale_breaks(t_s: np.ndarray, width_px: np.ndarray, height_px: np.ndarray,
+                       whole: np.ndarray, range_m: np.ndarray, edge_noise_px: float,
+                       edge_noise_frac: float, max_receding_mps: float, sigmas: float
+                       ) -> np.ndarray:
+    """Where one time-ordered track stops being one rigid vehicle: True at a box whose width
+    AND height shrank from the track's previous whole box (no side cut) by more than any
+    vehicle leaving the ego can make them shrink.
+
+    A rigid vehicle's image size goes as 1 / Z, so over dt its box can shrink by at most
+    Z / (Z + u dt), u the fastest it recedes (``max_receding_mps``), Z the earlier box's
+    single-frame range; ``sigmas`` times the two boxes' edge noise is allowed on top. A
+    box that shrinks more in both directions is another, further object the tracker took
+    up (after an occlusion, across a gap), and a range filter that joined the two would turn
+    the jump into a speed. A box that grows is not tested: an approaching vehicle's growth
+    has no useful bound at short range.
+    """
+    n = len(t_s)
+    out = np.zeros(n, dtype=bool)
+    seen = np.flatnonzero(whole & (width_px > 0) & (height_px > 0) & np.isfinite(range_m)
+                          & (range_m > 0))
+    if seen.size < 2:
+        return out
+    a, b = seen[:-1], seen[1:]
+    dt = t_s[b] - t_s[a]
+    limit = np.log1p(max_receding_mps * np.maximum(dt, 0.0) / range_m[a])
+
+    def shrink_sigmas(size: np.ndarray) -> np.ndarray:
+        s = (edge_noise_px + edge_noise_frac * size) * math.sqrt(2.0) / size
+        ds = -np.log(size[b] / size[a]) - limit
+        return ds / np.hypot(s[a], s[b])
+
+    out[b] = (shrink_sigmas(width_px) > sigmas) & (shrink_sigmas(height_px) > sigmas)
+    return out
+
+
+def rigid_runs(members: np.ndarray, ba: BoxArrays, t_box: np.ndarray, range_m: np.ndarray,
+               config: RangingConfig) -> list[np.ndarray]:
+    """One track's boxes (``members``, time order) split where they stop being one rigid
+    vehicle (:func:`rigid_scale_breaks`); ``range_m``: every box's single-frame range."""
+    whole = ~(ba.cut_left[members] | ba.cut_right[members] | ba.cut_top[members]
+              | ba.cut_bottom[members])
+    breaks = rigid_scale_breaks(t_box[members], ba.x2[members] - ba.x1[members],
+                                ba.y2[members] - ba.y1[members], whole, range_m[members],
+                                config.edge_noise_px, config.edge_noise_frac,
+                                config.filter_max_receding_mps,
+                                config.filter_scale_break_sigmas)
+    return np.split(members, np.flatnonzero(breaks))

@@ -86,11 +86,13 @@ def scale_sigmas(free: StandingFit, prior_mean: np.ndarray, prior_std: np.ndarra
 
 def standing_verdict(fit: StandingFit, free: StandingFit | None, prior_mean: np.ndarray,
                      prior_std: np.ndarray, camera_height_m: float, ground_std_m: float,
-                     config: RangingConfig) -> str | None:
+                     config: RangingConfig, ground_ref_m: float = 0.0) -> str | None:
     """None when ``fit`` (with the class priors) is a plausible standing vehicle whose data
     alone (``free``: the same fit with the size priors let go) need no other scale, else the
     reason it is not. Without ``free`` the scale test is left out (a vehicle moving along the
-    ego's travel expands from the same focus as a standing one)."""
+    ego's travel expands from the same focus as a standing one). ``ground_ref_m``: the road
+    surface's height where the vehicle stands, which its ground may leave by at most
+    ``config.standing_max_ground_m`` (0: the ego's road plane)."""
     if not fit.converged:
         return "the standing fit did not converge"
     if not fit.chi2_per_dof <= config.standing_max_chi2:
@@ -100,11 +102,13 @@ def standing_verdict(fit: StandingFit, free: StandingFit | None, prior_mean: np.
         name = ("width", "height", "length")[int(np.argmax(z))]
         return (f"standing, its {name} would be {fit.theta[2 + int(np.argmax(z))]:.2f} m "
                 f"({z.max():.0f} sigma from its class)")
-    if abs(fit.ground_m) > config.standing_max_ground_m:
-        return f"standing, its ground would be {fit.ground_m:+.2f} m off the ego's road"
+    if abs(fit.ground_m - ground_ref_m) > config.standing_max_ground_m:
+        where = "the ego's road" if ground_ref_m == 0.0 else (
+            f"the road surface there ({ground_ref_m:+.2f} m)")
+        return f"standing, its ground would be {fit.ground_m:+.2f} m, too far off {where}"
     if free is None:
         return None
-    k = scale_sigmas(free, prior_mean, prior_std, camera_height_m, ground_std_m)
+    k = scale_sigmas(free, prior_mean, prior_std, camera_height_m - ground_ref_m, ground_std_m)
     bound = (config.standing_scale_sigmas if abs(fit.theta[1]) <= config.standing_road_half_width_m
              else config.standing_scale_sigmas_beside_road)
     if k > bound:
@@ -162,16 +166,62 @@ def find_standing_tracks(camera: Camera, ba: BoxArrays, t_s: np.ndarray,
             fits = {tid: pr.fit(camera, out.travel_yaw_rad, config, fits[tid].theta)
                     for tid, pr in problems.items()}
     for tid, fit in fits.items():
-        why = problems[tid].verdict(fit, camera, out.travel_yaw_rad, config)
-        if why:
-            fit, why = _one_sided(camera, problems[tid], fit, why, out.travel_yaw_rad, config)
-        if why:
-            fit, why = _crosswise(camera, problems[tid], fit, why, out.travel_yaw_rad, config)
+        fit, why = _verdict_chain(camera, problems[tid], fit, out.travel_yaw_rad, config)
         if why:
             out.rejected[tid] = why
         else:
             out.fits[tid] = fit
+    _admit_on_the_surface(camera, problems, fits, out, config)
     return out
+
+
+def _verdict_chain(camera: Camera, problem: _StandingProblem, fit: StandingFit,
+                   travel_yaw_rad: float, config: RangingConfig
+                   ) -> tuple[StandingFit, str | None]:
+    """A track's standing fit as it is, else refitted without one side, else crosswise: the
+    first plausible one, or the reason none is."""
+    why = problem.verdict(fit, camera, travel_yaw_rad, config)
+    if why:
+        fit, why = _one_sided(camera, problem, fit, why, travel_yaw_rad, config)
+    if why:
+        fit, why = _crosswise(camera, problem, fit, why, travel_yaw_rad, config)
+    return fit, why
+
+
+def _admit_on_the_surface(camera: Camera, problems: dict[int, _StandingProblem],
+                          fits: dict[int, StandingFit], out: StandingTracks,
+                          config: RangingConfig) -> None:
+    """The rejected tracks tried again against the road surface the accepted ones measured.
+
+    The bound on a standing vehicle's ground is for what stands off the road under it
+    (kerbs, strips, crowns); far to the side of a road that falls across, the road itself
+    has left the ego's plane (KITTI raw 0001: 3.5 % to the left, 0.75 m at the car park 21 m
+    away, whose tracklets stand 0.5-0.6 m below). So a rejected track beside the ego's lane
+    is judged again with the cross slope's height at its offset
+    (:func:`cross_slopes`, from the accepted fits) as the reference of that bound, of its
+    ground prior and of the scale test; it stands if then plausible."""
+    slopes = cross_slopes([(float(f.theta[1]), f.ground_m, f.ground_std_m)
+                           for f in out.fits.values()], config)
+    for tid in list(out.rejected):
+        if tid not in fits:
+            continue  # untestable
+        lat = float(fits[tid].theta[1])
+        slope = slopes[1 if lat > 0 else -1]
+        if slope is None or abs(lat) <= config.lane_width_m / 2:
+            continue
+        ref = slope.at(lat)[0]
+        if abs(ref) < config.surface_floor_std_m:
+            continue
+        pr = problems[tid]
+        mean = pr.prior_mean.copy()
+        mean[3] = ref
+        moved = replace(pr, prior_mean=mean, ground_ref_m=ref,
+                        start=np.append(pr.start[:5], ref))
+        fit, why = _verdict_chain(camera, moved, moved.fit(camera, out.travel_yaw_rad, config),
+                                  out.travel_yaw_rad, config)
+        if why is None:
+            out.fits[tid] = fit
+            del out.rejected[tid]
 
 
 def _one_sided(camera: Camera, problem: _StandingProblem, fit: StandingFit, why: str,
@@ -230,6 +280,8 @@ class _StandingProblem:
     ground_std_m: float
     #: the vehicle's heading relative to the ego's travel (0 parallel, pi / 2 crosswise)
     body_yaw_rad: float = 0.0
+    #: the road surface's height where it stands, the reference of its ground's bound [m]
+    ground_ref_m: float = 0.0
 
     @classmethod
     def build(cls, camera: Camera, ba: BoxArrays, t_s: np.ndarray, idx: np.ndarray,
@@ -264,7 +316,7 @@ class _StandingProblem:
             free = replace(self, prior_std=free_std).fit(camera, travel_yaw_rad, config,
                                                          fit.theta)
         return standing_verdict(fit, free, self.prior_mean, self.prior_std, camera.height_m,
-                                self.ground_std_m, config)
+                                self.ground_std_m, config, self.ground_ref_m)
 
     def cost(self, fit: StandingFit) -> float:
         """The fit's robust residual sum (chi2 per degree of freedom times the degrees)."""
@@ -317,6 +369,83 @@ def _untestable(t_s: np.ndarray, path: EgoPath, config: RangingConfig) -> str | 
     return None
 
 
+@dataclass(frozen=True)
+class CrossSlope:
+    """The road's fall across the ego's travel on one side [m of height per m of lateral
+    offset], from the standing vehicles' grounds: its one-sigma error, the robust spread of
+    one vehicle's ground about it [m] and how many grounds measured it."""
+
+    slope: float
+    slope_std: float
+    scatter_m: float
+    n: int
+
+    def at(self, lateral_m: float) -> tuple[float, float]:
+        """The ground height [m] and its one-sigma spread at ``lateral_m``."""
+        return (self.slope * lateral_m,
+                math.hypot(lateral_m * self.slope_std, self.scatter_m))
+
+
+def fit_cross_slope(lateral_m: np.ndarray, ground_m: np.ndarray, std_m: np.ndarray,
+                    config: RangingConfig) -> CrossSlope | None:
+    """The plane through the ego's lane (its markings measure the ground there: height 0)
+    that tilts across the road to the standing vehicles' grounds, g = s y, or None with fewer
+    than ``config.surface_cross_slope_min_tracks`` of them.
+
+    Robust (iteratively reweighted least squares with Cauchy weights at
+    ``config.surface_robust_sigmas`` of the residuals' scale, 1.4826 MAD): a standing fit
+    whose bottom a hedge or a kerb hides reads its ground up to half a car's height too high,
+    and one such must not tilt the plane. The slope's error is the scatter over the lever arm
+    sqrt(sum w y^2); the scatter (at least ``config.surface_floor_std_m``) is how far one car's
+    ground departs from the plane.
+    """
+    y, g = np.asarray(lateral_m, float), np.asarray(ground_m, float)
+    if y.size < config.surface_cross_slope_min_tracks:
+        return None
+    sd = np.maximum(np.asarray(std_m, float), config.surface_floor_std_m)
+    slope = float(np.median(g / y))
+    w = np.ones_like(y)
+    scale = config.surface_floor_std_m
+    for _ in range(20):
+        r = g - slope * y
+        scale = max(1.4826 * float(np.median(np.abs(r - np.median(r)))),
+                    config.surface_floor_std_m)
+        w = 1.0 / (1.0 + (r / (config.surface_robust_sigmas * scale)) ** 2)
+        w = w / (sd ** 2 + scale ** 2) * scale ** 2
+        new = float(np.sum(w * y * g) / np.sum(w * y * y))
+        if abs(new - slope) < 1e-6:
+            slope = new
+            break
+        slope = new
+    slope_std = scale / math.sqrt(float(np.sum(w * y * y)))
+    return CrossSlope(slope, slope_std, scale, int(y.size))
+
+
+def cross_slopes(known: list[tuple[float, float, float]], config: RangingConfig
+                 ) -> dict[int, CrossSlope | None]:
+    """The road's cross slope left (+1) and right (-1) of the ego's lane from the standing
+    vehicles' (lateral, ground, spread) beyond it: on each side the surface next to the
+    ego's lane, the standing vehicles within ``config.surface_band_m`` laterally of the
+    nearest one (a parking strip, the next lane; further out a hedge, a car park or a
+    verge is another surface, not the road's slope). A side without enough of them takes
+    the other side's (one plane through the ego's lane: no crown is seen, so none is
+    assumed)."""
+    half = config.lane_width_m / 2
+    out: dict[int, CrossSlope | None] = {}
+    for side in (1, -1):
+        pts = np.array([k for k in known if side * k[0] > half]).reshape(-1, 3)
+        if pts.size:
+            pts = pts[np.abs(pts[:, 0]) <= np.abs(pts[:, 0]).min() + config.surface_band_m]
+        out[side] = fit_cross_slope(pts[:, 0], pts[:, 1], pts[:, 2], config)
+    return {side: out[side] or out[-side] for side in (1, -1)}
+
+
+def _bayes(prior_std: float, mean: float, spread: float, floor: float) -> tuple[float, float]:
+    """The ego plane (height 0, ``prior_std``) updated by a measurement ``mean`` +- ``spread``."""
+    info = 1.0 / prior_std ** 2 + 1.0 / spread ** 2
+    return (mean / spread ** 2) / info, max(math.sqrt(1.0 / info), floor)
+
+
 def track_grounds(standing: StandingTracks, lateral_by_track: dict[int, float],
                   config: RangingConfig) -> dict[int, TrackGround]:
     """The ground under every track.
@@ -326,11 +455,17 @@ def track_grounds(standing: StandingTracks, lateral_by_track: dict[int, float],
     plane with the spread that grows beside the ego's lane as the prior, updated by the
     standing tracks within ``config.surface_lateral_window_m`` of its lateral offset (their
     inverse-variance mean, spread by the mean's error and their scatter), so that one weak
-    far fit cannot lift a car by its whole prior range.
+    far fit cannot lift a car by its whole prior range; where none stands that near, by the
+    road's cross slope the standing tracks measured (:func:`cross_slopes`) at its offset,
+    with the slope's error times the offset and the cars' scatter about it.
     """
     out: dict[int, TrackGround] = {}
     known = [(float(lateral_by_track[t]), f.ground_m, f.ground_std_m)
              for t, f in standing.fits.items() if t in lateral_by_track]
+    # the slope from the fits' own lateral offsets (the single-frame offsets of a car on
+    # lower ground read it nearer the ego by the same ratio as its range)
+    slopes = cross_slopes([(float(f.theta[1]), f.ground_m, f.ground_std_m)
+                           for t, f in standing.fits.items() if t in lateral_by_track], config)
     for tid, lat in lateral_by_track.items():
         if tid in standing.fits:
             f = standing.fits[tid]
@@ -340,16 +475,20 @@ def track_grounds(standing: StandingTracks, lateral_by_track: dict[int, float],
         prior = road_std_at(lat, config)
         near = [(g, sd) for y, g, sd in known
                 if abs(y - lat) <= config.surface_lateral_window_m]
-        if not near or abs(lat) <= config.lane_width_m / 2:
+        slope = slopes[1 if lat > 0 else -1]
+        if abs(lat) <= config.lane_width_m / 2 or (not near and slope is None):
             out[tid] = TrackGround(0.0, prior, "ego plane")
+            continue
+        if not near:
+            mean, spread = slope.at(lat)
+            out[tid] = TrackGround(*_bayes(prior, mean, spread, config.surface_floor_std_m),
+                                   "road cross slope")
             continue
         g = np.array([v[0] for v in near])
         w = 1.0 / np.maximum(np.array([v[1] for v in near]), config.surface_floor_std_m) ** 2
         mean = float(np.sum(w * g) / np.sum(w))
         spread = math.hypot(1.0 / math.sqrt(float(np.sum(w))),
                             float(np.std(g)) if len(g) > 1 else 0.0)
-        info = 1.0 / prior ** 2 + 1.0 / spread ** 2
-        est = (mean / spread ** 2) / info
-        std = max(math.sqrt(1.0 / info), config.surface_floor_std_m)
-        out[tid] = TrackGround(est, std, "standing neighbours")
+        out[tid] = TrackGround(*_bayes(prior, mean, spread, config.surface_floor_std_m),
+                               "standing neighbours")
     return out
