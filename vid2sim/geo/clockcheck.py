@@ -204,9 +204,17 @@ def _sorted_reading(t: np.ndarray, k: int) -> tuple[np.ndarray, int]:
 
 
 def _period(t: np.ndarray, k: int) -> float:
-    """The receiver's sampling interval near record ``k`` [s]."""
+    """The receiver's sampling interval near record ``k`` [s]: the median forward step,
+    leaving out the steps next to a step back (a record written one place late makes the
+    steps around it two intervals long, and three such swaps in 20 records would double
+    the estimate)."""
     dt = np.diff(t[max(0, k - 10):k + 12])
-    dt = dt[dt > 0]
+    back = dt < 0
+    beside = back.copy()
+    beside[1:] |= back[:-1]
+    beside[:-1] |= back[1:]
+    clean = dt[(dt > 0) & ~beside]
+    dt = clean if clean.size else dt[dt > 0]
     return float(np.median(dt)) if dt.size else 1.0
 
 
@@ -236,7 +244,12 @@ def _crowded(t: np.ndarray, k: int, moved: int) -> bool:
     j = np.searchsorted(before, late)
     lo = before[np.clip(j - 1, 0, before.size - 1)]
     hi = before[np.clip(j, 0, before.size - 1)]
-    no_hole = ((hi - lo) <= 1.5 * _period(t, k)) & (late > before[0])  # earlier than all: no
+    # the interval from the times in order: records written late lengthen the file-order
+    # steps around them, which would hide the hole they fill
+    near = np.diff(np.sort(t[max(0, k - 10):k + 12]))
+    near = near[near > 0]
+    period = min(_period(t, k), float(np.median(near))) if near.size else _period(t, k)
+    no_hole = ((hi - lo) <= 1.5 * period) & (late > before[0])  # earlier than all: no
     return int(np.count_nonzero(no_hole)) * 2 >= moved
 
 
